@@ -1,0 +1,113 @@
+//! The on-disk dataset layout shared by the generator (writer) and the trainer
+//! (reader). It is the authors' layout, so their experiments code reads it:
+//!
+//! ```text
+//! ROOT/manifest.jsonl
+//! ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/Wrist_d435/rgbNNNNN/NNNNN.png
+//! ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/Wrist_d435/rgbNNNNN/sequence.json
+//! ```
+//!
+//! `PRESHAPE_FOLDER` is the authors' folder name (`power_no3`, `lateral_no3`,
+//! `pinch_no3`, `pinch_3`).
+
+use crate::plan::SequencePlan;
+use crate::taxonomy::Preshape;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub const MANIFEST_FILE: &str = "manifest.jsonl";
+pub const SEQUENCE_FILE: &str = "sequence.json";
+pub const WRIST_CAMERA_FOLDER: &str = "Wrist_d435";
+pub const HEAD_CAMERA_FOLDER: &str = "Head_d435";
+/// Minimum zero padding of sequence folders and frame files.
+pub const MIN_PADDING: usize = 5;
+
+/// Padding wide enough for `count` numbers (0..count) and at least
+/// [`MIN_PADDING`], so numbers never overflow their padding and names sort.
+pub fn padding_for(count: u64) -> usize {
+    let max = count.saturating_sub(1);
+    let digits = if max == 0 { 1 } else { max.ilog10() as usize + 1 };
+    digits.max(MIN_PADDING)
+}
+
+/// `ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/CAMERA_FOLDER`.
+pub fn camera_dir(
+    root: &Path,
+    category: &str,
+    object: &str,
+    preshape: Preshape,
+    camera_folder: &str,
+) -> PathBuf {
+    root.join(category)
+        .join(object)
+        .join(preshape.authors_folder())
+        .join(camera_folder)
+}
+
+/// Name of a sequence folder: `rgb` + zero-padded number.
+pub fn sequence_dir_name(number: u64, padding: usize) -> String {
+    format!("rgb{number:0padding$}")
+}
+
+/// Name of a frame file inside a sequence folder.
+pub fn frame_file_name(index: u64, padding: usize) -> String {
+    format!("{index:0padding$}.png")
+}
+
+/// Per-sequence metadata written next to the frames as `sequence.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SequenceRecord {
+    /// The plan the sequence was rendered from (labels, times, poses,
+    /// intrinsics, all sampled values).
+    pub plan: SequencePlan,
+    /// Frame file names, in frame order (same length as `plan.frames`).
+    pub frame_files: Vec<String>,
+    /// Render settings (engine, samples, denoiser, resolution, passes...).
+    pub render: serde_json::Value,
+    /// Version of the generator that wrote it.
+    pub generator_version: String,
+}
+
+/// One line of `ROOT/manifest.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestEntry {
+    /// `SequenceKey::id()` of the sequence.
+    pub id: String,
+    /// Sequence folder, relative to the dataset root, with `/` separators.
+    pub path: String,
+    pub object: String,
+    pub part: String,
+    pub grasp_type: crate::taxonomy::GraspType,
+    pub preshape: Preshape,
+    pub condition: crate::plan::Condition,
+    pub frames: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn padding_grows_instead_of_overflowing() {
+        assert_eq!(padding_for(0), 5);
+        assert_eq!(padding_for(1), 5);
+        assert_eq!(padding_for(100_000), 5);
+        assert_eq!(padding_for(100_001), 6);
+        assert_eq!(padding_for(u64::MAX), 20);
+        assert_eq!(sequence_dir_name(7, 5), "rgb00007");
+        assert_eq!(sequence_dir_name(123_456, padding_for(200_000)), "rgb123456");
+        assert_eq!(frame_file_name(89, 5), "00089.png");
+    }
+
+    #[test]
+    fn layout_uses_the_authors_folder_names() {
+        let dir = camera_dir(
+            Path::new("/data"),
+            "mug",
+            "025_mug",
+            Preshape::Pinch3,
+            WRIST_CAMERA_FOLDER,
+        );
+        assert_eq!(dir, PathBuf::from("/data/mug/025_mug/pinch_3/Wrist_d435"));
+    }
+}

@@ -1,0 +1,1 @@
+//! Streaming pre-shape classification and the Hannes serial link.

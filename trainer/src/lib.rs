@@ -1,0 +1,1 @@
+//! Training and evaluation of the pre-shape classifier.
