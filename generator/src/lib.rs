@@ -1,5 +1,9 @@
 //! Library side of `grasp-gen`: the object catalog, reach planning, rendering
 //! orchestration and the dataset writer.
 
+pub mod appearance;
 pub mod catalog;
+pub mod config;
+pub mod plan;
 pub mod python;
+pub mod render;

@@ -1,0 +1,29 @@
+//! The generator's config file (TOML), shared by `grasp-gen plan` and
+//! `grasp-gen render`. Every section has defaults, so an empty file is a
+//! valid config; `grasp-gen config --print-default` (planned) shows them all.
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GeneratorConfig {
+    /// What to generate: seed, objects, conditions, sequences per pair.
+    pub dataset: crate::plan::DatasetConfig,
+    /// Scene, camera and trajectory parameters of the planner.
+    pub plan: crate::plan::PlanConfig,
+    /// Domain randomization ranges.
+    pub appearance: crate::appearance::AppearanceConfig,
+    /// Engine and output settings of the Blender workers.
+    pub render: crate::render::RenderConfig,
+}
+
+impl GeneratorConfig {
+    /// Reads a config file; errors name the file and the offending field.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config file {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("invalid config file {}", path.display()))
+    }
+}
