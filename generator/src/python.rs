@@ -52,7 +52,10 @@ pub fn workspace_root() -> PathBuf {
 
 /// `site-packages` of the venv, checked to exist.
 pub fn site_packages(venv: &Path) -> Result<PathBuf> {
-    let dir = venv.join("lib").join(PYTHON_VERSION_DIR).join("site-packages");
+    let dir = venv
+        .join("lib")
+        .join(PYTHON_VERSION_DIR)
+        .join("site-packages");
     if !dir.is_dir() {
         bail!(
             "Python environment not found: {} does not exist; {}",

@@ -26,7 +26,11 @@ pub const MIN_PADDING: usize = 5;
 /// [`MIN_PADDING`], so numbers never overflow their padding and names sort.
 pub fn padding_for(count: u64) -> usize {
     let max = count.saturating_sub(1);
-    let digits = if max == 0 { 1 } else { max.ilog10() as usize + 1 };
+    let digits = if max == 0 {
+        1
+    } else {
+        max.ilog10() as usize + 1
+    };
     digits.max(MIN_PADDING)
 }
 
@@ -95,7 +99,10 @@ mod tests {
         assert_eq!(padding_for(100_001), 6);
         assert_eq!(padding_for(u64::MAX), 20);
         assert_eq!(sequence_dir_name(7, 5), "rgb00007");
-        assert_eq!(sequence_dir_name(123_456, padding_for(200_000)), "rgb123456");
+        assert_eq!(
+            sequence_dir_name(123_456, padding_for(200_000)),
+            "rgb123456"
+        );
         assert_eq!(frame_file_name(89, 5), "00089.png");
     }
 
