@@ -4,6 +4,7 @@
 pub mod appearance;
 pub mod catalog;
 pub mod config;
+pub mod geometry;
 pub mod plan;
 pub mod python;
 pub mod render;
