@@ -4,7 +4,9 @@
 pub mod appearance;
 pub mod catalog;
 pub mod config;
+pub mod dataset;
 pub mod geometry;
 pub mod plan;
+pub mod preview;
 pub mod python;
 pub mod render;

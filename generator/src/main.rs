@@ -13,6 +13,16 @@ struct Cli {
 enum Command {
     /// Print where the Python environment is expected and whether it works.
     Doctor,
+    /// Render the configured sequences with headless Blender workers.
+    Render(generator::render::cli::RenderArgs),
+    /// Check a finished dataset, or merge shard outputs.
+    #[command(subcommand)]
+    Dataset(generator::dataset::cli::DatasetCommand),
+    /// Write a contact sheet and an animated GIF of a few sequences.
+    Preview(generator::preview::PreviewArgs),
+    /// A rendering worker process (started by `render`).
+    #[command(hide = true)]
+    Worker,
 }
 
 fn main() -> Result<()> {
@@ -26,6 +36,10 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Doctor => doctor(),
+        Command::Render(args) => generator::render::cli::run_render(&args),
+        Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
+        Command::Preview(args) => generator::preview::run(&args),
+        Command::Worker => generator::render::cli::run_worker(),
     }
 }
 

@@ -1,9 +1,220 @@
-//! Rendering orchestration with headless Blender workers. (Owned by the
-//! rendering work; to be filled in.)
+//! Rendering orchestration with headless Blender workers.
+//!
+//! `grasp-gen render` plans sequences in this process and hands them to N
+//! worker processes (`grasp-gen worker`, the same binary), each embedding
+//! Python with `bpy` imported once and the scene built once. Parent and
+//! workers talk JSON lines over pipes ([`protocol`]); finished sequences are
+//! moved into the dataset atomically ([`crate::dataset::writer`]).
 
+pub mod cli;
+pub mod orchestrator;
+pub mod planner_source;
+pub mod protocol;
+pub mod scene;
+pub mod shard;
+pub mod source;
+pub mod worker;
+
+use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 
-/// Engine and output settings.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub use orchestrator::{render, RenderOptions, RenderSummary};
+pub use scene::SceneGeometry;
+pub use shard::Shard;
+pub use source::{PlanSource, PlannedKey};
+
+/// Render engine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Engine {
+    /// Path tracing; the default, realistic with the denoiser at few samples.
+    Cycles,
+    /// Rasterised flat studio lighting: fast previews and tests.
+    Workbench,
+    /// Blender's real-time engine; meant for machines with a GPU.
+    Eevee,
+}
+
+/// Image passes a sequence can carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Pass {
+    Rgb,
+    /// Camera distance, in a multilayer EXR next to each PNG.
+    Depth,
+    /// Object index (1 object, 2 hand, 3 table), in the same EXR.
+    Instance,
+}
+
+/// Cycles light bounces.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct RenderConfig {}
+pub struct Bounces {
+    pub total: u32,
+    pub diffuse: u32,
+    pub glossy: u32,
+    pub transmission: u32,
+    pub transparent: u32,
+}
+
+impl Default for Bounces {
+    fn default() -> Self {
+        Bounces {
+            total: 3,
+            diffuse: 2,
+            glossy: 1,
+            transmission: 1,
+            transparent: 2,
+        }
+    }
+}
+
+/// Engine and output settings (`[render]` in the config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderConfig {
+    pub engine: Engine,
+    /// Samples per pixel (Cycles, EEVEE); Workbench uses 8x anti-aliasing at
+    /// 8 or more, none below.
+    pub samples: u32,
+    /// `openimagedenoise` or `none` (Cycles).
+    pub denoiser: String,
+    /// OpenImageDenoise prefilter of the albedo and normal guides: `none`,
+    /// `fast` or `accurate`.
+    pub denoising_prefilter: String,
+    /// Cycles adaptive-sampling noise threshold; 0 disables it.
+    pub adaptive_threshold: f64,
+    pub bounces: Bounces,
+    /// Clamp of indirect light, which removes fireflies at few samples.
+    pub clamp_indirect: f64,
+    pub passes: Vec<Pass>,
+    /// Blender view transform: `AgX` (filmic, the default) or `Standard`.
+    pub view_transform: String,
+    /// Render threads per worker; 0 lets Blender use every core.
+    pub threads: u32,
+    /// Render all frames of a sequence in one animation call (keeps Cycles'
+    /// scene in memory between frames) instead of one call per frame.
+    pub one_call: bool,
+    /// PNG compression, 0 to 100.
+    pub png_compression: u32,
+    /// Worker processes (the `--workers` flag overrides it).
+    pub workers: usize,
+    /// A worker is restarted after this many sequences (Blender's memory
+    /// grows in long runs).
+    pub recycle_every: usize,
+    /// Attempts after the first for a sequence whose worker failed.
+    pub max_retries: u32,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig {
+            engine: Engine::Cycles,
+            samples: 8,
+            denoiser: "openimagedenoise".into(),
+            denoising_prefilter: "fast".into(),
+            adaptive_threshold: 0.0,
+            bounces: Bounces::default(),
+            clamp_indirect: 3.0,
+            passes: vec![Pass::Rgb],
+            view_transform: "AgX".into(),
+            threads: 0,
+            one_call: true,
+            png_compression: 15,
+            workers: 1,
+            recycle_every: 50,
+            max_retries: 2,
+        }
+    }
+}
+
+impl RenderConfig {
+    /// Checks values; errors name the `[render]` field.
+    pub fn validate(&self) -> Result<()> {
+        if self.samples == 0 {
+            bail!("[render] samples: must be at least 1");
+        }
+        if !["openimagedenoise", "none"].contains(&self.denoiser.as_str()) {
+            bail!(
+                "[render] denoiser: unknown '{}' (expected openimagedenoise or none)",
+                self.denoiser
+            );
+        }
+        if !["none", "fast", "accurate"].contains(&self.denoising_prefilter.as_str()) {
+            bail!(
+                "[render] denoising_prefilter: unknown '{}' (expected none, fast or accurate)",
+                self.denoising_prefilter
+            );
+        }
+        if !["AgX", "Standard", "Filmic"].contains(&self.view_transform.as_str()) {
+            bail!(
+                "[render] view_transform: unknown '{}' (expected AgX, Standard or Filmic)",
+                self.view_transform
+            );
+        }
+        if !self.passes.contains(&Pass::Rgb) {
+            bail!("[render] passes: must include \"rgb\"");
+        }
+        if self.png_compression > 100 {
+            bail!("[render] png_compression: must be 0 to 100");
+        }
+        if self.workers == 0 || self.recycle_every == 0 {
+            bail!("[render] workers and recycle_every must be at least 1");
+        }
+        if !(self.adaptive_threshold >= 0.0 && self.clamp_indirect >= 0.0) {
+            bail!("[render] adaptive_threshold and clamp_indirect must be >= 0");
+        }
+        Ok(())
+    }
+
+    /// The settings the Blender side reads (`blender_scripts/render.py`);
+    /// also recorded in every `sequence.json`. Orchestration-only fields
+    /// (workers, recycling, retries) are left out: they do not change pixels.
+    pub fn blender_settings(&self) -> serde_json::Value {
+        let prefilter = self.denoising_prefilter.to_ascii_uppercase();
+        serde_json::json!({
+            "engine": self.engine,
+            "samples": self.samples,
+            "denoiser": self.denoiser,
+            "denoising_prefilter": prefilter,
+            "adaptive_threshold": self.adaptive_threshold,
+            "bounces": self.bounces,
+            "clamp_indirect": self.clamp_indirect,
+            "passes": self.passes,
+            "view_transform": self.view_transform,
+            "threads": self.threads,
+            "one_call": self.one_call,
+            "png_compression": self.png_compression,
+            "blender": "5.0",
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_valid_cycles_rgb() {
+        let c = RenderConfig::default();
+        c.validate().unwrap();
+        let s = c.blender_settings();
+        assert_eq!(s["engine"], "cycles");
+        assert_eq!(s["passes"], serde_json::json!(["rgb"]));
+        assert_eq!(s["denoising_prefilter"], "FAST");
+    }
+
+    #[test]
+    fn config_parses_and_rejects_unknown_fields() {
+        let c: RenderConfig =
+            toml::from_str("engine = \"workbench\"\npasses = [\"rgb\", \"depth\"]").unwrap();
+        assert_eq!(c.engine, Engine::Workbench);
+        assert_eq!(c.passes, vec![Pass::Rgb, Pass::Depth]);
+        assert!(toml::from_str::<RenderConfig>("sample = 3").is_err());
+        let bad = RenderConfig {
+            denoiser: "optix".into(),
+            ..Default::default()
+        };
+        assert!(format!("{:#}", bad.validate().unwrap_err()).contains("[render] denoiser"));
+    }
+}

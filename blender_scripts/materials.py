@@ -1,0 +1,181 @@
+"""Procedural surface materials, rebuilt from an Appearance value per sequence.
+
+Each family is a small shader graph whose parameters (two colours, scale,
+roughness, one family-specific `detail` in [0, 1]) all come from the plan.
+"""
+
+import bpy
+
+# The held-out family: a gingham tablecloth, used only for the `background`
+# test condition (the paper's "different background" set varies the cloth).
+HELD_OUT_FAMILY = "gingham"
+FAMILIES = ("noise", "voronoi", "brick", "checker", "wave", "marble", "image", HELD_OUT_FAMILY)
+
+
+def _rgba(c):
+    return (float(c[0]), float(c[1]), float(c[2]), 1.0)
+
+
+def _clear(mat):
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    mat.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return nodes, mat.node_tree.links, bsdf
+
+
+def _uv_vector(nodes, links, scale):
+    """UV coordinates (the room meshes carry UVs in metres) times `scale`."""
+    coord = nodes.new("ShaderNodeTexCoord")
+    mapping = nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (scale, scale, scale)
+    links.new(coord.outputs["UV"], mapping.inputs["Vector"])
+    return mapping.outputs["Vector"]
+
+
+def _ramp(nodes, links, fac_socket, a, b):
+    ramp = nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = _rgba(a)
+    ramp.color_ramp.elements[1].color = _rgba(b)
+    links.new(fac_socket, ramp.inputs["Fac"])
+    return ramp.outputs["Color"]
+
+
+def _noise(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexNoise")
+    tex.inputs["Detail"].default_value = 2.0 + 8.0 * spec["detail"]
+    tex.inputs["Roughness"].default_value = 0.55
+    links.new(vec, tex.inputs["Vector"])
+    return _ramp(nodes, links, tex.outputs["Fac"], spec["color_a"], spec["color_b"])
+
+
+def _voronoi(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexVoronoi")
+    tex.inputs["Randomness"].default_value = 0.5 + 0.5 * spec["detail"]
+    links.new(vec, tex.inputs["Vector"])
+    return _ramp(nodes, links, tex.outputs["Distance"], spec["color_a"], spec["color_b"])
+
+
+def _brick(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexBrick")
+    tex.inputs["Color1"].default_value = _rgba(spec["color_a"])
+    tex.inputs["Color2"].default_value = _rgba([0.8 * c for c in spec["color_a"]])
+    tex.inputs["Mortar"].default_value = _rgba(spec["color_b"])
+    tex.inputs["Mortar Size"].default_value = 0.005 + 0.03 * spec["detail"]
+    links.new(vec, tex.inputs["Vector"])
+    return tex.outputs["Color"]
+
+
+def _checker(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexChecker")
+    tex.inputs["Color1"].default_value = _rgba(spec["color_a"])
+    tex.inputs["Color2"].default_value = _rgba(spec["color_b"])
+    links.new(vec, tex.inputs["Vector"])
+    return tex.outputs["Color"]
+
+
+def _wave(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexWave")
+    tex.inputs["Distortion"].default_value = 8.0 * spec["detail"]
+    tex.inputs["Detail"].default_value = 2.0
+    links.new(vec, tex.inputs["Vector"])
+    return _ramp(nodes, links, tex.outputs["Fac"], spec["color_a"], spec["color_b"])
+
+
+def _marble(nodes, links, vec, spec):
+    # Veins: a sine wave whose phase is pushed around by fractal noise.
+    tex = nodes.new("ShaderNodeTexWave")
+    tex.wave_profile = "SIN"
+    tex.inputs["Distortion"].default_value = 12.0 + 10.0 * spec["detail"]
+    tex.inputs["Detail"].default_value = 6.0
+    tex.inputs["Detail Scale"].default_value = 1.5
+    links.new(vec, tex.inputs["Vector"])
+    ramp = nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.0
+    ramp.color_ramp.elements[0].color = _rgba(spec["color_b"])
+    ramp.color_ramp.elements[1].position = 0.25
+    ramp.color_ramp.elements[1].color = _rgba(spec["color_a"])
+    links.new(tex.outputs["Fac"], ramp.inputs["Fac"])
+    return ramp.outputs["Color"]
+
+
+def _image(nodes, links, vec, spec):
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(spec["image"], check_existing=True)
+    links.new(vec, tex.inputs["Vector"])
+    return tex.outputs["Color"]
+
+
+def _gingham(nodes, links, vec, spec):
+    # Two perpendicular square-wave stripe sets; where both overlap the colour
+    # is darkest, as in a woven gingham cloth.
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(vec, sep.inputs["Vector"])
+    stripes = []
+    for axis in ("X", "Y"):
+        frac = nodes.new("ShaderNodeMath")
+        frac.operation = "FRACT"
+        links.new(sep.outputs[axis], frac.inputs[0])
+        step = nodes.new("ShaderNodeMath")
+        step.operation = "LESS_THAN"
+        step.inputs[1].default_value = 0.3 + 0.4 * spec["detail"]
+        links.new(frac.outputs[0], step.inputs[0])
+        stripes.append(step.outputs[0])
+    add = nodes.new("ShaderNodeMath")
+    add.operation = "MULTIPLY_ADD"
+    add.inputs[1].default_value = 0.5
+    links.new(stripes[0], add.inputs[0])
+    half = nodes.new("ShaderNodeMath")
+    half.operation = "MULTIPLY"
+    half.inputs[1].default_value = 0.5
+    links.new(stripes[1], half.inputs[0])
+    links.new(half.outputs[0], add.inputs[2])
+    return _ramp(nodes, links, add.outputs[0], spec["color_a"], spec["color_b"])
+
+
+_BUILDERS = {
+    "noise": _noise,
+    "voronoi": _voronoi,
+    "brick": _brick,
+    "checker": _checker,
+    "wave": _wave,
+    "marble": _marble,
+    "image": _image,
+    HELD_OUT_FAMILY: _gingham,
+}
+
+
+def apply_surface(mat, spec):
+    """Rebuilds `mat`'s node tree from a SurfaceMaterial dict."""
+    family = spec["family"]
+    if family not in _BUILDERS:
+        raise ValueError(f"unknown texture family '{family}' (expected one of {FAMILIES})")
+    nodes, links, bsdf = _clear(mat)
+    vec = _uv_vector(nodes, links, float(spec["scale"]))
+    color = _BUILDERS[family](nodes, links, vec, spec)
+    links.new(color, bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = float(spec["roughness"])
+    mean = [(a + b) / 2 for a, b in zip(spec["color_a"], spec["color_b"])]
+    mat.diffuse_color = _rgba(mean)  # what Workbench shows
+
+
+def apply_plain(mat, color, roughness, metallic=0.0):
+    """A single-colour principled material."""
+    _, _, bsdf = _clear(mat)
+    bsdf.inputs["Base Color"].default_value = _rgba(color)
+    bsdf.inputs["Roughness"].default_value = float(roughness)
+    bsdf.inputs["Metallic"].default_value = float(metallic)
+    mat.diffuse_color = _rgba(color)  # what Workbench shows
+
+
+def emission(mat, strength):
+    """A white emissive material (the ceiling lamp's diffuser)."""
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    emit = nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = strength
+    mat.node_tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])

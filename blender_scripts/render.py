@@ -1,0 +1,123 @@
+"""Engine settings and frame output."""
+
+import os
+
+import bpy
+
+ENGINES = {"cycles": "CYCLES", "workbench": "BLENDER_WORKBENCH", "eevee": "BLENDER_EEVEE"}
+PASSES = ("rgb", "depth", "instance")
+# Object pass indices written to the `instance` pass (IndexOB).
+INDEX_OBJECT, INDEX_HAND, INDEX_TABLE = 1, 2, 3
+
+
+def configure(settings):
+    """Applies the engine settings (a RenderConfig-derived dict) once."""
+    scene = bpy.context.scene
+    engine = settings["engine"]
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine '{engine}' (expected one of {sorted(ENGINES)})")
+    scene.render.engine = ENGINES[engine]
+    scene.render.use_persistent_data = bool(settings.get("persistent_data", True))
+    scene.render.threads_mode = "FIXED" if settings.get("threads", 0) else "AUTO"
+    if settings.get("threads", 0):
+        scene.render.threads = int(settings["threads"])
+    # No date, render time or names in the PNG metadata: identical inputs
+    # must give identical files.
+    for prop in dir(scene.render):
+        if prop.startswith("use_stamp"):
+            setattr(scene.render, prop, False)
+    scene.render.film_transparent = False
+    scene.render.use_motion_blur = False
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGB"
+    scene.render.image_settings.color_depth = "8"
+    scene.render.image_settings.compression = int(settings.get("png_compression", 15))
+    scene.view_settings.view_transform = settings.get("view_transform", "AgX")
+    scene.view_settings.look = "None"
+    if engine == "cycles":
+        _cycles(scene, settings)
+    elif engine == "workbench":
+        _workbench(scene, settings)
+    else:
+        scene.eevee.taa_render_samples = int(settings["samples"])
+    layer = bpy.context.view_layer
+    passes = settings.get("passes", ["rgb"])
+    unknown = [p for p in passes if p not in PASSES]
+    if unknown:
+        raise ValueError(f"unknown passes {unknown} (expected some of {PASSES})")
+    layer.use_pass_z = "depth" in passes
+    layer.use_pass_object_index = "instance" in passes
+
+
+def _cycles(scene, s):
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = int(s["samples"])
+    c.use_adaptive_sampling = s.get("adaptive_threshold", 0.0) > 0.0
+    if c.use_adaptive_sampling:
+        c.adaptive_threshold = float(s["adaptive_threshold"])
+    denoiser = s.get("denoiser", "openimagedenoise")
+    c.use_denoising = denoiser != "none"
+    if c.use_denoising:
+        c.denoiser = "OPENIMAGEDENOISE"
+        c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+        c.denoising_prefilter = s.get("denoising_prefilter", "FAST")
+    b = s["bounces"]
+    c.max_bounces = int(b["total"])
+    c.diffuse_bounces = int(b["diffuse"])
+    c.glossy_bounces = int(b["glossy"])
+    c.transmission_bounces = int(b["transmission"])
+    c.transparent_max_bounces = int(b["transparent"])
+    c.volume_bounces = 0
+    c.caustics_reflective = False
+    c.caustics_refractive = False
+    c.blur_glossy = 1.0
+    c.sample_clamp_indirect = float(s.get("clamp_indirect", 3.0))
+    c.use_light_tree = True
+    c.seed = int(s.get("seed", 0))
+    c.tile_size = 2048
+    scene.render.filter_size = 1.5
+
+
+def _workbench(scene, s):
+    shading = scene.display.shading
+    shading.light = "STUDIO"
+    shading.color_type = "MATERIAL"
+    shading.show_shadows = True
+    shading.show_cavity = False
+    scene.display.render_aa = "8" if int(s["samples"]) >= 8 else "OFF"
+
+
+def extra_passes(settings):
+    return [p for p in settings.get("passes", ["rgb"]) if p != "rgb"]
+
+
+def write_frame(png_path, exr_path=None):
+    """Saves the last render as PNG, and as multilayer EXR (depth, masks) if asked."""
+    scene = bpy.context.scene
+    image = bpy.data.images["Render Result"]
+    image.save_render(png_path, scene=scene)
+    if exr_path:
+        fmt = scene.render.image_settings
+        fmt.file_format = "OPEN_EXR_MULTILAYER"
+        fmt.color_depth = "32"
+        try:
+            image.save_render(exr_path, scene=scene)
+        finally:
+            fmt.file_format = "PNG"
+            fmt.color_mode = "RGB"
+            fmt.color_depth = "8"
+
+
+def render_still():
+    bpy.ops.render.render(write_still=False)
+
+
+def render_animation(out_dir, first, last, padding):
+    """Renders frames first..last in one call; Blender names them by number."""
+    scene = bpy.context.scene
+    scene.frame_start = first
+    scene.frame_end = last
+    scene.render.filepath = os.path.join(out_dir, "#" * padding)
+    scene.render.use_file_extension = True
+    bpy.ops.render.render(animation=True)

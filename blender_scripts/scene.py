@@ -1,0 +1,213 @@
+"""The static scene, built once per worker: room, table, forearm and hand
+with the wrist camera, and an empty slot for the sequence's object.
+
+World frame: metres, Z up, floor at z = 0. Camera frame (Blender): looks
+along local -Z, +Y up in the image.
+"""
+
+import bpy
+
+from blender_scripts import materials
+
+# Hand and forearm in the camera frame. The camera sits below the wrist,
+# looking along the forearm, so the hand's back and fingers enter the top of
+# the image while the forearm stays behind the camera.
+HAND_OFFSET = (0.0, 0.075, -0.02)
+
+
+def _face_uv(verts, face):
+    """Planar UVs in metres, projected along the face's dominant normal axis."""
+    a, b, c = (verts[i] for i in face[:3])
+    u = [b[k] - a[k] for k in range(3)]
+    v = [c[k] - a[k] for k in range(3)]
+    n = [
+        abs(u[1] * v[2] - u[2] * v[1]),
+        abs(u[2] * v[0] - u[0] * v[2]),
+        abs(u[0] * v[1] - u[1] * v[0]),
+    ]
+    axis = n.index(max(n))
+    keep = [k for k in range(3) if k != axis]
+    return [(verts[i][keep[0]], verts[i][keep[1]]) for i in face]
+
+
+def mesh_object(name, verts, faces, material=None, uv=True):
+    """An object from polygons, with planar UVs in metres."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    if uv:
+        layer = mesh.uv_layers.new(name="UVMap")
+        loop = 0
+        for face in faces:
+            for coord in _face_uv(verts, face):
+                layer.data[loop].uv = coord
+                loop += 1
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    if material is not None:
+        mesh.materials.append(material)
+    return obj
+
+
+def box(name, lo, hi, material=None):
+    """An axis-aligned box from its two corners."""
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    verts = [
+        (x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+        (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1),
+    ]  # fmt: skip
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return mesh_object(name, verts, faces, material)
+
+
+def cylinder(name, radius, length, segments=16, material=None):
+    """A capped cylinder along local +Z from z = 0 to z = length, smooth shaded."""
+    import math
+
+    ring = [
+        (
+            radius * math.cos(2 * math.pi * i / segments),
+            radius * math.sin(2 * math.pi * i / segments),
+        )
+        for i in range(segments)
+    ]
+    verts = [(x, y, 0.0) for x, y in ring] + [(x, y, length) for x, y in ring]
+    faces = [
+        (i, (i + 1) % segments, segments + (i + 1) % segments, segments + i)
+        for i in range(segments)
+    ]
+    faces.append(tuple(reversed(range(segments))))
+    faces.append(tuple(range(segments, 2 * segments)))
+    obj = mesh_object(name, verts, faces, material, uv=False)
+    for poly in obj.data.polygons[:segments]:
+        poly.use_smooth = True
+    return obj
+
+
+class Room:
+    """Floor, four walls, ceiling with a lamp, and a table, from the planner's
+    scene geometry (so what is planned and what is drawn agree)."""
+
+    def __init__(self, geometry):
+        room = geometry["room"]
+        table = geometry["table"]
+        self.wall_mat = bpy.data.materials.new("wall")
+        self.floor_mat = bpy.data.materials.new("floor")
+        self.table_mat = bpy.data.materials.new("table")
+        ceiling_mat = bpy.data.materials.new("ceiling")
+        materials.apply_plain(ceiling_mat, (0.8, 0.8, 0.8), 0.9)
+        leg_mat = bpy.data.materials.new("table_leg")
+        materials.apply_plain(leg_mat, (0.05, 0.05, 0.05), 0.4, metallic=0.8)
+
+        (x0, y0), (x1, y1) = room["min_xy"], room["max_xy"]
+        h = room["height"]
+        mesh_object(
+            "floor",
+            [(x0, y0, 0), (x1, y0, 0), (x1, y1, 0), (x0, y1, 0)],
+            [(0, 1, 2, 3)],
+            self.floor_mat,
+        )
+        mesh_object(
+            "ceiling",
+            [(x0, y0, h), (x0, y1, h), (x1, y1, h), (x1, y0, h)],
+            [(0, 1, 2, 3)],
+            ceiling_mat,
+        )
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+        for i in range(4):
+            (ax, ay), (bx, by) = corners[i], corners[(i + 1) % 4]
+            verts = [(ax, ay, 0), (bx, by, 0), (bx, by, h), (ax, ay, h)]
+            mesh_object(f"wall{i}", verts, [(0, 1, 2, 3)], self.wall_mat)
+
+        lamp_mat = bpy.data.materials.new("lamp")
+        materials.emission(lamp_mat, 6.0)
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        lamp = cylinder("ceiling_lamp", 0.25, 0.04, segments=24, material=lamp_mat)
+        lamp.location = (cx, cy, h - 0.04)
+
+        (tx0, ty0), (tx1, ty1) = table["min_xy"], table["max_xy"]
+        top, thick = table["height"], table["thickness"]
+        box("table_top", (tx0, ty0, top - thick), (tx1, ty1, top), self.table_mat)
+        leg = 0.05
+        inset = 0.05
+        for i, (lx, ly) in enumerate(
+            [
+                (tx0 + inset, ty0 + inset),
+                (tx1 - inset - leg, ty0 + inset),
+                (tx1 - inset - leg, ty1 - inset - leg),
+                (tx0 + inset, ty1 - inset - leg),
+            ]
+        ):
+            box(f"table_leg{i}", (lx, ly, 0.0), (lx + leg, ly + leg, top - thick), leg_mat)
+
+
+class Arm:
+    """The wrist camera with a simple forearm and prosthetic hand rigidly
+    attached: the camera is below the wrist, the hand above and ahead."""
+
+    def __init__(self):
+        cam_data = bpy.data.cameras.new("wrist_camera")
+        self.camera = bpy.data.objects.new("wrist_camera", cam_data)
+        self.camera.rotation_mode = "QUATERNION"
+        bpy.context.scene.collection.objects.link(self.camera)
+        bpy.context.scene.camera = self.camera
+
+        shell = bpy.data.materials.new("hand_shell")
+        materials.apply_plain(shell, (0.03, 0.03, 0.035), 0.35)
+        sleeve = bpy.data.materials.new("sleeve")
+        materials.apply_plain(sleeve, (0.12, 0.16, 0.25), 0.8)
+        self.parts = []
+        ox, oy, oz = HAND_OFFSET
+        # Forearm: behind the camera, along +Z of the camera frame.
+        forearm = cylinder("forearm", 0.04, 0.30, material=sleeve)
+        forearm.location = (ox, oy, oz + 0.02)
+        self._attach(forearm)
+        # Palm: a flat box ahead of the wrist, back of the hand facing the camera.
+        palm = box("palm", (-0.042, -0.012, -0.10), (0.042, 0.022, 0.0), shell)
+        palm.location = (ox, oy + 0.01, oz)
+        self._attach(palm)
+        for i, x in enumerate((-0.030, -0.010, 0.010, 0.030)):
+            finger = cylinder(f"finger{i}", 0.0085, 0.075, material=shell)
+            finger.rotation_euler = (3.14159265, 0.0, 0.0)  # point along -Z
+            finger.location = (ox + x, oy + 0.016, oz - 0.095)
+            self._attach(finger)
+        thumb = cylinder("thumb", 0.010, 0.06, material=shell)
+        thumb.rotation_euler = (2.5, 0.6, 0.0)
+        thumb.location = (ox - 0.045, oy - 0.005, oz - 0.03)
+        self._attach(thumb)
+
+    def _attach(self, obj):
+        obj.parent = self.camera
+        self.parts.append(obj)
+
+    def set_hand_visible(self, visible):
+        for obj in self.parts:
+            obj.hide_render = not visible
+
+    def set_intrinsics(self, k):
+        """Pinhole intrinsics (pixels) to Blender's sensor/shift model."""
+        cam = self.camera.data
+        w, h = k["width"], k["height"]
+        cam.sensor_fit = "HORIZONTAL" if w >= h else "VERTICAL"
+        cam.sensor_width = 36.0
+        cam.sensor_height = 36.0
+        if w >= h:
+            cam.lens = cam.sensor_width * k["fx"] / w
+        else:
+            cam.lens = cam.sensor_height * k["fy"] / h
+        big = max(w, h)
+        cam.shift_x = (w / 2 - k["cx"]) / big
+        cam.shift_y = (k["cy"] - h / 2) / big
+        cam.clip_start = k["clip_near"]
+        cam.clip_end = k["clip_far"]
+        scene = bpy.context.scene
+        scene.render.resolution_x = w
+        scene.render.resolution_y = h
+        scene.render.resolution_percentage = 100
+        scene.render.pixel_aspect_x = 1.0
+        scene.render.pixel_aspect_y = k["fx"] / k["fy"] if k["fy"] else 1.0
+
+    def set_pose(self, pose):
+        self.camera.location = pose["position"]
+        self.camera.rotation_quaternion = pose["rotation_wxyz"]

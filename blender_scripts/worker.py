@@ -1,0 +1,129 @@
+"""The per-process Blender worker: builds the scene once, then renders
+sequence plans one after the other, swapping in only the object."""
+
+import os
+
+import bpy
+import numpy as np
+
+from blender_scripts import lights, materials, render, scene
+
+
+def _reset_factory():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+class Worker:
+    """`geometry`: the room and table (planner's scene). `settings`: the
+    engine and passes (RenderConfig)."""
+
+    def __init__(self, geometry, settings):
+        _reset_factory()
+        self.settings = settings
+        self.room = scene.Room(geometry)
+        self.arm = scene.Arm()
+        self.lights = lights.LightPool()
+        world = bpy.data.worlds.new("world")
+        world.use_nodes = True
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
+        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+        bpy.context.scene.world = world
+        self.object_mat = bpy.data.materials.new("object")
+        self.meshes = {}
+        self.target = None
+        for obj in bpy.data.objects:
+            if obj.name.startswith("table_"):
+                obj.pass_index = render.INDEX_TABLE
+        for obj in self.arm.parts:
+            obj.pass_index = render.INDEX_HAND
+        render.configure(settings)
+
+    def has_mesh(self, object_id):
+        return object_id in self.meshes
+
+    def add_mesh(self, object_id, vertices, faces, smooth_angle_deg=35.0):
+        """Caches a mesh from little-endian f64 xyz and u32 triangle bytes."""
+        v = np.frombuffer(vertices, dtype="<f8").astype(np.float32)
+        f = np.frombuffer(faces, dtype="<u4").astype(np.int32)
+        if v.size % 3 or f.size % 3:
+            raise ValueError(f"mesh '{object_id}': byte lengths are not whole triangles")
+        if f.size and f.max() >= v.size // 3:
+            raise ValueError(f"mesh '{object_id}': face index {f.max()} out of range")
+        mesh = bpy.data.meshes.new(object_id)
+        mesh.vertices.add(v.size // 3)
+        mesh.vertices.foreach_set("co", v)
+        n = f.size // 3
+        mesh.loops.add(f.size)
+        mesh.loops.foreach_set("vertex_index", f)
+        mesh.polygons.add(n)
+        mesh.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
+        mesh.polygons.foreach_set("use_smooth", np.ones(n, dtype=bool))
+        mesh.update(calc_edges=True)
+        mesh.validate()
+        mesh.set_sharp_from_angle(angle=np.radians(smooth_angle_deg))
+        mesh.materials.append(self.object_mat)
+        self.meshes[object_id] = mesh
+
+    def _place_object(self, plan):
+        mesh = self.meshes[plan["key"]["object"]]
+        if self.target is None:
+            self.target = bpy.data.objects.new("target", mesh)
+            self.target.rotation_mode = "QUATERNION"
+            self.target.pass_index = render.INDEX_OBJECT
+            bpy.context.scene.collection.objects.link(self.target)
+        elif self.target.data is not mesh:
+            self.target.data = mesh
+        pose = plan["object"]["pose"]
+        self.target.location = pose["position"]
+        self.target.rotation_quaternion = pose["rotation_wxyz"]
+
+    def _apply_appearance(self, plan, object_color):
+        a = plan["appearance"]
+        materials.apply_surface(self.room.wall_mat, a["wall"])
+        materials.apply_surface(self.room.floor_mat, a["floor"])
+        materials.apply_surface(self.room.table_mat, a["table"])
+        obj = a["object"]
+        color = obj["color"] if obj["randomized"] else object_color
+        materials.apply_plain(self.object_mat, color, obj["roughness"])
+        self.lights.apply(a["lights"], aim_at=plan["object"]["pose"]["position"])
+        bpy.context.scene.view_settings.exposure = float(a["exposure"])
+        self.arm.set_hand_visible(bool(a["hand_visible"]))
+
+    def render(self, plan, out_dir, frame_files, object_color):
+        """Renders every frame of `plan` into `out_dir` under `frame_files`."""
+        if len(frame_files) != len(plan["frames"]):
+            raise ValueError("frame_files and plan frames differ in length")
+        self._place_object(plan)
+        self._apply_appearance(plan, object_color)
+        self.arm.set_intrinsics(plan["intrinsics"])
+        extra = render.extra_passes(self.settings)
+        if self.settings.get("one_call", True) and not extra:
+            self._render_animation(plan, out_dir, frame_files)
+        else:
+            for frame, name in zip(plan["frames"], frame_files):
+                self.arm.set_pose(frame["camera"])
+                render.render_still()
+                png = os.path.join(out_dir, name)
+                exr = os.path.splitext(png)[0] + ".exr" if extra else None
+                render.write_frame(png, exr)
+
+    def _render_animation(self, plan, out_dir, frame_files):
+        cam = self.arm.camera
+        cam.animation_data_clear()
+        frames = plan["frames"]
+        for frame in frames:
+            self.arm.set_pose(frame["camera"])
+            cam.keyframe_insert("location", frame=frame["index"])
+            cam.keyframe_insert("rotation_quaternion", frame=frame["index"])
+        first, last = frames[0]["index"], frames[-1]["index"]
+        if [f["index"] for f in frames] != list(range(first, last + 1)):
+            raise ValueError("frame indices are not consecutive")
+        stem = os.path.splitext(frame_files[0])[0]
+        render.render_animation(out_dir, first, last, padding=len(stem))
+        cam.animation_data_clear()
+        # Blender names files by frame number; rename if the plan's names differ.
+        for frame, name in zip(frames, frame_files):
+            made = os.path.join(out_dir, f"{frame['index']:0{len(stem)}d}.png")
+            target = os.path.join(out_dir, name)
+            if made != target:
+                os.replace(made, target)

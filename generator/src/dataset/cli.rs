@@ -1,0 +1,60 @@
+//! The `dataset verify` and `dataset merge` subcommands.
+
+use crate::config::GeneratorConfig;
+use anyhow::{bail, Result};
+use clap::Subcommand;
+use std::path::PathBuf;
+
+#[derive(Debug, Subcommand)]
+pub enum DatasetCommand {
+    /// Check a finished dataset: counts per pair and condition, missing or
+    /// corrupt frames, manifest, and (with --config) records against fresh plans.
+    Verify {
+        dir: PathBuf,
+        /// The config the dataset was made with; enables the re-plan check.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Decode every frame fully instead of reading PNG headers.
+        #[arg(long)]
+        decode: bool,
+    },
+    /// Join shard outputs into OUT (copies, or hard links where possible).
+    Merge { out: PathBuf, shards: Vec<PathBuf> },
+}
+
+pub fn run(cmd: &DatasetCommand) -> Result<()> {
+    match cmd {
+        DatasetCommand::Verify {
+            dir,
+            config,
+            decode,
+        } => {
+            let source = match config {
+                Some(p) => Some(crate::render::planner_source::from_config(
+                    &GeneratorConfig::load(p)?,
+                )?),
+                None => None,
+            };
+            let report = super::verify::verify(dir, source.as_deref(), *decode)?;
+            print!("{}", report.render_text());
+            if !report.ok() {
+                bail!("{}: {} problems", dir.display(), report.problems.len());
+            }
+            println!("ok");
+            Ok(())
+        }
+        DatasetCommand::Merge { out, shards } => {
+            if shards.is_empty() {
+                bail!("dataset merge: give at least one shard folder");
+            }
+            let s = super::merge::merge(out, shards)?;
+            println!(
+                "{}: {} sequences copied, {} already present",
+                out.display(),
+                s.copied,
+                s.already_present
+            );
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,62 @@
+//! `grasp-gen dataset merge OUT SHARD...`: joins shard outputs. Folder
+//! numbers come from the full key order, so shards never collide; a folder
+//! present in two inputs must hold the same record.
+
+use super::writer::{find_sequences, DatasetDir};
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Default)]
+pub struct MergeSummary {
+    pub copied: usize,
+    pub already_present: usize,
+}
+
+pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
+    let dataset = DatasetDir::create(out)?;
+    let mut existing = find_sequences(out)?;
+    let mut summary = MergeSummary::default();
+    for shard in shards {
+        let records = find_sequences(shard)
+            .with_context(|| format!("cannot read shard {}", shard.display()))?;
+        for (rel, record) in records {
+            if let Some(present) = existing.get(&rel) {
+                if present.plan != record.plan {
+                    bail!(
+                        "{rel} differs between {} and {}: were the shards made with the same config?",
+                        shard.display(),
+                        out.display()
+                    );
+                }
+                summary.already_present += 1;
+                continue;
+            }
+            copy_sequence(&dataset, &shard.join(&rel), &out.join(&rel))?;
+            existing.insert(rel, record);
+            summary.copied += 1;
+        }
+    }
+    dataset.clean_partials()?;
+    dataset.rebuild_manifest()?;
+    Ok(summary)
+}
+
+/// Copies (hard-links when possible) a sequence folder through a temporary
+/// folder and a rename, so an interrupted merge leaves no half sequence.
+fn copy_sequence(dataset: &DatasetDir, from: &Path, to: &Path) -> Result<()> {
+    let tmp = dataset.partial_dir(0, 0)?;
+    for entry in
+        std::fs::read_dir(from).with_context(|| format!("cannot read {}", from.display()))?
+    {
+        let src = entry?.path();
+        let dst = tmp.join(src.file_name().unwrap_or_default());
+        if std::fs::hard_link(&src, &dst).is_err() {
+            std::fs::copy(&src, &dst).with_context(|| format!("cannot copy {}", src.display()))?;
+        }
+    }
+    if let Some(parent) = to.parent() {
+        std::fs::create_dir_all(parent)?;
+    }
+    std::fs::rename(&tmp, to)
+        .with_context(|| format!("cannot move {} to {}", tmp.display(), to.display()))
+}

@@ -1,0 +1,10 @@
+//! The dataset on disk: writing finished sequences atomically, checking a
+//! finished dataset, and joining shards. The layout itself is
+//! [`grasp_schema::dataset`].
+
+pub mod cli;
+pub mod merge;
+pub mod verify;
+pub mod writer;
+
+pub use writer::{assign_folders, Assigned, DatasetDir};

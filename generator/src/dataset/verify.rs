@@ -1,0 +1,238 @@
+//! `grasp-gen dataset verify`: checks a finished dataset. It counts sequences
+//! per (object, part) pair and condition, finds missing or corrupt frames,
+//! checks the manifest against the sequence folders, and, given the plan
+//! source, checks each record against a fresh re-plan and its folder.
+
+use super::assign_folders;
+use super::writer::{find_sequences, manifest_entry, WORK_DIR};
+use crate::render::PlanSource;
+use anyhow::{Context, Result};
+use grasp_schema::dataset::{ManifestEntry, SequenceRecord, MANIFEST_FILE};
+use grasp_schema::Condition;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::Path;
+
+#[derive(Debug, Default)]
+pub struct VerifyReport {
+    pub sequences: usize,
+    pub frames: usize,
+    /// Sequences per `object/part` pair and condition.
+    pub counts: BTreeMap<String, BTreeMap<Condition, usize>>,
+    /// Everything wrong, one line each, naming the file.
+    pub problems: Vec<String>,
+}
+
+impl VerifyReport {
+    pub fn ok(&self) -> bool {
+        self.problems.is_empty()
+    }
+
+    /// The counts table and the problems, for the terminal.
+    pub fn render_text(&self) -> String {
+        let conditions: BTreeSet<Condition> = self
+            .counts
+            .values()
+            .flat_map(|c| c.keys().copied())
+            .collect();
+        let mut s = format!("{:<40}", "object/part");
+        for c in &conditions {
+            let _ = write!(s, "{:>12}", c.name());
+        }
+        s.push('\n');
+        for (pair, per) in &self.counts {
+            let _ = write!(s, "{pair:<40}");
+            for c in &conditions {
+                let _ = write!(s, "{:>12}", per.get(c).copied().unwrap_or(0));
+            }
+            s.push('\n');
+        }
+        let _ = writeln!(
+            s,
+            "{} pairs, {} sequences, {} frames",
+            self.counts.len(),
+            self.sequences,
+            self.frames
+        );
+        for p in &self.problems {
+            let _ = writeln!(s, "PROBLEM: {p}");
+        }
+        s
+    }
+}
+
+/// Verifies the dataset at `root`. With `source`, every record must equal a
+/// fresh plan and sit in the folder the key order gives it. `decode` reads
+/// every PNG fully (slower) instead of only its header.
+pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Result<VerifyReport> {
+    let records =
+        find_sequences(root).with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    let mut report = VerifyReport::default();
+    check_manifest(root, &records, &mut report);
+    let expected_dirs = match source {
+        Some(s) => Some(
+            assign_folders(&s.keys()?)
+                .into_iter()
+                .map(|a| (a.planned.key.id(), a.rel_dir))
+                .collect::<BTreeMap<_, _>>(),
+        ),
+        None => None,
+    };
+    let mut ids = BTreeSet::new();
+    for (rel, record) in &records {
+        let plan = &record.plan;
+        report.sequences += 1;
+        report.frames += record.frame_files.len();
+        *report
+            .counts
+            .entry(format!("{}/{}", plan.key.object, plan.key.part))
+            .or_default()
+            .entry(plan.key.condition)
+            .or_default() += 1;
+        if !ids.insert(plan.key.id()) {
+            report
+                .problems
+                .push(format!("{rel}: sequence {} appears twice", plan.key.id()));
+        }
+        check_frames(root, rel, record, decode, &mut report);
+        let prefix = format!(
+            "{}/{}/{}/",
+            plan.category,
+            plan.key.object,
+            plan.preshape.authors_folder()
+        );
+        if !rel.starts_with(&prefix) {
+            report.problems.push(format!(
+                "{rel}: folder does not match its record ({prefix}...)"
+            ));
+        }
+        if let (Some(source), Some(dirs)) = (source, &expected_dirs) {
+            check_against_plan(source, dirs, rel, record, &mut report);
+        }
+    }
+    let partial = root.join(WORK_DIR).join("partial");
+    if std::fs::read_dir(&partial)
+        .map(|mut d| d.next().is_some())
+        .unwrap_or(false)
+    {
+        report.problems.push(format!(
+            "{}: unfinished sequences remain (resume the run with --resume)",
+            partial.display()
+        ));
+    }
+    Ok(report)
+}
+
+fn check_manifest(
+    root: &Path,
+    records: &BTreeMap<String, SequenceRecord>,
+    report: &mut VerifyReport,
+) {
+    let path = root.join(MANIFEST_FILE);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        report.problems.push(format!("{}: missing", path.display()));
+        return;
+    };
+    let mut listed = BTreeMap::new();
+    for (n, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
+        match serde_json::from_str::<ManifestEntry>(line) {
+            Ok(e) => {
+                listed.insert(e.path.clone(), e);
+            }
+            Err(e) => report
+                .problems
+                .push(format!("{} line {}: {e}", path.display(), n + 1)),
+        }
+    }
+    for (rel, record) in records {
+        match listed.get(rel) {
+            None => report
+                .problems
+                .push(format!("{rel}: not listed in {MANIFEST_FILE}")),
+            Some(e) if *e != manifest_entry(rel, record) => report.problems.push(format!(
+                "{rel}: {MANIFEST_FILE} entry differs from sequence.json"
+            )),
+            Some(_) => {}
+        }
+    }
+    for rel in listed.keys().filter(|r| !records.contains_key(*r)) {
+        report.problems.push(format!(
+            "{MANIFEST_FILE} lists {rel}, which has no sequence.json"
+        ));
+    }
+}
+
+fn check_frames(
+    root: &Path,
+    rel: &str,
+    record: &SequenceRecord,
+    decode: bool,
+    report: &mut VerifyReport,
+) {
+    if record.frame_files.len() != record.plan.frames.len() {
+        report.problems.push(format!(
+            "{rel}: {} frame files for {} planned frames",
+            record.frame_files.len(),
+            record.plan.frames.len()
+        ));
+    }
+    let k = &record.plan.intrinsics;
+    for name in &record.frame_files {
+        let path = root.join(rel).join(name);
+        let size = if decode {
+            image::open(&path)
+                .map(|i| (i.width(), i.height()))
+                .map_err(|e| e.to_string())
+        } else {
+            image::image_dimensions(&path).map_err(|e| e.to_string())
+        };
+        match size {
+            Err(e) => report.problems.push(format!("{}: {e}", path.display())),
+            Ok((w, h)) if (w, h) != (k.width, k.height) => report.problems.push(format!(
+                "{}: {w}x{h} pixels, the intrinsics say {}x{}",
+                path.display(),
+                k.width,
+                k.height
+            )),
+            Ok(_) => {}
+        }
+    }
+}
+
+fn check_against_plan(
+    source: &dyn PlanSource,
+    dirs: &BTreeMap<String, String>,
+    rel: &str,
+    record: &SequenceRecord,
+    report: &mut VerifyReport,
+) {
+    let id = record.plan.key.id();
+    match dirs.get(&id) {
+        None => report.problems.push(format!(
+            "{rel}: sequence {id} is not in the configured dataset"
+        )),
+        Some(d) if d != rel => report
+            .problems
+            .push(format!("{rel}: sequence {id} belongs in {d}")),
+        Some(_) => {}
+    }
+    // Compare after the same JSON round trip the record went through (float
+    // parsing may differ from the in-memory value in the last bit).
+    let fresh = source.plan(&record.plan.key).and_then(|p| {
+        let text = serde_json::to_string(&p)?;
+        Ok(serde_json::from_str::<grasp_schema::SequencePlan>(&text)?)
+    });
+    match fresh {
+        Ok(fresh) if fresh == record.plan => {}
+        Ok(_) => report.problems.push(format!(
+            "{rel}: sequence.json differs from a fresh plan of {id} (other config or seed?)"
+        )),
+        Err(e) => report
+            .problems
+            .push(format!("{rel}: cannot re-plan {id}: {e:#}")),
+    }
+}

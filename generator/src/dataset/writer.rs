@@ -1,0 +1,300 @@
+//! Writes sequences into the dataset. A sequence is rendered into a private
+//! temporary folder, completed with its `sequence.json`, then renamed into
+//! place: a killed run never leaves a half sequence, and a finished sequence
+//! is exactly a folder holding `sequence.json`.
+
+use crate::render::PlannedKey;
+use anyhow::{bail, Context, Result};
+use grasp_schema::dataset::{
+    camera_dir, frame_file_name, padding_for, sequence_dir_name, ManifestEntry, SequenceRecord,
+    MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER,
+};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Working files of a run (partial sequences, mesh cache, worker logs).
+pub const WORK_DIR: &str = ".grasp-gen";
+
+/// A sequence with its final folder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assigned {
+    /// Position in the canonical key order (what shards split).
+    pub position: usize,
+    pub planned: PlannedKey,
+    /// Folder relative to the root, `/`-separated.
+    pub rel_dir: String,
+}
+
+/// Numbers sequences within their `OBJECT/PRESHAPE` folder by their position
+/// in the canonical key order. The numbers depend only on the full key list,
+/// never on shards or render order, so shards merge and resumed runs agree.
+pub fn assign_folders(keys: &[PlannedKey]) -> Vec<Assigned> {
+    let mut group_sizes: BTreeMap<(String, &str), u64> = BTreeMap::new();
+    for k in keys {
+        *group_sizes
+            .entry((k.key.object.clone(), k.preshape.authors_folder()))
+            .or_default() += 1;
+    }
+    let mut next: BTreeMap<(String, &str), u64> = BTreeMap::new();
+    keys.iter()
+        .enumerate()
+        .map(|(position, k)| {
+            let group = (k.key.object.clone(), k.preshape.authors_folder());
+            let padding = padding_for(group_sizes[&group]);
+            let n = next.entry(group).or_default();
+            let dir = camera_dir(
+                Path::new(""),
+                &k.category,
+                &k.key.object,
+                k.preshape,
+                WRIST_CAMERA_FOLDER,
+            )
+            .join(sequence_dir_name(*n, padding));
+            *n += 1;
+            Assigned {
+                position,
+                planned: k.clone(),
+                rel_dir: to_slash(&dir),
+            }
+        })
+        .collect()
+}
+
+fn to_slash(p: &Path) -> String {
+    p.components()
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// Frame file names of a sequence with `count` frames.
+pub fn frame_files(count: usize) -> Vec<String> {
+    let padding = padding_for(count as u64);
+    (0..count as u64)
+        .map(|i| frame_file_name(i, padding))
+        .collect()
+}
+
+/// A dataset root being written.
+#[derive(Debug, Clone)]
+pub struct DatasetDir {
+    pub root: PathBuf,
+}
+
+impl DatasetDir {
+    pub fn create(root: &Path) -> Result<Self> {
+        std::fs::create_dir_all(root.join(WORK_DIR).join("partial"))
+            .with_context(|| format!("cannot create dataset folder {}", root.display()))?;
+        Ok(DatasetDir {
+            root: root.to_path_buf(),
+        })
+    }
+
+    pub fn work_dir(&self) -> PathBuf {
+        self.root.join(WORK_DIR)
+    }
+
+    /// Whether the sequence's final folder is complete.
+    pub fn is_finished(&self, rel_dir: &str) -> bool {
+        self.root.join(rel_dir).join(SEQUENCE_FILE).is_file()
+    }
+
+    /// A fresh temporary folder for one attempt at a sequence.
+    pub fn partial_dir(&self, position: usize, attempt: u32) -> Result<PathBuf> {
+        let dir = self
+            .work_dir()
+            .join("partial")
+            .join(format!("{position:08}-{attempt}"));
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("cannot clear {}", dir.display()))?;
+        }
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        Ok(dir)
+    }
+
+    /// Removes partial sequences left by a killed run.
+    pub fn clean_partials(&self) -> Result<()> {
+        let dir = self.work_dir().join("partial");
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("cannot clear {}", dir.display()))?;
+        }
+        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))
+    }
+
+    /// Completes a rendered sequence: checks its frames, writes
+    /// `sequence.json`, renames the folder into place and appends the
+    /// manifest line.
+    pub fn finish(&self, partial: &Path, rel_dir: &str, record: &SequenceRecord) -> Result<()> {
+        for name in &record.frame_files {
+            let f = partial.join(name);
+            let len = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
+            if len == 0 {
+                bail!(
+                    "sequence {}: frame {} is missing or empty",
+                    record.plan.key.id(),
+                    f.display()
+                );
+            }
+        }
+        let json = serde_json::to_vec_pretty(record)?;
+        std::fs::write(partial.join(SEQUENCE_FILE), json)
+            .with_context(|| format!("cannot write {}", partial.display()))?;
+        let target = self.root.join(rel_dir);
+        if let Some(parent) = target.parent() {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("cannot create {}", parent.display()))?;
+        }
+        if target.exists() {
+            // Unfinished leftovers only: finished sequences are skipped.
+            std::fs::remove_dir_all(&target)
+                .with_context(|| format!("cannot replace {}", target.display()))?;
+        }
+        std::fs::rename(partial, &target).with_context(|| {
+            format!("cannot move {} to {}", partial.display(), target.display())
+        })?;
+        self.append_manifest(&manifest_entry(rel_dir, record))
+    }
+
+    fn append_manifest(&self, entry: &ManifestEntry) -> Result<()> {
+        let path = self.root.join(MANIFEST_FILE);
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&path)
+            .with_context(|| format!("cannot open {}", path.display()))?;
+        let mut line = serde_json::to_string(entry)?;
+        line.push('\n');
+        f.write_all(line.as_bytes())
+            .with_context(|| format!("cannot append to {}", path.display()))
+    }
+
+    /// Rewrites `manifest.jsonl` from the finished sequence folders, sorted
+    /// by path, so it is identical however the sequences were produced.
+    pub fn rebuild_manifest(&self) -> Result<usize> {
+        let records = find_sequences(&self.root)?;
+        let mut text = String::new();
+        for (rel, record) in &records {
+            text.push_str(&serde_json::to_string(&manifest_entry(rel, record))?);
+            text.push('\n');
+        }
+        write_atomic(&self.root.join(MANIFEST_FILE), text.as_bytes())?;
+        Ok(records.len())
+    }
+}
+
+pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {
+    let plan = &record.plan;
+    ManifestEntry {
+        id: plan.key.id(),
+        path: rel_dir.to_string(),
+        object: plan.key.object.clone(),
+        part: plan.key.part.clone(),
+        grasp_type: plan.grasp_type,
+        preshape: plan.preshape,
+        condition: plan.key.condition,
+        frames: plan.frames.len(),
+    }
+}
+
+/// Writes a file through a temporary sibling and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Every finished sequence under `root` (folders holding `sequence.json`,
+/// outside the work folder), by relative path.
+pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let entries =
+            std::fs::read_dir(&dir).with_context(|| format!("cannot read {}", dir.display()))?;
+        for entry in entries {
+            let path = entry?.path();
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            if name.starts_with('.') {
+                continue;
+            }
+            if path.is_dir() {
+                stack.push(path);
+            } else if name == SEQUENCE_FILE {
+                let record = read_record(&path)?;
+                let rel = path
+                    .parent()
+                    .and_then(|p| p.strip_prefix(root).ok())
+                    .map(to_slash)
+                    .unwrap_or_default();
+                out.insert(rel, record);
+            }
+        }
+    }
+    Ok(out)
+}
+
+pub fn read_record(path: &Path) -> Result<SequenceRecord> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("invalid sequence record {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grasp_schema::taxonomy::Preshape;
+    use grasp_schema::{Condition, SequenceKey};
+
+    fn key(object: &str, part: &str, index: u32, preshape: Preshape) -> PlannedKey {
+        PlannedKey {
+            key: SequenceKey {
+                object: object.into(),
+                part: part.into(),
+                index,
+                condition: Condition::Default,
+            },
+            category: "mug".into(),
+            preshape,
+        }
+    }
+
+    #[test]
+    fn folders_are_numbered_per_object_and_preshape_in_key_order() {
+        let keys = vec![
+            key("025_mug", "handle", 0, Preshape::Pinch3),
+            key("025_mug", "body", 0, Preshape::Power),
+            key("025_mug", "handle", 1, Preshape::Pinch3),
+            key("025_mug", "rim", 0, Preshape::Pinch3),
+        ];
+        let a = assign_folders(&keys);
+        let dirs: Vec<&str> = a.iter().map(|a| a.rel_dir.as_str()).collect();
+        assert_eq!(
+            dirs,
+            [
+                "mug/025_mug/pinch_3/Wrist_d435/rgb00000",
+                "mug/025_mug/power_no3/Wrist_d435/rgb00000",
+                "mug/025_mug/pinch_3/Wrist_d435/rgb00001",
+                "mug/025_mug/pinch_3/Wrist_d435/rgb00002",
+            ]
+        );
+        // A subset (a shard) keeps the numbers of the full list.
+        assert_eq!(a[3].position, 3);
+    }
+
+    #[test]
+    fn numbers_widen_instead_of_overflowing() {
+        let keys: Vec<_> = (0..100_001)
+            .map(|i| key("o", "p", i, Preshape::Power))
+            .collect();
+        let a = assign_folders(&keys);
+        assert!(a[0].rel_dir.ends_with("rgb000000"));
+        assert!(a[100_000].rel_dir.ends_with("rgb100000"));
+        assert_eq!(frame_files(3), ["00000.png", "00001.png", "00002.png"]);
+        assert_eq!(frame_files(100_001)[100_000], "100000.png");
+    }
+}

@@ -1,0 +1,90 @@
+//! The `render` and hidden `worker` subcommands.
+
+use super::{planner_source, render, RenderOptions, Shard};
+use crate::config::GeneratorConfig;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Generator config (TOML); defaults apply to missing keys.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Dataset root to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Worker processes (default: [render] workers).
+    #[arg(long)]
+    pub workers: Option<usize>,
+    /// Render only shard K of N (0-based), e.g. 3/16 for array task 3.
+    #[arg(long, default_value = "0/1")]
+    pub shard: Shard,
+    /// Keep finished sequences and render the rest.
+    #[arg(long)]
+    pub resume: bool,
+    /// No progress bar (logs and batch jobs).
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+pub fn run_render(args: &RenderArgs) -> Result<()> {
+    let config = match &args.config {
+        Some(p) => GeneratorConfig::load(p)?,
+        None => GeneratorConfig::default(),
+    };
+    config.appearance.validate()?;
+    let mut render_cfg = config.render.clone();
+    if let Some(w) = args.workers {
+        render_cfg.workers = w;
+    }
+    let source = planner_source::from_config(&config)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            eprintln!("second Ctrl-C: exiting now");
+            std::process::exit(130);
+        }
+        eprintln!("Ctrl-C: stopping after cleaning up (press again to exit at once)");
+    })
+    .context("cannot install the Ctrl-C handler")?;
+    let opts = RenderOptions {
+        out: args.out.clone(),
+        workers: render_cfg.workers,
+        shard: args.shard,
+        resume: args.resume,
+        worker_exe: std::env::current_exe().context("cannot find the grasp-gen executable")?,
+        progress: !args.no_progress,
+        stop,
+        worker_env: Vec::new(),
+    };
+    let s = render(source, &render_cfg, &opts)?;
+    println!(
+        "shard {}: {} sequences, {} already done, {} rendered ({} frames, {:.2} frames/s, {} retries) in {:.1} s",
+        args.shard,
+        s.in_shard,
+        s.skipped,
+        s.rendered,
+        s.frames,
+        s.frames_per_second(),
+        s.retries,
+        s.seconds
+    );
+    if s.interrupted {
+        bail!("interrupted; run again with --resume to finish");
+    }
+    if !s.failed.is_empty() {
+        for (id, e) in &s.failed {
+            eprintln!("failed: {id}: {e}");
+        }
+        bail!("{} sequences failed", s.failed.len());
+    }
+    Ok(())
+}
+
+pub fn run_worker() -> Result<()> {
+    super::worker::run()
+}

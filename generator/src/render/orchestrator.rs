@@ -1,0 +1,526 @@
+//! The parent side of `grasp-gen render`: plans sequences, hands them to N
+//! worker processes, restarts crashed workers and retries their sequences a
+//! bounded number of times, recycles workers every `recycle_every`
+//! sequences, shows progress, and stops cleanly when `stop` is raised.
+
+use super::protocol::{MeshFiles, RenderRequest, Request, Response};
+use super::source::PlanSource;
+use super::{RenderConfig, SceneGeometry, Shard};
+use crate::dataset::writer::{frame_files, write_atomic};
+use crate::dataset::{assign_folders, Assigned, DatasetDir};
+use anyhow::{anyhow, bail, Context, Result};
+use grasp_schema::dataset::SequenceRecord;
+use grasp_schema::SequencePlan;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::{BTreeMap, VecDeque};
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    pub out: PathBuf,
+    pub workers: usize,
+    pub shard: Shard,
+    /// Skip finished sequences instead of refusing a non-empty dataset.
+    pub resume: bool,
+    /// The `grasp-gen` executable to run workers from.
+    pub worker_exe: PathBuf,
+    pub progress: bool,
+    /// Raised by the Ctrl-C handler: stop handing out work, kill workers.
+    pub stop: Arc<AtomicBool>,
+    /// Extra environment variables of the worker processes.
+    pub worker_env: Vec<(String, String)>,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct RenderSummary {
+    /// Sequences in this shard.
+    pub in_shard: usize,
+    /// Already finished before this run (`--resume`).
+    pub skipped: usize,
+    pub rendered: usize,
+    pub frames: usize,
+    pub retries: usize,
+    /// (sequence id, last error) of sequences that failed every attempt.
+    pub failed: Vec<(String, String)>,
+    pub seconds: f64,
+    pub interrupted: bool,
+}
+
+impl RenderSummary {
+    pub fn frames_per_second(&self) -> f64 {
+        self.frames as f64 / self.seconds.max(1e-9)
+    }
+}
+
+struct Job {
+    assigned: Assigned,
+    attempt: u32,
+}
+
+enum Event {
+    Rendered {
+        job: Job,
+        plan: Box<SequencePlan>,
+        partial: PathBuf,
+        files: Vec<String>,
+    },
+    Retry {
+        id: String,
+        error: String,
+    },
+    Failed {
+        id: String,
+        error: String,
+    },
+}
+
+/// What every worker thread shares.
+struct Shared {
+    source: Arc<dyn PlanSource>,
+    dataset: DatasetDir,
+    geometry: SceneGeometry,
+    settings: serde_json::Value,
+    meshes: BTreeMap<String, MeshFiles>,
+    exe: PathBuf,
+    worker_env: Vec<(String, String)>,
+    recycle_every: usize,
+    max_retries: u32,
+    queue: Mutex<VecDeque<Job>>,
+    stop: Arc<AtomicBool>,
+    /// The live worker process of each slot, so the main thread can kill it.
+    children: Mutex<Vec<Option<Arc<Mutex<Child>>>>>,
+}
+
+/// Renders every unfinished sequence of `shard` into `opts.out`.
+pub fn render(
+    source: Arc<dyn PlanSource>,
+    config: &RenderConfig,
+    opts: &RenderOptions,
+) -> Result<RenderSummary> {
+    config.validate()?;
+    let start = Instant::now();
+    let dataset = DatasetDir::create(&opts.out)?;
+    let keys = source.keys()?;
+    let in_shard: Vec<Assigned> = assign_folders(&keys)
+        .into_iter()
+        .filter(|a| opts.shard.contains(a.position))
+        .collect();
+    let finished = in_shard
+        .iter()
+        .filter(|a| dataset.is_finished(&a.rel_dir))
+        .count();
+    if finished > 0 && !opts.resume {
+        bail!(
+            "{} already holds {finished} finished sequences of this dataset; pass --resume to \
+             keep them and render the rest, or choose an empty folder",
+            opts.out.display()
+        );
+    }
+    dataset.clean_partials()?;
+    let todo: VecDeque<Job> = in_shard
+        .iter()
+        .filter(|a| !dataset.is_finished(&a.rel_dir))
+        .map(|a| Job {
+            assigned: a.clone(),
+            attempt: 0,
+        })
+        .collect();
+    let mut summary = RenderSummary {
+        in_shard: in_shard.len(),
+        skipped: finished,
+        ..Default::default()
+    };
+    let total = todo.len();
+    if total > 0 {
+        let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
+        let workers = opts.workers.clamp(1, total);
+        let ctx = Arc::new(Shared {
+            geometry: source.scene(),
+            source,
+            dataset: dataset.clone(),
+            settings: config.blender_settings(),
+            meshes,
+            exe: opts.worker_exe.clone(),
+            worker_env: opts.worker_env.clone(),
+            recycle_every: config.recycle_every,
+            max_retries: config.max_retries,
+            queue: Mutex::new(todo),
+            stop: opts.stop.clone(),
+            children: Mutex::new(vec![None; workers]),
+        });
+        run_pool(&ctx, workers, total, opts.progress, &mut summary)?;
+        summary.interrupted = opts.stop.load(Ordering::SeqCst);
+    }
+    dataset.clean_partials()?;
+    dataset.rebuild_manifest()?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Writes each needed object's mesh once, as raw little-endian arrays the
+/// workers pass to Blender without parsing.
+fn write_meshes(
+    source: &dyn PlanSource,
+    dataset: &DatasetDir,
+    todo: &VecDeque<Job>,
+) -> Result<BTreeMap<String, MeshFiles>> {
+    let dir = dataset.work_dir().join("meshes");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut out = BTreeMap::new();
+    for job in todo {
+        let object = &job.assigned.planned.key.object;
+        if out.contains_key(object) {
+            continue;
+        }
+        let mesh = source
+            .mesh(object)
+            .with_context(|| format!("loading the mesh of object '{object}'"))?;
+        let vertices: Vec<u8> = mesh
+            .vertices
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let faces: Vec<u8> = mesh
+            .faces
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let files = MeshFiles {
+            object: object.clone(),
+            vertices: dir.join(format!("{object}.vertices.f64")),
+            faces: dir.join(format!("{object}.faces.u32")),
+        };
+        write_atomic(&files.vertices, &vertices)?;
+        write_atomic(&files.faces, &faces)?;
+        out.insert(object.clone(), files);
+    }
+    Ok(out)
+}
+
+fn progress_bar(total: usize, show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(total as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30.cyan/blue} {pos}/{len} sequences  {msg}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb.enable_steady_tick(Duration::from_millis(250));
+    pb
+}
+
+fn run_pool(
+    ctx: &Arc<Shared>,
+    workers: usize,
+    total: usize,
+    show_progress: bool,
+    summary: &mut RenderSummary,
+) -> Result<()> {
+    let (tx, rx) = channel();
+    let threads: Vec<_> = (0..workers)
+        .map(|slot| {
+            let (ctx, tx) = (ctx.clone(), tx.clone());
+            std::thread::spawn(move || worker_slot(slot, &ctx, &tx))
+        })
+        .collect();
+    drop(tx);
+    let pb = progress_bar(total, show_progress);
+    let start = Instant::now();
+    while summary.rendered + summary.failed.len() < total {
+        if ctx.stop.load(Ordering::SeqCst) {
+            pb.println("interrupted: stopping workers; finished sequences are kept (use --resume)");
+            break;
+        }
+        match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(Event::Rendered {
+                job,
+                plan,
+                partial,
+                files,
+            }) => {
+                let frames = plan.frames.len();
+                let record = SequenceRecord {
+                    plan: *plan,
+                    frame_files: files,
+                    render: ctx.settings.clone(),
+                    generator_version: env!("CARGO_PKG_VERSION").to_string(),
+                };
+                match ctx.dataset.finish(&partial, &job.assigned.rel_dir, &record) {
+                    Ok(()) => {
+                        summary.rendered += 1;
+                        summary.frames += frames;
+                    }
+                    Err(e) => summary
+                        .failed
+                        .push((job.assigned.planned.key.id(), format!("{e:#}"))),
+                }
+                pb.inc(1);
+                let fps = summary.frames as f64 / start.elapsed().as_secs_f64().max(1e-9);
+                pb.set_message(format!("{fps:.2} frames/s"));
+            }
+            Ok(Event::Retry { id, error }) => {
+                summary.retries += 1;
+                pb.println(format!("retrying {id}: {}", first_line(&error)));
+            }
+            Ok(Event::Failed { id, error }) => {
+                pb.println(format!("FAILED {id}: {error}"));
+                summary.failed.push((id, error));
+                pb.inc(1);
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    pb.finish_and_clear();
+    ctx.stop_and_kill();
+    for t in threads {
+        if t.join().is_err() {
+            return Err(anyhow!("a worker thread panicked"));
+        }
+    }
+    Ok(())
+}
+
+fn first_line(s: &str) -> &str {
+    s.lines().last().unwrap_or(s)
+}
+
+impl Shared {
+    fn stop_and_kill(&self) {
+        self.stop.store(true, Ordering::SeqCst);
+        let children = self.children.lock().unwrap_or_else(|e| e.into_inner());
+        for child in children.iter().flatten() {
+            let mut c = child.lock().unwrap_or_else(|e| e.into_inner());
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+
+    fn stopped(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+}
+
+/// A live worker process.
+struct WorkerProc {
+    child: Arc<Mutex<Child>>,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl WorkerProc {
+    fn spawn(slot: usize, ctx: &Shared) -> Result<Self> {
+        let logs = ctx.dataset.work_dir().join("logs");
+        std::fs::create_dir_all(&logs)?;
+        let log_path = logs.join(format!("worker-{slot}.log"));
+        let log = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log_path)
+            .with_context(|| format!("cannot open {}", log_path.display()))?;
+        let mut child = Command::new(&ctx.exe)
+            .arg("worker")
+            .envs(ctx.worker_env.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(log)
+            // Own process group: a terminal Ctrl-C reaches only the parent,
+            // which then stops the workers itself.
+            .process_group(0)
+            .spawn()
+            .with_context(|| format!("cannot start worker {}", ctx.exe.display()))?;
+        let stdin = child.stdin.take().context("worker stdin")?;
+        let stdout = BufReader::new(child.stdout.take().context("worker stdout")?);
+        let mut proc = WorkerProc {
+            child: Arc::new(Mutex::new(child)),
+            stdin,
+            stdout,
+        };
+        ctx.children.lock().unwrap_or_else(|e| e.into_inner())[slot] = Some(proc.child.clone());
+        let init = Request::Init {
+            geometry: ctx.geometry.clone(),
+            settings: ctx.settings.clone(),
+        };
+        match proc.call(&init, &log_path)? {
+            Response::Ready { .. } => Ok(proc),
+            Response::Error { message, .. } => bail!("worker failed to start: {message}"),
+            other => bail!("unexpected worker answer {other:?}"),
+        }
+    }
+
+    fn call(&mut self, request: &Request, log: &Path) -> Result<Response> {
+        let mut line = serde_json::to_string(request)?;
+        line.push('\n');
+        let sent = self
+            .stdin
+            .write_all(line.as_bytes())
+            .and_then(|_| self.stdin.flush());
+        let mut answer = String::new();
+        let read = sent.and_then(|_| self.stdout.read_line(&mut answer));
+        match read {
+            Ok(n) if n > 0 => serde_json::from_str(&answer)
+                .with_context(|| format!("invalid worker answer '{}'", answer.trim())),
+            _ => {
+                let status = self.kill();
+                bail!("worker process died ({status}); see {}", log.display())
+            }
+        }
+    }
+
+    fn kill(&mut self) -> String {
+        let mut c = self.child.lock().unwrap_or_else(|e| e.into_inner());
+        let _ = c.kill();
+        c.wait()
+            .map(|s| s.to_string())
+            .unwrap_or_else(|e| e.to_string())
+    }
+
+    fn quit(mut self) {
+        let _ = self
+            .stdin
+            .write_all(b"{\"type\":\"quit\"}\n")
+            .and_then(|_| self.stdin.flush());
+        drop(self.stdin);
+        let mut c = self.child.lock().unwrap_or_else(|e| e.into_inner());
+        let _ = c.wait();
+    }
+}
+
+/// One worker slot: takes jobs until the queue is empty or stop is raised.
+fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
+    let mut proc: Option<WorkerProc> = None;
+    let mut served = 0;
+    let log = ctx
+        .dataset
+        .work_dir()
+        .join("logs")
+        .join(format!("worker-{slot}.log"));
+    while !ctx.stopped() {
+        let Some(job) = ctx
+            .queue
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .pop_front()
+        else {
+            break;
+        };
+        let id = job.assigned.planned.key.id();
+        let prepared = prepare(ctx, &job);
+        let (plan, request) = match prepared {
+            Ok(p) => p,
+            Err(e) => {
+                let _ = tx.send(Event::Failed {
+                    id,
+                    error: format!("{e:#}"),
+                });
+                continue;
+            }
+        };
+        let partial = request.out_dir.clone();
+        let files = request.frame_files.clone();
+        let outcome = (|| -> Result<()> {
+            if proc.is_none() {
+                proc = Some(WorkerProc::spawn(slot, ctx)?);
+            }
+            let p = proc.as_mut().expect("worker started above");
+            match p.call(&Request::Render(Box::new(request)), &log) {
+                Ok(Response::Done { .. }) => Ok(()),
+                Ok(Response::Error { message, .. }) => Err(anyhow!(message)),
+                Ok(other) => Err(anyhow!("unexpected worker answer {other:?}")),
+                Err(e) => {
+                    proc = None;
+                    Err(e)
+                }
+            }
+        })();
+        match outcome {
+            Ok(()) => {
+                served += 1;
+                let _ = tx.send(Event::Rendered {
+                    job,
+                    plan: Box::new(plan),
+                    partial,
+                    files,
+                });
+                if served >= ctx.recycle_every {
+                    if let Some(p) = proc.take() {
+                        p.quit();
+                    }
+                    served = 0;
+                }
+            }
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&partial);
+                if ctx.stopped() {
+                    break;
+                }
+                let error = format!("{e:#}");
+                if job.attempt < ctx.max_retries {
+                    let _ = tx.send(Event::Retry { id, error });
+                    ctx.queue
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .push_back(Job {
+                            attempt: job.attempt + 1,
+                            ..job
+                        });
+                } else {
+                    let _ = tx.send(Event::Failed { id, error });
+                }
+            }
+        }
+    }
+    if let Some(p) = proc.take() {
+        p.quit();
+    }
+}
+
+/// Plans a job and builds its render request.
+fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
+    let key = &job.assigned.planned.key;
+    let plan = ctx
+        .source
+        .plan(key)
+        .with_context(|| format!("planning sequence {}", key.id()))?;
+    if &plan.key != key {
+        bail!(
+            "the planner returned sequence {} for {}",
+            plan.key.id(),
+            key.id()
+        );
+    }
+    if plan.appearance.is_none() {
+        bail!("sequence {}: the plan has no appearance", key.id());
+    }
+    if plan.frames.is_empty() {
+        bail!("sequence {}: the plan has no frames", key.id());
+    }
+    let mesh = ctx
+        .meshes
+        .get(&key.object)
+        .cloned()
+        .with_context(|| format!("no mesh for object '{}'", key.object))?;
+    let request = RenderRequest {
+        id: key.id(),
+        object_color: ctx.source.object_color(&key.object),
+        out_dir: ctx
+            .dataset
+            .partial_dir(job.assigned.position, job.attempt)?,
+        frame_files: frame_files(plan.frames.len()),
+        mesh,
+        plan: plan.clone(),
+    };
+    Ok((plan, request))
+}

@@ -1,0 +1,50 @@
+//! Messages between the parent and a worker: one JSON object per line, the
+//! parent writing to the worker's stdin and the worker answering on a
+//! private copy of its stdout (Blender's own prints go to stderr).
+
+use super::SceneGeometry;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Parent to worker.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Request {
+    /// First message: build the scene once.
+    Init {
+        geometry: SceneGeometry,
+        settings: serde_json::Value,
+    },
+    /// Render one sequence into `out_dir`.
+    Render(Box<RenderRequest>),
+    /// Exit cleanly.
+    Quit,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RenderRequest {
+    pub id: String,
+    pub plan: grasp_schema::SequencePlan,
+    pub mesh: MeshFiles,
+    /// The object's own colour (linear RGB), used unless the plan randomizes it.
+    pub object_color: [f64; 3],
+    pub out_dir: PathBuf,
+    pub frame_files: Vec<String>,
+}
+
+/// A cached object mesh: little-endian f64 xyz vertices and u32 triangles.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MeshFiles {
+    pub object: String,
+    pub vertices: PathBuf,
+    pub faces: PathBuf,
+}
+
+/// Worker to parent.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Response {
+    Ready { pid: u32 },
+    Done { id: String, seconds: f64 },
+    Error { id: Option<String>, message: String },
+}

@@ -1,0 +1,75 @@
+//! `--shard K/N`: a deterministic split of the work with no coordination, for
+//! Slurm array jobs and Kubernetes indexed jobs.
+
+use anyhow::{bail, Context, Result};
+use std::fmt;
+use std::str::FromStr;
+
+/// Shard `index` of `count` (0-based `index`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Whether the sequence at `position` in the canonical key order belongs
+    /// to this shard. Round-robin keeps shards balanced across objects.
+    pub fn contains(&self, position: usize) -> bool {
+        position % self.count == self.index
+    }
+}
+
+impl FromStr for Shard {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let (k, n) = s
+            .split_once('/')
+            .with_context(|| format!("--shard '{s}': expected K/N, e.g. 0/4"))?;
+        let index: usize = k
+            .trim()
+            .parse()
+            .with_context(|| format!("--shard '{s}': K is not a number"))?;
+        let count: usize = n
+            .trim()
+            .parse()
+            .with_context(|| format!("--shard '{s}': N is not a number"))?;
+        if count == 0 || index >= count {
+            bail!("--shard '{s}': need 0 <= K < N");
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_partition_the_positions() {
+        let shards: Vec<Shard> = (0..3).map(|k| format!("{k}/3").parse().unwrap()).collect();
+        for pos in 0..100 {
+            assert_eq!(shards.iter().filter(|s| s.contains(pos)).count(), 1);
+        }
+        assert!(Shard::ALL.contains(17));
+    }
+
+    #[test]
+    fn bad_shards_are_rejected() {
+        for bad in ["3/3", "1", "a/2", "0/0", "-1/2"] {
+            assert!(bad.parse::<Shard>().is_err(), "{bad}");
+        }
+        assert_eq!(
+            " 2 / 5".parse::<Shard>().unwrap(),
+            Shard { index: 2, count: 5 }
+        );
+    }
+}

@@ -1,0 +1,190 @@
+//! The worker process (`grasp-gen worker`, hidden): embeds Python, imports
+//! `bpy` once, builds the scene once, then renders the sequences the parent
+//! sends until told to quit or its stdin closes.
+
+use super::protocol::{MeshFiles, RenderRequest, Request, Response};
+use anyhow::{anyhow, bail, Context, Result};
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+use std::fs::File;
+use std::io::{BufRead, Write};
+use std::time::Instant;
+
+/// Testing hook: when set to a path that does not exist yet, the worker
+/// creates it and aborts right after its next render (so exactly one crash
+/// happens across restarts).
+pub const CRASH_ONCE_ENV: &str = "GRASP_GEN_WORKER_CRASH_ONCE";
+
+pub fn run() -> Result<()> {
+    crate::python::init(&[])?;
+    let mut out = protocol_channel()?;
+    let stdin = std::io::stdin();
+    let mut lines = stdin.lock().lines();
+    let Some(first) = lines.next() else {
+        return Ok(());
+    };
+    let worker = match init_worker(&first.context("reading the init message")?) {
+        Ok(w) => w,
+        Err(e) => {
+            send(
+                &mut out,
+                &Response::Error {
+                    id: None,
+                    message: format!("{e:#}"),
+                },
+            )?;
+            return Err(e);
+        }
+    };
+    send(
+        &mut out,
+        &Response::Ready {
+            pid: std::process::id(),
+        },
+    )?;
+    for line in lines {
+        let line = line.context("reading a request")?;
+        match serde_json::from_str::<Request>(&line).context("invalid request")? {
+            Request::Quit => break,
+            Request::Init { .. } => bail!("init sent twice"),
+            Request::Render(req) => {
+                let start = Instant::now();
+                let reply = match render(&worker, &req) {
+                    Ok(()) => Response::Done {
+                        id: req.id.clone(),
+                        seconds: start.elapsed().as_secs_f64(),
+                    },
+                    Err(e) => Response::Error {
+                        id: Some(req.id.clone()),
+                        message: format!("{e:#}"),
+                    },
+                };
+                crash_once_if_asked();
+                send(&mut out, &reply)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Moves fd 1 away for the protocol and points fd 1 at stderr, so Blender's
+/// prints never corrupt the JSON lines.
+fn protocol_channel() -> Result<File> {
+    let fd: i32 = Python::attach(|py| -> PyResult<i32> {
+        let os = py.import("os")?;
+        let fd: i32 = os.call_method1("dup", (1,))?.extract()?;
+        os.call_method1("dup2", (2, 1))?;
+        Ok(fd)
+    })
+    .map_err(|e| anyhow!("cannot redirect stdout: {e}"))?;
+    // SAFETY: `fd` was just created by dup() and is owned by nobody else.
+    Ok(unsafe { <File as std::os::fd::FromRawFd>::from_raw_fd(fd) })
+}
+
+fn send(out: &mut File, response: &Response) -> Result<()> {
+    let mut line = serde_json::to_string(response)?;
+    line.push('\n');
+    out.write_all(line.as_bytes())
+        .and_then(|_| out.flush())
+        .context("cannot write to the parent")
+}
+
+fn crash_once_if_asked() {
+    if let Some(marker) = std::env::var_os(CRASH_ONCE_ENV) {
+        let marker = std::path::PathBuf::from(marker);
+        if !marker.exists() && std::fs::write(&marker, b"crashed").is_ok() {
+            eprintln!("worker: aborting on purpose ({CRASH_ONCE_ENV})");
+            std::process::abort();
+        }
+    }
+}
+
+fn py_err(e: PyErr) -> anyhow::Error {
+    Python::attach(|py| {
+        let tb = e
+            .traceback(py)
+            .and_then(|tb| tb.format().ok())
+            .unwrap_or_default();
+        anyhow!("{tb}{e}")
+    })
+}
+
+fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> Result<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value)?;
+    py.import("json")
+        .and_then(|json| json.call_method1("loads", (text,)))
+        .map_err(py_err)
+}
+
+fn init_worker(line: &str) -> Result<Py<PyAny>> {
+    let Request::Init { geometry, settings } =
+        serde_json::from_str::<Request>(line).context("invalid init message")?
+    else {
+        bail!("the first message must be init");
+    };
+    crate::python::init(&["bpy", "blender_scripts.worker"])?;
+    Python::attach(|py| {
+        let module = py.import("blender_scripts.worker").map_err(py_err)?;
+        let worker = module
+            .getattr("Worker")
+            .and_then(|cls| {
+                cls.call1((
+                    json_to_py(py, &geometry).map_err(to_pyerr)?,
+                    json_to_py(py, &settings).map_err(to_pyerr)?,
+                ))
+            })
+            .map_err(py_err)
+            .context("building the Blender scene")?;
+        Ok(worker.unbind())
+    })
+}
+
+fn to_pyerr(e: anyhow::Error) -> PyErr {
+    pyo3::exceptions::PyValueError::new_err(format!("{e:#}"))
+}
+
+fn render(worker: &Py<PyAny>, req: &RenderRequest) -> Result<()> {
+    Python::attach(|py| {
+        let w = worker.bind(py);
+        ensure_mesh(py, w, &req.mesh)?;
+        let plan = json_to_py(py, &req.plan)?;
+        let out_dir = req.out_dir.to_string_lossy().into_owned();
+        w.call_method1(
+            "render",
+            (
+                plan,
+                out_dir,
+                req.frame_files.clone(),
+                req.object_color.to_vec(),
+            ),
+        )
+        .map_err(py_err)
+        .with_context(|| format!("rendering sequence {}", req.id))?;
+        Ok(())
+    })
+}
+
+fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result<()> {
+    let cached: bool = w
+        .call_method1("has_mesh", (mesh.object.as_str(),))
+        .and_then(|v| v.extract())
+        .map_err(py_err)?;
+    if cached {
+        return Ok(());
+    }
+    let read = |p: &std::path::Path| {
+        std::fs::read(p).with_context(|| format!("cannot read mesh file {}", p.display()))
+    };
+    let (v, f) = (read(&mesh.vertices)?, read(&mesh.faces)?);
+    w.call_method1(
+        "add_mesh",
+        (
+            mesh.object.as_str(),
+            PyBytes::new(py, &v),
+            PyBytes::new(py, &f),
+        ),
+    )
+    .map_err(py_err)
+    .with_context(|| format!("loading the mesh of '{}'", mesh.object))?;
+    Ok(())
+}
