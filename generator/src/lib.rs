@@ -5,6 +5,7 @@ pub mod appearance;
 pub mod catalog;
 pub mod config;
 pub mod dataset;
+pub mod draw;
 pub mod geometry;
 pub mod plan;
 pub mod preview;

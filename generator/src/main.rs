@@ -13,6 +13,9 @@ struct Cli {
 enum Command {
     /// Print where the Python environment is expected and whether it works.
     Doctor,
+    /// The object catalog: list, check, show, import-ycb.
+    #[command(subcommand)]
+    Objects(generator::catalog::cli::ObjectsCommand),
     /// Render the configured sequences with headless Blender workers.
     Render(generator::render::cli::RenderArgs),
     /// Check a finished dataset, or merge shard outputs.
@@ -36,6 +39,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Doctor => doctor(),
+        Command::Objects(cmd) => generator::catalog::cli::run(&cmd),
         Command::Render(args) => generator::render::cli::run_render(&args),
         Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
         Command::Preview(args) => generator::preview::run(&args),
