@@ -110,7 +110,7 @@ impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
             engine: Engine::Cycles,
-            samples: 8,
+            samples: 4,
             denoiser: "openimagedenoise".into(),
             denoising_prefilter: "fast".into(),
             adaptive_threshold: 0.0,
