@@ -1,1 +1,3 @@
 //! Training and evaluation of the pre-shape classifier.
+
+pub mod model;

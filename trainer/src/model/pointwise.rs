@@ -1,0 +1,196 @@
+//! Pointwise (1x1, stride 1) convolutions as matrix products.
+//!
+//! In NCHW a 1x1 convolution of one image is `W[cout, cin] @ X[cin, H*W]`.
+//! - [`pointwise_conv`]: differentiable, through candle's batched matmul.
+//! - [`pointwise_conv_bias_act`]: inference, a custom op that runs `gemm`
+//!   on column tiles of each image (parallel over images and tiles on
+//!   candle's rayon pool) and applies the bias, the optional residual and
+//!   the optional ReLU6 while the tile is still in cache.
+
+use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
+use rayon::prelude::*;
+
+/// Columns (pixels) per tile: keeps a `cout x TILE` output tile in L2.
+const TILE: usize = 256;
+
+/// Differentiable 1x1 convolution of `x` (N, Cin, H, W) with `weight`
+/// (Cout, Cin, 1, 1) or (Cout, Cin).
+pub fn pointwise_conv(x: &Tensor, weight: &Tensor) -> Result<Tensor> {
+    let (n, cin, h, w) = x.dims4()?;
+    let cout = weight.dim(0)?;
+    let wm = weight.reshape((cout, cin))?;
+    let xm = x.reshape((n, cin, h * w))?;
+    wm.broadcast_matmul(&xm)?.reshape((n, cout, h, w))
+}
+
+/// Inference 1x1 convolution: `act(weight @ x + bias [+ residual])`.
+/// `weight` is (Cout, Cin, 1, 1) or (Cout, Cin); `bias` is (Cout).
+pub fn pointwise_conv_bias_act(
+    x: &Tensor,
+    weight: &Tensor,
+    bias: &Tensor,
+    residual: Option<&Tensor>,
+    relu6: bool,
+) -> Result<Tensor> {
+    let op = PointwiseBiasAct {
+        relu6,
+        residual: residual.map(|r| r.contiguous()).transpose()?,
+    };
+    x.contiguous()?
+        .apply_op3_no_bwd(&weight.contiguous()?, &bias.contiguous()?, &op)
+}
+
+struct PointwiseBiasAct {
+    relu6: bool,
+    residual: Option<Tensor>,
+}
+
+fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
+    let data = match s {
+        CpuStorage::F32(d) => d.as_slice(),
+        _ => candle_core::bail!("pointwise conv: {what} must be f32"),
+    };
+    match l.contiguous_offsets() {
+        Some((a, b)) => Ok(&data[a..b]),
+        None => candle_core::bail!("pointwise conv: {what} must be contiguous"),
+    }
+}
+
+/// Raw pointer that may cross threads: every task writes a disjoint tile.
+#[derive(Clone, Copy)]
+struct SendPtr(*mut f32);
+unsafe impl Send for SendPtr {}
+unsafe impl Sync for SendPtr {}
+
+impl CustomOp3 for PointwiseBiasAct {
+    fn name(&self) -> &'static str {
+        "pointwise-bias-act"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let (n, cin, h, w) = l1.shape().dims4()?;
+        let cout = l2.dims()[0];
+        if l2.shape().elem_count() != cout * cin || l3.dims() != [cout] {
+            candle_core::bail!(
+                "pointwise conv: weight {:?} / bias {:?} do not fit {cin} -> {cout} channels",
+                l2.dims(),
+                l3.dims()
+            );
+        }
+        let x = f32_slice(s1, l1, "input")?;
+        let wt = f32_slice(s2, l2, "weight")?;
+        let bias = f32_slice(s3, l3, "bias")?;
+        let res_guard = match &self.residual {
+            Some(r) => {
+                if r.dims() != [n, cout, h, w] {
+                    candle_core::bail!("pointwise conv: residual shape {:?}", r.dims());
+                }
+                Some(r.storage_and_layout())
+            }
+            None => None,
+        };
+        let residual = match &res_guard {
+            Some((storage, layout)) => match &**storage {
+                candle_core::Storage::Cpu(s) => Some(f32_slice(s, layout, "residual")?),
+                _ => candle_core::bail!("pointwise conv: residual must be on the CPU"),
+            },
+            None => None,
+        };
+        let hw = h * w;
+        let mut out = vec![0f32; n * cout * hw];
+        let tiles = hw.div_ceil(TILE);
+        let ptr = SendPtr(out.as_mut_ptr());
+        (0..n * tiles).into_par_iter().for_each(|job| {
+            let (img, tile) = (job / tiles, job % tiles);
+            let c0 = tile * TILE;
+            let cols = TILE.min(hw - c0);
+            let ptr = ptr;
+            // SAFETY: each (image, tile) job owns columns c0..c0+cols of its image.
+            unsafe {
+                let dst = ptr.0.add(img * cout * hw + c0);
+                run_tile(
+                    TileArgs {
+                        x: &x[img * cin * hw + c0..],
+                        wt,
+                        bias,
+                        residual: residual.map(|r| &r[img * cout * hw + c0..]),
+                        cin,
+                        cout,
+                        hw,
+                        cols,
+                        relu6: self.relu6,
+                    },
+                    dst,
+                )
+            }
+        });
+        Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))))
+    }
+}
+
+struct TileArgs<'a> {
+    x: &'a [f32],
+    wt: &'a [f32],
+    bias: &'a [f32],
+    residual: Option<&'a [f32]>,
+    cin: usize,
+    cout: usize,
+    hw: usize,
+    cols: usize,
+    relu6: bool,
+}
+
+/// One output tile `dst[cout, cols]` (row stride `hw`).
+///
+/// # Safety
+/// `dst` must point to a `cout x cols` tile with row stride `hw` that no one
+/// else touches during the call.
+unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
+    let hw = a.hw as isize;
+    for co in 0..a.cout {
+        let row = std::slice::from_raw_parts_mut(dst.add(co * a.hw), a.cols);
+        row.fill(a.bias[co]);
+    }
+    gemm::gemm(
+        a.cout,
+        a.cols,
+        a.cin,
+        dst,
+        1,
+        hw,
+        true,
+        a.wt.as_ptr(),
+        1,
+        a.cin as isize,
+        a.x.as_ptr(),
+        1,
+        hw,
+        1.0,
+        1.0,
+        false,
+        false,
+        false,
+        gemm::Parallelism::None,
+    );
+    for co in 0..a.cout {
+        let row = std::slice::from_raw_parts_mut(dst.add(co * a.hw), a.cols);
+        if let Some(r) = a.residual {
+            for (o, &v) in row.iter_mut().zip(&r[co * a.hw..co * a.hw + a.cols]) {
+                *o += v;
+            }
+        }
+        if a.relu6 {
+            for o in row.iter_mut() {
+                *o = o.clamp(0.0, 6.0);
+            }
+        }
+    }
+}
