@@ -254,7 +254,7 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
     if raw.id.trim().is_empty() {
         bail!("{}: field 'id' is empty", file.display());
     }
-    check_positive(&raw.size, &at("size"))?;
+    check_positive(&raw.size, at, "size")?;
     let mut mesh = raw.mesh.clone();
     match &mut mesh {
         MeshSource::Procedural(shape) => {
@@ -294,7 +294,7 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
         if !names.insert(p.name.clone()) {
             bail!("{}: duplicate part name '{}'", field("name"), p.name);
         }
-        check_positive(&p.size, &field("size"))?;
+        check_positive(&p.size, field, "size")?;
         if !p.center.iter().all(|x| x.is_finite()) {
             bail!("{}: {:?} is not finite", field("center"), p.center);
         }
@@ -322,13 +322,18 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
     })
 }
 
-fn check_positive(v: &[f64; 3], at: &str) -> Result<()> {
+/// Fails unless every component is a positive finite number; `at` builds
+/// the "file: object: field" prefix for a field name.
+fn check_positive(v: &[f64; 3], at: impl Fn(&str) -> String, field: &str) -> Result<()> {
     if let Some((k, x)) = v
         .iter()
         .enumerate()
         .find(|(_, x)| !(x.is_finite() && **x > 0.0))
     {
-        bail!("{at}[{k}] = {x}: sizes must be positive finite numbers (metres)");
+        bail!(
+            "{} = {x}: sizes must be positive finite numbers (metres)",
+            at(&format!("{field}[{k}]"))
+        );
     }
     Ok(())
 }

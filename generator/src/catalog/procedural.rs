@@ -395,7 +395,7 @@ fn banana(length: f64, bend: f64, radius: f64) -> TriMesh {
         // The ends curl up off the table.
         let z = radius + 0.35 * radius * u * u;
         path.push([rc * phi.sin(), rc * phi.cos() - rc, z]);
-        radii.push((rr, rr * 0.92));
+        radii.push((rr, rr * 0.95));
     }
     // Stem: a short thin continuation at -X.
     let last = path[0];
