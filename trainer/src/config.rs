@@ -1,0 +1,140 @@
+//! The training configuration: a TOML file (every field optional, defaults
+//! are the paper's) overridden by command-line flags.
+
+use crate::checkpoint::TrainMode;
+use crate::data::augment::AugmentConfig;
+use crate::data::split::SplitConfig;
+use crate::data::{OnBadData, ReaderOptions};
+use crate::heads::HeadKind;
+use crate::optim::AdamConfig;
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Training dataset root. Without `val_data`/`test_data` it is split by
+    /// sequence into train/val/test.
+    pub data: PathBuf,
+    pub val_data: Option<PathBuf>,
+    pub test_data: Option<PathBuf>,
+    /// Output directory of the run.
+    pub out: PathBuf,
+    pub mode: TrainMode,
+    pub head: HeadKind,
+    /// Pretrained backbone (`.pth` or `.safetensors`), frozen-pretrained mode.
+    pub weights: Option<PathBuf>,
+    pub width_mult: f64,
+    pub input_size: u32,
+    /// Default: 256 on synthetic data, 32 on real data (the paper's). Frames
+    /// per batch for the FC head, sequences per batch for the LSTM head.
+    pub batch_size: Option<usize>,
+    pub max_epochs: usize,
+    pub optimizer: AdamConfig,
+    /// Epochs without validation improvement tolerated before the learning
+    /// rate is multiplied by `plateau_factor` (PyTorch's ReduceLROnPlateau).
+    pub plateau_patience: usize,
+    pub plateau_factor: f64,
+    /// Epochs without validation improvement after which training stops.
+    pub early_stop_patience: usize,
+    /// Downsample every class to the smallest before each epoch.
+    pub balance_classes: bool,
+    pub seed: u64,
+    pub lstm_hidden: usize,
+    /// Truncated back-propagation through time: LSTM chunk length in frames
+    /// (0: whole sequences).
+    pub tbptt: usize,
+    pub split: SplitConfig,
+    pub reader: ReaderOptions,
+    pub augment: AugmentConfig,
+    pub cache_dir: PathBuf,
+    /// Frames per backbone forward pass when extracting features.
+    pub feature_batch: usize,
+    pub on_bad_data: OnBadData,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            data: PathBuf::new(),
+            val_data: None,
+            test_data: None,
+            out: PathBuf::from("runs/train"),
+            mode: TrainMode::FrozenPretrained,
+            head: HeadKind::Fc,
+            weights: None,
+            width_mult: 1.0,
+            input_size: 224,
+            batch_size: None,
+            max_epochs: 100,
+            optimizer: AdamConfig::default(),
+            plateau_patience: 6,
+            plateau_factor: 0.1,
+            early_stop_patience: 10,
+            balance_classes: true,
+            seed: 0,
+            lstm_hidden: 256,
+            tbptt: 0,
+            split: SplitConfig::default(),
+            reader: ReaderOptions::default(),
+            augment: AugmentConfig::default(),
+            cache_dir: PathBuf::from(".grasp-cache/features"),
+            feature_batch: 32,
+            on_bad_data: OnBadData::Skip,
+        }
+    }
+}
+
+impl TrainConfig {
+    pub fn from_toml_file(path: &Path) -> Result<TrainConfig> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("invalid config {}", path.display()))
+    }
+
+    /// The paper's batch size for the kind of data when none is set.
+    pub fn batch_size_for(&self, real_data: bool) -> usize {
+        self.batch_size.unwrap_or(if real_data { 32 } else { 256 })
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if self.data.as_os_str().is_empty() {
+            anyhow::bail!("no training data: set `data` in the config or pass --data");
+        }
+        if self.mode == TrainMode::FrozenPretrained && self.weights.is_none() {
+            anyhow::bail!(
+                "frozen-pretrained mode needs backbone weights (--weights mobilenet_v2-b0353104.pth); \
+                 without them use --mode from-scratch"
+            );
+        }
+        if !(self.width_mult > 0.0) || self.input_size < 32 {
+            anyhow::bail!(
+                "width_mult must be positive and input_size at least 32 (got {} and {})",
+                self.width_mult,
+                self.input_size
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_overrides_defaults_and_rejects_typos() {
+        let cfg: TrainConfig = toml::from_str(
+            "data = \"d\"\nhead = \"lstm\"\nmode = \"from-scratch\"\n[optimizer]\nlr = 0.001\n",
+        )
+        .unwrap();
+        assert_eq!(cfg.head, HeadKind::Lstm);
+        assert_eq!(cfg.mode, TrainMode::FromScratch);
+        assert_eq!(cfg.optimizer.lr, 1e-3);
+        assert_eq!(cfg.optimizer.weight_decay, 5e-4);
+        assert_eq!(cfg.batch_size_for(true), 32);
+        assert_eq!(cfg.batch_size_for(false), 256);
+        assert!(toml::from_str::<TrainConfig>("lerning_rate = 1").is_err());
+    }
+}

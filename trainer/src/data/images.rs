@@ -1,0 +1,18 @@
+//! Frame loading with bad-data reporting.
+
+use super::BadData;
+use anyhow::Result;
+use image::RgbImage;
+use std::path::Path;
+
+/// Decodes one frame as RGB; `None` when it is unreadable and the policy is
+/// to skip (the problem is recorded with its path).
+pub fn load_frame(path: &Path, bad: &BadData) -> Result<Option<RgbImage>> {
+    match image::open(path) {
+        Ok(img) => Ok(Some(img.to_rgb8())),
+        Err(e) => {
+            bad.report(path, format!("unreadable image: {e}"))?;
+            Ok(None)
+        }
+    }
+}

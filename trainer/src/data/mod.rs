@@ -1,0 +1,103 @@
+//! Datasets of reach-to-grasp sequences: the reader for the generator's and
+//! the authors' layouts, bad-data reporting, splits and augmentation.
+
+pub mod augment;
+pub mod bad;
+pub mod images;
+pub mod reader;
+pub mod split;
+pub mod synthetic;
+
+pub use bad::{BadData, OnBadData};
+pub use reader::{read_dataset, ReaderOptions};
+
+use grasp_schema::taxonomy::{Class, Preshape};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Where the labels of a sequence came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LabelSource {
+    /// Per-frame labels from the generator's `sequence.json`.
+    SequenceJson,
+    /// The authors' real data: the folder's pre-shape, with the last 0.5 s
+    /// labelled `no_grasp`.
+    PreshapeFolder,
+}
+
+/// One reach-to-grasp sequence with its per-frame labels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sequence {
+    /// Unique id: the sequence folder relative to the dataset root.
+    pub id: String,
+    /// The sequence folder (`.../Wrist_d435/rgbNNNNN`).
+    pub dir: PathBuf,
+    pub category: String,
+    pub object: String,
+    /// Object part; for the authors' data (no part annotation) the pre-shape
+    /// folder name stands for it.
+    pub part: String,
+    pub preshape: Preshape,
+    /// `default`, `fast`, ... for generated data; `real` for the authors'.
+    pub condition: String,
+    pub fps: f64,
+    pub frames: Vec<PathBuf>,
+    pub labels: Vec<Class>,
+    pub label_source: LabelSource,
+}
+
+impl Sequence {
+    /// The stratum of the split: the object-part pair.
+    pub fn stratum(&self) -> String {
+        format!("{}/{}", self.object, self.part)
+    }
+
+    /// The sequence's grasp class (its pre-shape).
+    pub fn grasp_class(&self) -> Class {
+        Class::from(self.preshape)
+    }
+
+    /// Time of frame `i` since the start of the sequence, in seconds.
+    pub fn time_s(&self, i: usize) -> f64 {
+        i as f64 / self.fps
+    }
+}
+
+/// A dataset: the readable sequences of one root, in a stable order.
+#[derive(Debug, Clone, Default)]
+pub struct Dataset {
+    pub root: PathBuf,
+    pub sequences: Vec<Sequence>,
+}
+
+impl Dataset {
+    /// Whether this is the authors' real data (labels from folders), which
+    /// selects the paper's real-data batch size.
+    pub fn is_real(&self) -> bool {
+        !self.sequences.is_empty()
+            && self
+                .sequences
+                .iter()
+                .all(|s| s.label_source == LabelSource::PreshapeFolder)
+    }
+
+    pub fn frame_count(&self) -> usize {
+        self.sequences.iter().map(|s| s.frames.len()).sum()
+    }
+
+    /// Objects that have more than one grasp pre-shape in this dataset
+    /// (the paper's "multi-grasp" objects).
+    pub fn multi_grasp_objects(&self) -> std::collections::BTreeSet<String> {
+        let mut by_object: std::collections::BTreeMap<&str, std::collections::BTreeSet<Preshape>> =
+            Default::default();
+        for s in &self.sequences {
+            by_object.entry(&s.object).or_default().insert(s.preshape);
+        }
+        by_object
+            .into_iter()
+            .filter(|(_, p)| p.len() > 1)
+            .map(|(o, _)| o.to_string())
+            .collect()
+    }
+}

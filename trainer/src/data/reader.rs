@@ -1,0 +1,261 @@
+//! Reads `ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/CAMERA/rgbNNNNN/*.png`.
+//!
+//! A sequence folder with a `sequence.json` (the generator's) takes its
+//! per-frame labels from it. Without one (the authors' real data) the labels
+//! come from the pre-shape folder, with the last `no_grasp_tail_s` seconds
+//! (0.5 s in the paper) labelled `no_grasp`. When `ROOT/manifest.jsonl` exists
+//! the root is a generated dataset, and a sequence without `sequence.json` is
+//! a missing-labels problem instead.
+
+use super::{BadData, Dataset, LabelSource, Sequence};
+use anyhow::{Context, Result};
+use grasp_schema::dataset::{SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER};
+use grasp_schema::taxonomy::{Class, Preshape};
+use serde::{Deserialize, Serialize};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReaderOptions {
+    /// Camera folder to read (`Wrist_d435`, or `Head_d435` for egocentric).
+    pub camera: String,
+    /// Frame rate of the authors' real data (it has no metadata).
+    pub real_fps: f64,
+    /// Length of the final `no_grasp` segment of real data, in seconds.
+    pub no_grasp_tail_s: f64,
+}
+
+impl Default for ReaderOptions {
+    fn default() -> Self {
+        ReaderOptions {
+            camera: WRIST_CAMERA_FOLDER.to_string(),
+            real_fps: 30.0,
+            no_grasp_tail_s: 0.5,
+        }
+    }
+}
+
+/// Reads every sequence under `root`. Problems (unparseable or missing labels,
+/// missing frames) go through `bad`; a root that cannot be listed is an error.
+pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<Dataset> {
+    let generated = root.join(MANIFEST_FILE).is_file();
+    let mut sequences = Vec::new();
+    for category in subdirs(root)? {
+        for object in subdirs(&category)? {
+            for preshape_dir in subdirs(&object)? {
+                let folder = file_name(&preshape_dir);
+                let Some(preshape) = Preshape::from_authors_folder(&folder) else {
+                    bad.report(
+                        &preshape_dir,
+                        format!(
+                            "'{folder}' is not a pre-shape folder (expected one of: {})",
+                            Preshape::ALL.map(|p| p.authors_folder()).join(", ")
+                        ),
+                    )?;
+                    continue;
+                };
+                let camera = preshape_dir.join(&opts.camera);
+                if !camera.is_dir() {
+                    continue;
+                }
+                let ctx = FolderContext {
+                    root,
+                    category: file_name(&category),
+                    object: file_name(&object),
+                    preshape,
+                    generated,
+                };
+                for dir in subdirs(&camera)? {
+                    if !file_name(&dir).starts_with("rgb") {
+                        continue;
+                    }
+                    if let Some(seq) = read_sequence(&dir, &ctx, opts, bad)? {
+                        sequences.push(seq);
+                    }
+                }
+            }
+        }
+    }
+    Ok(Dataset {
+        root: root.to_path_buf(),
+        sequences,
+    })
+}
+
+struct FolderContext<'a> {
+    root: &'a Path,
+    category: String,
+    object: String,
+    preshape: Preshape,
+    generated: bool,
+}
+
+fn read_sequence(
+    dir: &Path,
+    ctx: &FolderContext,
+    opts: &ReaderOptions,
+    bad: &BadData,
+) -> Result<Option<Sequence>> {
+    let json = dir.join(SEQUENCE_FILE);
+    let seq = if json.is_file() {
+        match read_record(&json) {
+            Ok(record) => from_record(dir, ctx, &record),
+            Err(e) => {
+                bad.report(&json, format!("{e:#}"))?;
+                return Ok(None);
+            }
+        }
+    } else if ctx.generated {
+        bad.report(
+            &json,
+            "missing labels: no sequence.json in a generated dataset",
+        )?;
+        return Ok(None);
+    } else {
+        from_folder(dir, ctx, opts)?
+    };
+    check_frames(seq, bad)
+}
+
+fn read_record(path: &Path) -> Result<SequenceRecord> {
+    let text = fs::read_to_string(path).context("cannot read")?;
+    let record: SequenceRecord = serde_json::from_str(&text).context("invalid sequence.json")?;
+    if record.frame_files.len() != record.plan.frames.len() {
+        anyhow::bail!(
+            "frame_files has {} entries but plan.frames has {}",
+            record.frame_files.len(),
+            record.plan.frames.len()
+        );
+    }
+    Ok(record)
+}
+
+fn from_record(dir: &Path, ctx: &FolderContext, record: &SequenceRecord) -> Sequence {
+    let plan = &record.plan;
+    Sequence {
+        id: relative_id(ctx.root, dir),
+        dir: dir.to_path_buf(),
+        category: ctx.category.clone(),
+        object: plan.key.object.clone(),
+        part: plan.key.part.clone(),
+        preshape: plan.preshape,
+        condition: plan.key.condition.name().to_string(),
+        fps: plan.fps,
+        frames: record.frame_files.iter().map(|f| dir.join(f)).collect(),
+        labels: plan.labels(),
+        label_source: LabelSource::SequenceJson,
+    }
+}
+
+fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<Sequence> {
+    let mut frames: Vec<PathBuf> = fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| is_image(p))
+        .collect();
+    frames.sort();
+    Ok(Sequence {
+        id: relative_id(ctx.root, dir),
+        dir: dir.to_path_buf(),
+        category: ctx.category.clone(),
+        object: ctx.object.clone(),
+        part: ctx.preshape.authors_folder().to_string(),
+        preshape: ctx.preshape,
+        condition: "real".to_string(),
+        fps: opts.real_fps,
+        labels: folder_labels(frames.len(), ctx.preshape, opts),
+        frames,
+        label_source: LabelSource::PreshapeFolder,
+    })
+}
+
+/// The authors' labelling: the pre-shape, then `no_grasp` for the last
+/// `no_grasp_tail_s` seconds (rounded to whole frames).
+pub fn folder_labels(n: usize, preshape: Preshape, opts: &ReaderOptions) -> Vec<Class> {
+    let tail = ((opts.no_grasp_tail_s * opts.real_fps).round() as usize).min(n);
+    (0..n)
+        .map(|i| {
+            if i >= n - tail {
+                Class::NoGrasp
+            } else {
+                Class::from(preshape)
+            }
+        })
+        .collect()
+}
+
+/// Drops (or fails on) frames whose file is missing, and empty sequences.
+fn check_frames(mut seq: Sequence, bad: &BadData) -> Result<Option<Sequence>> {
+    let mut keep = Vec::with_capacity(seq.frames.len());
+    for f in &seq.frames {
+        let ok = f.is_file();
+        if !ok {
+            bad.report(f, "frame file is missing")?;
+        }
+        keep.push(ok);
+    }
+    if keep.iter().any(|k| !k) {
+        let mut k = keep.iter();
+        seq.frames.retain(|_| *k.next().unwrap_or(&false));
+        let mut k = keep.iter();
+        seq.labels.retain(|_| *k.next().unwrap_or(&false));
+    }
+    if seq.frames.is_empty() {
+        bad.report(&seq.dir, "sequence has no frames")?;
+        return Ok(None);
+    }
+    Ok(Some(seq))
+}
+
+fn is_image(p: &Path) -> bool {
+    matches!(
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref(),
+        Some("png" | "jpg" | "jpeg")
+    )
+}
+
+fn subdirs(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out: Vec<PathBuf> = fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+fn relative_id(root: &Path, dir: &Path) -> String {
+    let rel = dir.strip_prefix(root).unwrap_or(dir);
+    rel.components()
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn last_half_second_is_no_grasp() {
+        let opts = ReaderOptions::default();
+        let labels = folder_labels(90, Preshape::Pinch, &opts);
+        assert_eq!(labels.iter().filter(|c| **c == Class::NoGrasp).count(), 15);
+        assert_eq!(labels[74], Class::Pinch);
+        assert_eq!(labels[75], Class::NoGrasp);
+        assert_eq!(
+            folder_labels(3, Preshape::Power, &opts),
+            vec![Class::NoGrasp; 3]
+        );
+    }
+}

@@ -1,0 +1,124 @@
+//! Train/validation/test splits by sequence (never by frame), stratified by
+//! object-part pair: each pair's sequences are shuffled with the split seed
+//! and dealt out in proportion, so every pair with enough sequences appears
+//! in every split.
+
+use super::Dataset;
+use anyhow::{Context, Result};
+use rand::seq::SliceRandom;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SplitConfig {
+    pub val_fraction: f64,
+    pub test_fraction: f64,
+    /// Seed of the split, separate from the training seed so that runs with
+    /// several seeds share one split.
+    pub seed: u64,
+}
+
+impl Default for SplitConfig {
+    fn default() -> Self {
+        SplitConfig {
+            val_fraction: 0.15,
+            test_fraction: 0.15,
+            seed: 0,
+        }
+    }
+}
+
+/// Sequence ids of each split.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Split {
+    pub train: Vec<String>,
+    pub val: Vec<String>,
+    pub test: Vec<String>,
+}
+
+impl Split {
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::checkpoint::write_atomic(path, serde_json::to_string_pretty(self)?.as_bytes())
+    }
+
+    pub fn load(path: &Path) -> Result<Split> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        serde_json::from_str(&text)
+            .with_context(|| format!("invalid split file {}", path.display()))
+    }
+}
+
+/// Splits `data` per object-part pair. Within a pair of `n` sequences, the
+/// validation and test shares are `round(n * fraction)`, but a pair keeps at
+/// least one training sequence, then one test, then one validation sequence
+/// as `n` allows (training first: a pair never seen in training cannot be
+/// learned).
+pub fn stratified_split(data: &Dataset, cfg: &SplitConfig) -> Split {
+    let mut strata: BTreeMap<String, Vec<&str>> = BTreeMap::new();
+    for s in &data.sequences {
+        strata.entry(s.stratum()).or_default().push(&s.id);
+    }
+    let mut rng = crate::rng::stream(cfg.seed, "split");
+    let mut split = Split::default();
+    for ids in strata.values_mut() {
+        ids.shuffle(&mut rng);
+        let (n_val, n_test) = shares(ids.len(), cfg);
+        let (val, rest) = ids.split_at(n_val);
+        let (test, train) = rest.split_at(n_test);
+        split.val.extend(val.iter().map(|s| s.to_string()));
+        split.test.extend(test.iter().map(|s| s.to_string()));
+        split.train.extend(train.iter().map(|s| s.to_string()));
+    }
+    split
+}
+
+fn shares(n: usize, cfg: &SplitConfig) -> (usize, usize) {
+    let round = |f: f64| (n as f64 * f).round() as usize;
+    let mut n_test = round(cfg.test_fraction);
+    let mut n_val = round(cfg.val_fraction);
+    if cfg.test_fraction > 0.0 && n >= 2 {
+        n_test = n_test.max(1);
+    }
+    if cfg.val_fraction > 0.0 && n >= 3 {
+        n_val = n_val.max(1);
+    }
+    while n_val + n_test >= n && n_val + n_test > 0 {
+        if n_val >= n_test && n_val > 0 {
+            n_val -= 1;
+        } else {
+            n_test -= 1;
+        }
+    }
+    (n_val, n_test)
+}
+
+/// The sequences of `data` named in `ids`, in dataset order.
+pub fn select(data: &Dataset, ids: &[String]) -> Dataset {
+    let wanted: std::collections::HashSet<&str> = ids.iter().map(String::as_str).collect();
+    Dataset {
+        root: data.root.clone(),
+        sequences: data
+            .sequences
+            .iter()
+            .filter(|s| wanted.contains(s.id.as_str()))
+            .cloned()
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shares_keep_training_data() {
+        let cfg = SplitConfig::default();
+        assert_eq!(shares(1, &cfg), (0, 0));
+        assert_eq!(shares(2, &cfg), (0, 1));
+        assert_eq!(shares(3, &cfg), (1, 1));
+        assert_eq!(shares(20, &cfg), (3, 3));
+    }
+}

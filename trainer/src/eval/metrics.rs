@@ -1,0 +1,304 @@
+//! Metrics over per-frame class probabilities of whole videos.
+//!
+//! Rules (all documented in docs/trainer.md):
+//! - frame prediction: the argmax over the five classes, ties to the lowest
+//!   class index;
+//! - per-frame accuracy "with no_grasp" counts every frame; "without" counts
+//!   only frames labelled with a pre-shape (predicting `no_grasp` there is an
+//!   error);
+//! - per-video prediction (the paper's headline metric): majority vote over
+//!   the frames whose prediction is a pre-shape (`no_grasp` votes are
+//!   dropped). Ties, including a video with no pre-shape vote at all, go to
+//!   the tied pre-shape with the highest probability summed over all frames,
+//!   then to the lowest class index;
+//! - accuracy against time: for every time bin, the fraction of frames in it
+//!   whose prediction equals their video's pre-shape, separately for videos
+//!   of single-grasp and multi-grasp objects (the paper's Fig. 5);
+//! - baseline: a perfect object classifier that always answers the object's
+//!   most frequent pre-shape among the evaluated videos (ties to the lowest
+//!   class index).
+
+use grasp_schema::taxonomy::{Class, Preshape};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Predictions and ground truth of one video.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VideoPrediction {
+    pub id: String,
+    pub object: String,
+    pub part: String,
+    pub preshape: Preshape,
+    /// Whether the object has several pre-shapes in the evaluated data.
+    pub multi_grasp: bool,
+    pub labels: Vec<Class>,
+    pub probs: Vec<[f32; 5]>,
+    pub times_s: Vec<f64>,
+}
+
+/// The predicted class of a frame: argmax, ties to the lowest index.
+pub fn frame_class(p: &[f32; 5]) -> usize {
+    let mut best = 0;
+    for c in 1..5 {
+        if p[c] > p[best] {
+            best = c;
+        }
+    }
+    best
+}
+
+/// The video's pre-shape by majority vote (see the module docs for ties).
+pub fn video_class(probs: &[[f32; 5]]) -> usize {
+    let mut votes = [0usize; 4];
+    let mut mass = [0f64; 4];
+    for p in probs {
+        let c = frame_class(p);
+        if c < 4 {
+            votes[c] += 1;
+        }
+        for k in 0..4 {
+            mass[k] += f64::from(p[k]);
+        }
+    }
+    let top = *votes.iter().max().unwrap_or(&0);
+    let mut best: Option<usize> = None;
+    for c in 0..4 {
+        if votes[c] == top && best.is_none_or(|b| mass[c] > mass[b]) {
+            best = Some(c);
+        }
+    }
+    best.unwrap_or(0)
+}
+
+/// Accuracy against time for one group of videos.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Curve {
+    pub correct: Vec<u64>,
+    pub total: Vec<u64>,
+}
+
+impl Curve {
+    fn add(&mut self, bin: usize, ok: bool) {
+        if self.total.len() <= bin {
+            self.total.resize(bin + 1, 0);
+            self.correct.resize(bin + 1, 0);
+        }
+        self.total[bin] += 1;
+        self.correct[bin] += u64::from(ok);
+    }
+
+    pub fn accuracy(&self) -> Vec<Option<f64>> {
+        self.correct
+            .iter()
+            .zip(&self.total)
+            .map(|(c, t)| (*t > 0).then(|| *c as f64 / *t as f64))
+            .collect()
+    }
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TimeCurves {
+    pub bin_s: f64,
+    pub single: Curve,
+    pub multi: Curve,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Baseline {
+    /// The pre-shape the perfect object classifier answers for each object.
+    pub object_preshape: BTreeMap<String, Preshape>,
+    pub video_accuracy: f64,
+    pub video_accuracy_single: Option<f64>,
+    pub video_accuracy_multi: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub frames: usize,
+    pub frame_accuracy: f64,
+    pub grasp_frames: usize,
+    pub frame_accuracy_without_no_grasp: f64,
+    pub videos: usize,
+    pub video_accuracy: f64,
+    pub single_grasp_videos: usize,
+    pub video_accuracy_single: Option<f64>,
+    pub multi_grasp_videos: usize,
+    pub video_accuracy_multi: Option<f64>,
+    /// Rows: true class, columns: predicted class (5 classes).
+    pub frame_confusion: Vec<Vec<u64>>,
+    /// Rows: true pre-shape, columns: voted pre-shape (4 pre-shapes).
+    pub video_confusion: Vec<Vec<u64>>,
+    pub baseline: Baseline,
+    pub time: TimeCurves,
+}
+
+fn ratio(num: usize, den: usize) -> f64 {
+    if den == 0 {
+        0.0
+    } else {
+        num as f64 / den as f64
+    }
+}
+
+fn opt_ratio(num: usize, den: usize) -> Option<f64> {
+    (den > 0).then(|| num as f64 / den as f64)
+}
+
+pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
+    let mut m = Metrics {
+        frame_confusion: vec![vec![0; 5]; 5],
+        video_confusion: vec![vec![0; 4]; 4],
+        time: TimeCurves {
+            bin_s,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let (mut frame_ok, mut grasp_ok, mut video_ok) = (0, 0, 0);
+    let (mut single_ok, mut multi_ok) = (0, 0);
+    for v in videos {
+        let truth = Class::from(v.preshape).index();
+        for (i, (p, label)) in v.probs.iter().zip(&v.labels).enumerate() {
+            let c = frame_class(p);
+            m.frames += 1;
+            m.frame_confusion[label.index()][c] += 1;
+            frame_ok += usize::from(c == label.index());
+            if *label != Class::NoGrasp {
+                m.grasp_frames += 1;
+                grasp_ok += usize::from(c == label.index());
+            }
+            let t = v.times_s.get(i).copied().unwrap_or(0.0);
+            let bin = (t / bin_s + 1e-9).floor().max(0.0) as usize;
+            let curve = if v.multi_grasp {
+                &mut m.time.multi
+            } else {
+                &mut m.time.single
+            };
+            curve.add(bin, c == truth);
+        }
+        let voted = video_class(&v.probs);
+        m.video_confusion[truth][voted] += 1;
+        m.videos += 1;
+        let ok = voted == truth;
+        video_ok += usize::from(ok);
+        if v.multi_grasp {
+            m.multi_grasp_videos += 1;
+            multi_ok += usize::from(ok);
+        } else {
+            m.single_grasp_videos += 1;
+            single_ok += usize::from(ok);
+        }
+    }
+    m.frame_accuracy = ratio(frame_ok, m.frames);
+    m.frame_accuracy_without_no_grasp = ratio(grasp_ok, m.grasp_frames);
+    m.video_accuracy = ratio(video_ok, m.videos);
+    m.video_accuracy_single = opt_ratio(single_ok, m.single_grasp_videos);
+    m.video_accuracy_multi = opt_ratio(multi_ok, m.multi_grasp_videos);
+    m.baseline = baseline(videos);
+    m
+}
+
+/// The perfect object classifier answering each object's most frequent
+/// pre-shape.
+pub fn baseline(videos: &[VideoPrediction]) -> Baseline {
+    let mut counts: BTreeMap<&str, [usize; 4]> = BTreeMap::new();
+    for v in videos {
+        counts.entry(&v.object).or_default()[Class::from(v.preshape).index()] += 1;
+    }
+    let object_preshape: BTreeMap<String, Preshape> = counts
+        .iter()
+        .map(|(o, c)| {
+            let mut best = 0;
+            for k in 1..4 {
+                if c[k] > c[best] {
+                    best = k;
+                }
+            }
+            (o.to_string(), Preshape::ALL[best])
+        })
+        .collect();
+    let (mut ok, mut s_ok, mut s_n, mut m_ok, mut m_n) = (0, 0, 0, 0, 0);
+    for v in videos {
+        let hit = object_preshape[&v.object] == v.preshape;
+        ok += usize::from(hit);
+        if v.multi_grasp {
+            m_n += 1;
+            m_ok += usize::from(hit);
+        } else {
+            s_n += 1;
+            s_ok += usize::from(hit);
+        }
+    }
+    Baseline {
+        object_preshape,
+        video_accuracy: ratio(ok, videos.len()),
+        video_accuracy_single: opt_ratio(s_ok, s_n),
+        video_accuracy_multi: opt_ratio(m_ok, m_n),
+    }
+}
+
+/// Mean and population standard deviation (numpy's default, as the paper's
+/// "± std over runs").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MeanStd {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+pub fn mean_std(values: &[f64]) -> Option<MeanStd> {
+    if values.is_empty() {
+        return None;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    Some(MeanStd {
+        mean,
+        std: var.sqrt(),
+        n: values.len(),
+    })
+}
+
+/// The headline scalars of a run, by name, for aggregation over seeds.
+pub fn scalars(m: &Metrics) -> Vec<(&'static str, Option<f64>)> {
+    vec![
+        ("video_accuracy", Some(m.video_accuracy)),
+        ("video_accuracy_single", m.video_accuracy_single),
+        ("video_accuracy_multi", m.video_accuracy_multi),
+        ("frame_accuracy", Some(m.frame_accuracy)),
+        (
+            "frame_accuracy_without_no_grasp",
+            Some(m.frame_accuracy_without_no_grasp),
+        ),
+        ("baseline_video_accuracy", Some(m.baseline.video_accuracy)),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_ties_go_to_the_lowest_index() {
+        assert_eq!(frame_class(&[0.2, 0.4, 0.4, 0.0, 0.0]), 1);
+        assert_eq!(frame_class(&[0.0, 0.0, 0.0, 0.0, 1.0]), 4);
+    }
+
+    #[test]
+    fn video_vote_ignores_no_grasp_and_breaks_ties_by_mass() {
+        let ng = [0.0, 0.0, 0.0, 0.1, 0.9];
+        let a = [0.6, 0.4, 0.0, 0.0, 0.0];
+        let b = [0.0, 0.9, 0.1, 0.0, 0.0];
+        // Two no_grasp frames, one vote each for power and lateral: tie;
+        // lateral's summed probability 1.3 beats power's 0.6.
+        assert_eq!(video_class(&[ng, ng, a, b]), 1);
+        // Only no_grasp predictions: the pre-shape with the most mass
+        // (pinch3, 0.2).
+        assert_eq!(video_class(&[ng, ng]), 3);
+        // Equal votes and equal mass: lowest index.
+        let x = [0.6, 0.0, 0.4, 0.0, 0.0];
+        let y = [0.4, 0.0, 0.6, 0.0, 0.0];
+        assert_eq!(video_class(&[y, x]), 0);
+    }
+}

@@ -1,0 +1,10 @@
+//! Evaluation: per-frame and per-video metrics, the perfect-object-classifier
+//! baseline, accuracy against time, and the Markdown/JSON/PNG report.
+
+pub mod metrics;
+pub mod plots;
+pub mod predict;
+pub mod report;
+
+pub use metrics::{compute_metrics, Metrics, VideoPrediction};
+pub use report::{write_report, Report};

@@ -1,0 +1,83 @@
+//! Runs a classifier over a dataset's videos.
+
+use super::VideoPrediction;
+use crate::checkpoint::{Classifier, TrainMode};
+use crate::data::{BadData, Dataset};
+use crate::features::{FeatureCache, FeatureExtractor};
+use anyhow::Result;
+use candle_core::Tensor;
+
+/// Per-frame probabilities of every video of `data`. Frozen-pretrained
+/// checkpoints read features through `cache` (shared with training);
+/// from-scratch ones run their own backbone.
+pub fn predict_dataset(
+    clf: &Classifier,
+    data: &Dataset,
+    cache: &FeatureCache,
+    bad: &BadData,
+) -> Result<Vec<VideoPrediction>> {
+    let multi = data.multi_grasp_objects();
+    let bar = crate::progress::bar(data.sequences.len() as u64, "predict");
+    let mut out = Vec::with_capacity(data.sequences.len());
+    for seq in &data.sequences {
+        let (rows, valid) = match clf.meta.mode {
+            TrainMode::FrozenPretrained => {
+                let (f, _) = cache.sequence(clf.backbone(), seq, bad)?;
+                let n = f.valid_count();
+                (
+                    Tensor::from_vec(f.rows, (n, f.dim), &candle_core::Device::Cpu)?,
+                    f.valid,
+                )
+            }
+            TrainMode::FromScratch => extract(clf, seq, cache.batch, bad)?,
+        };
+        let probs = if valid.iter().any(|v| *v) {
+            clf.predict_features(&rows)?
+        } else {
+            Vec::new()
+        };
+        let keep = |i: &usize| valid[*i];
+        let idx: Vec<usize> = (0..seq.frames.len()).filter(keep).collect();
+        out.push(VideoPrediction {
+            id: seq.id.clone(),
+            object: seq.object.clone(),
+            part: seq.part.clone(),
+            preshape: seq.preshape,
+            multi_grasp: multi.contains(&seq.object),
+            labels: idx.iter().map(|i| seq.labels[*i]).collect(),
+            times_s: idx.iter().map(|i| seq.time_s(*i)).collect(),
+            probs,
+        });
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(out)
+}
+
+fn extract(
+    clf: &Classifier,
+    seq: &crate::data::Sequence,
+    batch: usize,
+    bad: &BadData,
+) -> Result<(Tensor, Vec<bool>)> {
+    let mut parts = Vec::new();
+    let mut valid = Vec::new();
+    for chunk in seq.frames.chunks(batch.max(1)) {
+        let mut images = Vec::new();
+        for f in chunk {
+            let img = crate::data::images::load_frame(f, bad)?;
+            valid.push(img.is_some());
+            images.extend(img);
+        }
+        if !images.is_empty() {
+            parts.push(clf.backbone().extract(&images)?);
+        }
+    }
+    let dim = clf.backbone().feature_dim();
+    let rows = if parts.is_empty() {
+        Tensor::zeros((0, dim), candle_core::DType::F32, &candle_core::Device::Cpu)?
+    } else {
+        Tensor::cat(&parts, 0)?
+    };
+    Ok((rows, valid))
+}

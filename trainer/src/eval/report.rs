@@ -1,0 +1,226 @@
+//! The evaluation report: `report.json` (everything), `report.md` (tables),
+//! `time_accuracy.png` (the paper's Fig. 5) and `confusion.png`.
+
+use super::metrics::{mean_std, scalars, Curve, MeanStd, Metrics};
+use anyhow::Result;
+use grasp_schema::taxonomy::{Class, Preshape};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RunReport {
+    pub checkpoint: PathBuf,
+    pub seed: u64,
+    pub metrics: Metrics,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Report {
+    /// `frozen-pretrained` or `from-scratch` (every run of a report shares it).
+    pub mode: String,
+    pub head: String,
+    pub dataset: PathBuf,
+    pub runs: Vec<RunReport>,
+    /// Mean ± std over runs of each headline scalar.
+    pub aggregate: BTreeMap<String, MeanStd>,
+    /// Frame and video confusion summed over runs; time curves summed.
+    pub frame_confusion: Vec<Vec<u64>>,
+    pub video_confusion: Vec<Vec<u64>>,
+    pub time_bin_s: f64,
+    pub time_single: Curve,
+    pub time_multi: Curve,
+}
+
+impl Report {
+    pub fn new(mode: &str, head: &str, dataset: &Path, runs: Vec<RunReport>) -> Report {
+        let mut aggregate = BTreeMap::new();
+        if let Some(first) = runs.first() {
+            for (i, (name, _)) in scalars(&first.metrics).into_iter().enumerate() {
+                let vals: Vec<f64> = runs
+                    .iter()
+                    .filter_map(|r| scalars(&r.metrics)[i].1)
+                    .collect();
+                if let Some(ms) = mean_std(&vals) {
+                    aggregate.insert(name.to_string(), ms);
+                }
+            }
+        }
+        let mut fc = vec![vec![0; 5]; 5];
+        let mut vc = vec![vec![0; 4]; 4];
+        let (mut single, mut multi) = (Curve::default(), Curve::default());
+        for r in &runs {
+            add_matrix(&mut fc, &r.metrics.frame_confusion);
+            add_matrix(&mut vc, &r.metrics.video_confusion);
+            add_curve(&mut single, &r.metrics.time.single);
+            add_curve(&mut multi, &r.metrics.time.multi);
+        }
+        Report {
+            mode: mode.to_string(),
+            head: head.to_string(),
+            dataset: dataset.to_path_buf(),
+            time_bin_s: runs.first().map(|r| r.metrics.time.bin_s).unwrap_or(0.1),
+            runs,
+            aggregate,
+            frame_confusion: fc,
+            video_confusion: vc,
+            time_single: single,
+            time_multi: multi,
+        }
+    }
+}
+
+fn add_matrix(acc: &mut [Vec<u64>], m: &[Vec<u64>]) {
+    for (a, r) in acc.iter_mut().zip(m) {
+        for (x, y) in a.iter_mut().zip(r) {
+            *x += y;
+        }
+    }
+}
+
+fn add_curve(acc: &mut Curve, c: &Curve) {
+    if acc.total.len() < c.total.len() {
+        acc.total.resize(c.total.len(), 0);
+        acc.correct.resize(c.total.len(), 0);
+    }
+    for i in 0..c.total.len() {
+        acc.total[i] += c.total[i];
+        acc.correct[i] += c.correct[i];
+    }
+}
+
+/// Writes the report's files into `dir`.
+pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    crate::checkpoint::write_atomic(
+        &dir.join("report.json"),
+        serde_json::to_string_pretty(report)?.as_bytes(),
+    )?;
+    super::plots::time_accuracy(report, &dir.join("time_accuracy.png"))?;
+    super::plots::confusion(&report.frame_confusion, &dir.join("confusion.png"))?;
+    crate::checkpoint::write_atomic(&dir.join("report.md"), markdown(report).as_bytes())
+}
+
+fn pct(v: Option<f64>) -> String {
+    v.map(|v| format!("{:.1}", v * 100.0))
+        .unwrap_or_else(|| "–".into())
+}
+
+fn pct_ms(m: Option<&MeanStd>) -> String {
+    m.map(|m| format!("{:.1} ± {:.1}", m.mean * 100.0, m.std * 100.0))
+        .unwrap_or_else(|| "–".into())
+}
+
+pub fn markdown(r: &Report) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Evaluation report\n");
+    let _ = writeln!(
+        s,
+        "- **Mode: {}** (head: {})\n- Dataset: `{}`\n- Videos: {} per run; runs (seeds): {}\n",
+        r.mode,
+        r.head,
+        r.dataset.display(),
+        r.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
+        r.runs.len()
+    );
+    let _ = writeln!(
+        s,
+        "## Accuracy (%), mean ± std over {} run(s)\n",
+        r.runs.len()
+    );
+    let _ = writeln!(s, "| metric | value |\n|---|---|");
+    let rows = [
+        (
+            "per-video (majority vote, no_grasp excluded)",
+            "video_accuracy",
+        ),
+        ("per-video, single-grasp objects", "video_accuracy_single"),
+        ("per-video, multi-grasp objects", "video_accuracy_multi"),
+        ("per-frame, with no_grasp", "frame_accuracy"),
+        (
+            "per-frame, without no_grasp frames",
+            "frame_accuracy_without_no_grasp",
+        ),
+        (
+            "baseline: perfect object classifier",
+            "baseline_video_accuracy",
+        ),
+    ];
+    for (label, key) in rows {
+        let _ = writeln!(s, "| {label} | {} |", pct_ms(r.aggregate.get(key)));
+    }
+    let _ = writeln!(
+        s,
+        "\n## Runs\n\n| seed | checkpoint | video | single | multi | frame | frame w/o no_grasp | baseline |\n|---|---|---|---|---|---|---|---|"
+    );
+    for run in &r.runs {
+        let m = &run.metrics;
+        let _ = writeln!(
+            s,
+            "| {} | `{}` | {} | {} | {} | {} | {} | {} |",
+            run.seed,
+            run.checkpoint.display(),
+            pct(Some(m.video_accuracy)),
+            pct(m.video_accuracy_single),
+            pct(m.video_accuracy_multi),
+            pct(Some(m.frame_accuracy)),
+            pct(Some(m.frame_accuracy_without_no_grasp)),
+            pct(Some(m.baseline.video_accuracy)),
+        );
+    }
+    let names: Vec<&str> = Class::names();
+    let _ = writeln!(
+        s,
+        "\n## Frame confusion (rows: truth, columns: prediction; summed over runs)\n"
+    );
+    matrix(&mut s, &r.frame_confusion, &names);
+    let pre: Vec<&str> = Preshape::ALL.iter().map(|p| p.name()).collect();
+    let _ = writeln!(
+        s,
+        "\n## Video confusion (rows: truth, columns: vote; summed over runs)\n"
+    );
+    matrix(&mut s, &r.video_confusion, &pre);
+    if let Some(first) = r.runs.first() {
+        let _ = writeln!(
+            s,
+            "\n## Baseline object → pre-shape\n\n| object | pre-shape |\n|---|---|"
+        );
+        for (o, p) in &first.metrics.baseline.object_preshape {
+            let _ = writeln!(s, "| {o} | {p} |");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n## Accuracy against time (Fig. 5)\n\n![accuracy against time](time_accuracy.png)\n\n| time (s) | single-grasp (%) | multi-grasp (%) |\n|---|---|---|"
+    );
+    let (a, b) = (r.time_single.accuracy(), r.time_multi.accuracy());
+    for i in 0..a.len().max(b.len()) {
+        let _ = writeln!(
+            s,
+            "| {:.2} | {} | {} |",
+            i as f64 * r.time_bin_s,
+            pct(a.get(i).copied().flatten()),
+            pct(b.get(i).copied().flatten())
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nRules: a frame's prediction is the argmax (ties: lowest class index). A video's \
+         prediction is the majority vote over frames predicted as a pre-shape (no_grasp votes \
+         are dropped); ties, including videos with no pre-shape vote, go to the tied pre-shape \
+         with the highest summed probability, then the lowest class index. The baseline answers \
+         each object's most frequent pre-shape among the evaluated videos (ties: lowest index). \
+         Std is the population std over runs."
+    );
+    s
+}
+
+fn matrix(s: &mut String, m: &[Vec<u64>], names: &[&str]) {
+    let _ = writeln!(s, "| | {} |", names.join(" | "));
+    let _ = writeln!(s, "|---|{}", "---|".repeat(names.len()));
+    for (name, row) in names.iter().zip(m) {
+        let cells: Vec<String> = row.iter().map(u64::to_string).collect();
+        let _ = writeln!(s, "| {name} | {} |", cells.join(" | "));
+    }
+}

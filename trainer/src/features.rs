@@ -1,0 +1,281 @@
+//! The on-disk feature cache of the frozen-backbone mode (the paper's): the
+//! backbone's feature vector of every frame, computed once and reused by
+//! every later run that uses the same weights and preprocessing.
+//!
+//! Layout: `CACHE/<key>/<sequence hash>.safetensors`, where `key` hashes the
+//! extractor (the weights file's SHA-256, width multiplier, input size, mean,
+//! std) and the sequence hash covers the frame files' paths, sizes and
+//! modification times, so re-rendered frames are never served stale
+//! features. Each file holds `features` (valid frames x dim, f32) and `valid`
+//! (one u8 per frame: 0 where the image was unreadable and skipped). Writes
+//! go to a temporary file renamed into place, so an interrupted run leaves no
+//! partial entry and concurrent runs never read one.
+
+use crate::data::{BadData, Dataset, Sequence};
+use anyhow::{Context, Result};
+use candle_core::{DType, Device, Tensor};
+use image::RgbImage;
+use sha2::{Digest, Sha256};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Turns frames into feature vectors.
+pub trait FeatureExtractor {
+    /// Identifies the weights and the preprocessing; features from extractors
+    /// with equal ids are interchangeable.
+    fn id(&self) -> String;
+    fn feature_dim(&self) -> usize;
+    /// Features `(N, feature_dim)`, f32, of `images`.
+    fn extract(&self, images: &[RgbImage]) -> Result<Tensor>;
+}
+
+/// Features of one sequence: rows for the readable frames only.
+#[derive(Debug, Clone)]
+pub struct SequenceFeatures {
+    /// `(valid frames, dim)` row-major.
+    pub rows: Vec<f32>,
+    pub dim: usize,
+    /// One flag per frame of the sequence.
+    pub valid: Vec<bool>,
+}
+
+impl SequenceFeatures {
+    pub fn valid_count(&self) -> usize {
+        self.valid.iter().filter(|v| **v).count()
+    }
+}
+
+pub struct FeatureCache {
+    pub dir: PathBuf,
+    /// Frames per backbone forward pass.
+    pub batch: usize,
+}
+
+impl FeatureCache {
+    pub fn new(dir: impl Into<PathBuf>, batch: usize) -> Self {
+        FeatureCache {
+            dir: dir.into(),
+            batch: batch.max(1),
+        }
+    }
+
+    /// Features of every sequence of `data`, computing and storing the
+    /// missing ones (with a progress bar).
+    pub fn dataset(
+        &self,
+        ex: &dyn FeatureExtractor,
+        data: &Dataset,
+        bad: &BadData,
+    ) -> Result<Vec<SequenceFeatures>> {
+        let bar = crate::progress::bar(data.sequences.len() as u64, "features");
+        let mut out = Vec::with_capacity(data.sequences.len());
+        let (mut hits, mut computed) = (0usize, 0usize);
+        for seq in &data.sequences {
+            let (f, hit) = self.sequence(ex, seq, bad)?;
+            if hit {
+                hits += 1;
+            } else {
+                computed += 1;
+            }
+            out.push(f);
+            bar.set_message(format!("{hits} cached, {computed} computed"));
+            bar.inc(1);
+        }
+        bar.finish();
+        Ok(out)
+    }
+
+    /// Features of one sequence and whether they came from the cache.
+    pub fn sequence(
+        &self,
+        ex: &dyn FeatureExtractor,
+        seq: &Sequence,
+        bad: &BadData,
+    ) -> Result<(SequenceFeatures, bool)> {
+        let path = self.entry_path(ex, seq)?;
+        if path.is_file() {
+            match read_entry(&path, ex.feature_dim(), seq.frames.len()) {
+                Ok(f) => {
+                    for (frame, ok) in seq.frames.iter().zip(&f.valid) {
+                        if !ok {
+                            bad.report(frame, "unreadable image (recorded in the feature cache)")?;
+                        }
+                    }
+                    return Ok((f, true));
+                }
+                Err(e) => tracing::warn!("recomputing bad cache entry {}: {e:#}", path.display()),
+            }
+        }
+        let f = compute(ex, seq, bad, self.batch)?;
+        write_entry(&path, &f)?;
+        Ok((f, false))
+    }
+
+    fn entry_path(&self, ex: &dyn FeatureExtractor, seq: &Sequence) -> Result<PathBuf> {
+        let key = hex(&Sha256::digest(ex.id().as_bytes()))[..24].to_string();
+        Ok(self
+            .dir
+            .join(key)
+            .join(format!("{}.safetensors", sequence_hash(seq)?)))
+    }
+}
+
+/// Hash of the frame files' absolute paths, sizes and modification times.
+fn sequence_hash(seq: &Sequence) -> Result<String> {
+    let mut h = Sha256::new();
+    for f in &seq.frames {
+        let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());
+        h.update(abs.to_string_lossy().as_bytes());
+        h.update([0]);
+        if let Ok(meta) = std::fs::metadata(f) {
+            h.update(meta.len().to_le_bytes());
+            if let Ok(t) = meta.modified() {
+                let d = t.duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+                h.update(d.as_nanos().to_le_bytes());
+            }
+        }
+    }
+    Ok(hex(&h.finalize())[..32].to_string())
+}
+
+fn compute(
+    ex: &dyn FeatureExtractor,
+    seq: &Sequence,
+    bad: &BadData,
+    batch: usize,
+) -> Result<SequenceFeatures> {
+    let dim = ex.feature_dim();
+    let mut rows = Vec::with_capacity(seq.frames.len() * dim);
+    let mut valid = Vec::with_capacity(seq.frames.len());
+    for chunk in seq.frames.chunks(batch) {
+        let mut images = Vec::with_capacity(chunk.len());
+        for path in chunk {
+            let img = crate::data::images::load_frame(path, bad)?;
+            valid.push(img.is_some());
+            images.extend(img);
+        }
+        if images.is_empty() {
+            continue;
+        }
+        let t = ex
+            .extract(&images)
+            .with_context(|| format!("feature extraction failed in {}", seq.dir.display()))?;
+        let v: Vec<f32> = t.to_dtype(DType::F32)?.flatten_all()?.to_vec1()?;
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            anyhow::bail!(
+                "non-finite feature ({}) for frame {} of {}",
+                v[i],
+                chunk[(i / dim).min(chunk.len() - 1)].display(),
+                seq.dir.display()
+            );
+        }
+        rows.extend(v);
+    }
+    Ok(SequenceFeatures { rows, dim, valid })
+}
+
+fn read_entry(path: &Path, dim: usize, frames: usize) -> Result<SequenceFeatures> {
+    let t = candle_core::safetensors::load(path, &Device::Cpu)?;
+    let valid: Vec<u8> = t.get("valid").context("no 'valid'")?.to_vec1()?;
+    let feats = t.get("features").context("no 'features'")?;
+    let n = valid.iter().filter(|v| **v != 0).count();
+    if valid.len() != frames {
+        anyhow::bail!("{} frames cached, {} in the sequence", valid.len(), frames);
+    }
+    let rows: Vec<f32> = if n == 0 {
+        Vec::new()
+    } else {
+        if feats.dims() != [n, dim] {
+            anyhow::bail!(
+                "features of shape {:?}, expected [{n}, {dim}]",
+                feats.dims()
+            );
+        }
+        feats.flatten_all()?.to_vec1()?
+    };
+    Ok(SequenceFeatures {
+        rows,
+        dim,
+        valid: valid.into_iter().map(|v| v != 0).collect(),
+    })
+}
+
+fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<()> {
+    let dev = Device::Cpu;
+    let n = f.valid_count();
+    let mut map = HashMap::new();
+    let features = if n == 0 {
+        Tensor::zeros((0, f.dim), DType::F32, &dev)?
+    } else {
+        Tensor::from_slice(&f.rows, (n, f.dim), &dev)?
+    };
+    map.insert("features".to_string(), features);
+    let valid: Vec<u8> = f.valid.iter().map(|v| u8::from(*v)).collect();
+    map.insert(
+        "valid".to_string(),
+        Tensor::from_vec(valid, f.valid.len(), &dev)?,
+    );
+    let dir = path.parent().context("cache entry has no parent")?;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let tmp = crate::checkpoint::temp_path(path);
+    candle_core::safetensors::save(&map, &tmp)
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot move into {}", path.display()))?;
+    Ok(())
+}
+
+/// SHA-256 of a file's bytes, hex.
+pub fn file_sha256(path: &Path) -> Result<String> {
+    let mut f =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut h = Sha256::new();
+    std::io::copy(&mut f, &mut h).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(hex(&h.finalize()))
+}
+
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Frames of a split flattened for the FC head: one row per valid frame.
+#[derive(Debug, Clone, Default)]
+pub struct FrameTable {
+    pub dim: usize,
+    pub x: Vec<f32>,
+    pub labels: Vec<u32>,
+    /// Index of the frame's sequence and its frame index within it.
+    pub seq: Vec<usize>,
+    pub frame: Vec<usize>,
+}
+
+impl FrameTable {
+    pub fn build(data: &Dataset, feats: &[SequenceFeatures]) -> FrameTable {
+        let dim = feats.first().map(|f| f.dim).unwrap_or(0);
+        let mut t = FrameTable {
+            dim,
+            ..Default::default()
+        };
+        for (si, (seq, f)) in data.sequences.iter().zip(feats).enumerate() {
+            let mut row = 0;
+            for (fi, ok) in f.valid.iter().enumerate() {
+                if !ok {
+                    continue;
+                }
+                t.x.extend_from_slice(&f.rows[row * dim..(row + 1) * dim]);
+                t.labels.push(seq.labels[fi].index() as u32);
+                t.seq.push(si);
+                t.frame.push(fi);
+                row += 1;
+            }
+        }
+        t
+    }
+
+    pub fn len(&self) -> usize {
+        self.labels.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.labels.is_empty()
+    }
+}

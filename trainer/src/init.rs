@@ -1,0 +1,131 @@
+//! Deterministic parameter initialisation. candle's CPU random generator
+//! cannot be seeded, so parameters are first created through a `VarMap` and
+//! then overwritten, in name order, from a seeded stream with PyTorch's
+//! initialisation rules.
+
+use crate::heads::{Head, HeadConfig};
+use anyhow::Result;
+use candle_core::{DType, Device, Tensor, Var};
+use candle_nn::VarMap;
+use rand::Rng;
+
+/// A VarMap holding the head's parameters, initialised like PyTorch's
+/// `nn.Linear` / `nn.LSTM` from `seed`.
+pub fn head_varmap(cfg: &HeadConfig, seed: u64, device: &Device) -> Result<VarMap> {
+    let varmap = VarMap::new();
+    let mut rng = crate::rng::stream(seed, "init/head");
+    {
+        let mut data = varmap.data().lock().expect("varmap");
+        for (name, shape) in Head::parameter_shapes(cfg) {
+            let bound = Head::init_bound(cfg, &name);
+            let n: usize = shape.iter().product();
+            let values: Vec<f32> = (0..n)
+                .map(|_| rng.gen_range(-bound..bound) as f32)
+                .collect();
+            let t = Tensor::from_vec(values, shape, device)?;
+            data.insert(name, Var::from_tensor(&t)?);
+        }
+    }
+    Ok(varmap)
+}
+
+/// Re-initialises a MobileNetV2 built from scratch the way torchvision does:
+/// convolutions Kaiming-normal (fan_out), batch-norm scale 1 and shift 0,
+/// linear weights N(0, 0.01) and biases 0; running statistics reset.
+pub fn reinit_backbone(varmap: &VarMap, seed: u64) -> Result<()> {
+    let mut rng = crate::rng::stream(seed, "init/backbone");
+    let data = varmap.data().lock().expect("varmap");
+    let mut names: Vec<&String> = data.keys().collect();
+    names.sort();
+    for name in names {
+        let var = &data[name];
+        let dims = var.dims().to_vec();
+        let n = var.elem_count();
+        let values: Vec<f32> = if dims.len() == 4 {
+            // (out, in/groups, kh, kw): fan_out = out * kh * kw.
+            let std = (2.0 / (dims[0] * dims[2] * dims[3]) as f64).sqrt();
+            (0..n).map(|_| (normal(&mut rng) * std) as f32).collect()
+        } else if dims.len() == 2 {
+            (0..n).map(|_| (normal(&mut rng) * 0.01) as f32).collect()
+        } else if name.ends_with("running_var") || (name.ends_with(".weight") && dims.len() == 1) {
+            vec![1.0; n]
+        } else {
+            vec![0.0; n]
+        };
+        let t = Tensor::from_vec(values, dims, var.device())?.to_dtype(var.dtype())?;
+        var.set(&t)?;
+    }
+    Ok(())
+}
+
+/// The parameters the optimiser updates, in name order: everything except
+/// batch-norm running statistics.
+pub fn trainable_vars(varmap: &VarMap) -> Vec<Var> {
+    let data = varmap.data().lock().expect("varmap");
+    let mut named: Vec<(&String, &Var)> = data
+        .iter()
+        .filter(|(n, v)| {
+            !(n.ends_with("running_mean")
+                || n.ends_with("running_var")
+                || n.ends_with("num_batches_tracked"))
+                && v.dtype() != DType::U32
+                && v.dtype() != DType::I64
+        })
+        .collect();
+    named.sort_by(|a, b| a.0.cmp(b.0));
+    named.into_iter().map(|(_, v)| v.clone()).collect()
+}
+
+/// A standard normal draw (Box-Muller).
+fn normal(rng: &mut impl Rng) -> f64 {
+    let u1: f64 = rng.gen_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = rng.gen();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+/// Writes a randomly initialised MobileNetV2 (ImageNet-sized classifier) as
+/// safetensors: a stand-in for pretrained weights on machines without them,
+/// used by tests, examples and benchmarks. Its batch-norm running statistics
+/// are calibrated by train-mode passes over random colour images at
+/// `input_size`: with torchvision's initialisation and unit running
+/// variances, eval-mode activations would otherwise shrink to ~1e-7 by the
+/// last layer, unlike a trained network's.
+pub fn write_random_backbone(
+    path: &std::path::Path,
+    width_mult: f64,
+    input_size: u32,
+    seed: u64,
+) -> Result<()> {
+    use crate::model::{MobileNetV2, MobileNetV2Config};
+    let vm = VarMap::new();
+    let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
+    let cfg = MobileNetV2Config {
+        width_mult,
+        num_classes: 1000,
+        dropout: 0.2,
+    };
+    let net = MobileNetV2::new(vb, &cfg)?;
+    reinit_backbone(&vm, seed)?;
+    let mut rng = crate::rng::stream(seed, "init/calibration");
+    for _ in 0..40 {
+        // Smooth colour fields with stripes: image-level variation, like
+        // photos, rather than per-pixel noise (which would calibrate the
+        // statistics to spatial noise and squash differences between images).
+        let images: Vec<image::RgbImage> = (0..8)
+            .map(|_| {
+                let base: [f32; 3] = [rng.gen(), rng.gen(), rng.gen()];
+                let period = rng.gen_range(2..12u32);
+                image::RgbImage::from_fn(input_size, input_size, |x, y| {
+                    let s = if (x + y) / period % 2 == 0 { 1.0 } else { 0.6 };
+                    image::Rgb(base.map(|b| (b * s * 255.0) as u8))
+                })
+            })
+            .collect();
+        let x = crate::model::preprocess::to_tensor(&images, input_size, &Device::Cpu)?;
+        net.features(&x, true)?;
+    }
+    let tmp = crate::checkpoint::temp_path(path);
+    vm.save(&tmp)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(())
+}

@@ -1,0 +1,168 @@
+//! The dataset reader on both layouts, bad-data handling and splits.
+
+use grasp_schema::taxonomy::{Class, Preshape};
+use std::collections::HashSet;
+use trainer::data::split::{select, stratified_split, SplitConfig};
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::data::{read_dataset, BadData, LabelSource, OnBadData, ReaderOptions};
+
+fn generated() -> (tempfile::TempDir, SyntheticSpec) {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = SyntheticSpec::small(Layout::Generated);
+    write_synthetic(dir.path(), &spec).unwrap();
+    (dir, spec)
+}
+
+#[test]
+fn generated_layout_takes_labels_from_sequence_json() {
+    let (dir, spec) = generated();
+    let bad = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
+    assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
+    assert!(!data.is_real());
+    let handle = data.sequences.iter().find(|s| s.part == "handle").unwrap();
+    assert_eq!(handle.object, "025_mug");
+    assert_eq!(handle.preshape, Preshape::Lateral);
+    assert_eq!(handle.label_source, LabelSource::SequenceJson);
+    assert_eq!(handle.frames.len(), spec.frames);
+    assert_eq!(handle.labels[0], Class::Lateral);
+    assert_eq!(handle.labels[spec.frames - 1], Class::NoGrasp);
+    assert_eq!(handle.stratum(), "025_mug/handle");
+    let multi = data.multi_grasp_objects();
+    assert_eq!(
+        multi.into_iter().collect::<Vec<_>>(),
+        vec!["025_mug".to_string()]
+    );
+}
+
+#[test]
+fn authors_layout_labels_the_last_half_second_no_grasp() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec = SyntheticSpec::small(Layout::Authors);
+    spec.frames = 12;
+    write_synthetic(dir.path(), &spec).unwrap();
+    let opts = ReaderOptions {
+        real_fps: 8.0,
+        ..Default::default()
+    };
+    let data = read_dataset(dir.path(), &opts, &BadData::new(OnBadData::Fail)).unwrap();
+    assert!(data.is_real());
+    let s = &data.sequences[0];
+    assert_eq!(s.label_source, LabelSource::PreshapeFolder);
+    // 0.5 s at 8 fps = 4 frames.
+    let ng = s.labels.iter().filter(|c| **c == Class::NoGrasp).count();
+    assert_eq!(ng, 4);
+    assert_eq!(s.labels[7], Class::from(s.preshape));
+    assert_eq!(s.labels[8], Class::NoGrasp);
+    // Without part annotations, the pre-shape folder stands for the part.
+    assert_eq!(s.part, s.preshape.authors_folder());
+    assert_eq!(s.condition, "real");
+}
+
+#[test]
+fn unreadable_images_and_missing_labels_are_reported_with_their_path() {
+    let (dir, _) = generated();
+    let data = read_dataset(
+        dir.path(),
+        &ReaderOptions::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap();
+    let broken = data.sequences[0].frames[1].clone();
+    std::fs::write(&broken, b"not a png").unwrap();
+    let unlabeled = data.sequences[1].dir.join("sequence.json");
+    std::fs::remove_file(&unlabeled).unwrap();
+
+    // fail: the reader stops at the missing labels, naming the file.
+    let err = read_dataset(
+        dir.path(),
+        &ReaderOptions::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains(&unlabeled.display().to_string()),
+        "{err}"
+    );
+    assert!(err.to_string().contains("missing labels"), "{err}");
+
+    // skip: the sequence is left out and listed.
+    let bad = BadData::new(OnBadData::Skip);
+    let data2 = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
+    assert_eq!(data2.sequences.len(), data.sequences.len() - 1);
+    assert_eq!(bad.problems().len(), 1);
+    assert_eq!(bad.problems()[0].path, unlabeled);
+
+    // The unreadable frame is found when decoded.
+    let fail = BadData::new(OnBadData::Fail);
+    let err = trainer::data::images::load_frame(&broken, &fail).unwrap_err();
+    assert!(
+        err.to_string().contains(&broken.display().to_string()),
+        "{err}"
+    );
+    let skip = BadData::new(OnBadData::Skip);
+    assert!(trainer::data::images::load_frame(&broken, &skip)
+        .unwrap()
+        .is_none());
+    assert_eq!(skip.problems()[0].path, broken);
+}
+
+#[test]
+fn invalid_sequence_json_names_the_file() {
+    let (dir, _) = generated();
+    let data = read_dataset(
+        dir.path(),
+        &ReaderOptions::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap();
+    let json = data.sequences[2].dir.join("sequence.json");
+    std::fs::write(&json, "{\"plan\": 3}").unwrap();
+    let err = read_dataset(
+        dir.path(),
+        &ReaderOptions::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains(&json.display().to_string()),
+        "{err}"
+    );
+}
+
+#[test]
+fn splits_are_by_sequence_stratified_and_seeded() {
+    let (dir, _) = generated();
+    let data = read_dataset(
+        dir.path(),
+        &ReaderOptions::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap();
+    let cfg = SplitConfig {
+        val_fraction: 0.25,
+        test_fraction: 0.25,
+        seed: 7,
+    };
+    let s = stratified_split(&data, &cfg);
+    assert_eq!(s, stratified_split(&data, &cfg));
+    let all: Vec<&String> = s.train.iter().chain(&s.val).chain(&s.test).collect();
+    let unique: HashSet<&String> = all.iter().copied().collect();
+    assert_eq!(all.len(), data.sequences.len());
+    assert_eq!(unique.len(), all.len(), "a sequence is in two splits");
+    // Every object-part pair (4 sequences each) has 2 train, 1 val, 1 test.
+    for ids in [&s.train, &s.val, &s.test] {
+        let d = select(&data, ids);
+        let strata: HashSet<String> = d.sequences.iter().map(|q| q.stratum()).collect();
+        assert_eq!(strata.len(), 5);
+    }
+    assert_eq!(s.train.len(), 10);
+    let other = stratified_split(
+        &data,
+        &SplitConfig {
+            seed: 8,
+            ..cfg.clone()
+        },
+    );
+    assert_ne!(other.test, s.test);
+}
