@@ -23,6 +23,11 @@ enum Command {
     Dataset(generator::dataset::cli::DatasetCommand),
     /// Write a contact sheet and an animated GIF of a few sequences.
     Preview(generator::preview::PreviewArgs),
+    /// Plan sequences (camera paths, labels, scene samples) without Blender.
+    Plan(generator::plan::cli::PlanArgs),
+    /// Time the planner and print the BENCHMARKS.md tables.
+    #[command(hide = true)]
+    BenchPlan(generator::plan::bench::BenchArgs),
     /// A rendering worker process (started by `render`).
     #[command(hide = true)]
     Worker,
@@ -44,6 +49,8 @@ fn main() -> Result<()> {
         Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
         Command::Preview(args) => generator::preview::run(&args),
         Command::Worker => generator::render::cli::run_worker(),
+        Command::Plan(args) => generator::plan::cli::run(&args),
+        Command::BenchPlan(args) => generator::plan::bench::run(&args),
     }
 }
 

@@ -1,14 +1,93 @@
-//! Reach planning: turns (dataset seed, object, part, index, condition) into a
-//! `SequencePlan`. (Owned by the planning work; to be filled in.)
+//! Reach planning: turns (dataset seed, object, part, index, condition) into
+//! a [`SequencePlan`](grasp_schema::SequencePlan), with nothing left to
+//! chance at render time. See `docs/planning.md`.
 
+pub mod bench;
+pub mod camera;
+pub mod cli;
+pub mod conditions;
+pub mod draw;
+mod planner;
+pub mod scene;
+pub mod trajectory;
+pub mod validity;
+pub mod wrist;
+
+pub use camera::CameraConfig;
+pub use conditions::ConditionsConfig;
+pub use planner::{sequence_keys, ObjectGeometry, Planner};
+pub use scene::SceneConfig;
+pub use trajectory::TrajectoryConfig;
+pub use validity::ValidityConfig;
+
+use anyhow::Result;
+use grasp_schema::Condition;
 use serde::{Deserialize, Serialize};
 
 /// What to generate.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct DatasetConfig {}
+pub struct DatasetConfig {
+    /// Dataset seed: every sequence's random stream derives from it.
+    pub seed: u64,
+    /// Sequences per (object, part) pair and condition (the paper's 47).
+    pub sequences_per_pair: u32,
+    /// Conditions to generate, in order.
+    pub conditions: Vec<Condition>,
+    /// Only these object ids (all when absent).
+    pub objects: Option<Vec<String>>,
+    /// Only these parts, as `part` or `object/part` (all when absent).
+    pub parts: Option<Vec<String>>,
+}
+
+impl Default for DatasetConfig {
+    fn default() -> Self {
+        DatasetConfig {
+            seed: 2022,
+            sequences_per_pair: 47,
+            conditions: vec![Condition::Default],
+            objects: None,
+            parts: None,
+        }
+    }
+}
 
 /// Scene, camera and trajectory parameters.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct PlanConfig {}
+pub struct PlanConfig {
+    /// Room, table and placement (world frame: metres, Z up, floor z = 0).
+    pub scene: SceneConfig,
+    /// Lens preset, image size and start region.
+    pub camera: CameraConfig,
+    /// Duration, frame rate, labels, wrist rotations, resampling bound.
+    pub trajectory: TrajectoryConfig,
+    /// The validity rule's tolerance and batching.
+    pub validity: ValidityConfig,
+    /// Settings of the fast, seated and from_ground conditions.
+    pub conditions: ConditionsConfig,
+}
+
+impl PlanConfig {
+    /// Checks every value, naming the offending field.
+    pub fn validate(&self) -> Result<()> {
+        self.scene.validate()?;
+        self.camera.validate()?;
+        self.trajectory.validate()?;
+        self.conditions.validate()?;
+        for c in Condition::ALL {
+            let d = self.conditions.duration_s(c, self.trajectory.duration_s);
+            self.trajectory.frame_count(d)?;
+            anyhow::ensure!(
+                self.trajectory.no_grasp_tail_s < d,
+                "plan.trajectory.no_grasp_tail_s ({}) must be shorter than the {c} sequences ({d} s)",
+                self.trajectory.no_grasp_tail_s
+            );
+        }
+        anyhow::ensure!(
+            self.validity.mesh_tolerance_m >= 0.0,
+            "plan.validity.mesh_tolerance_m must be >= 0"
+        );
+        Ok(())
+    }
+}

@@ -1,0 +1,162 @@
+//! `grasp-gen plan`: write plans as JSON lines and/or draw them.
+
+use super::{sequence_keys, Planner};
+use crate::catalog::Catalog;
+use crate::config::GeneratorConfig;
+use anyhow::{bail, Context, Result};
+use grasp_schema::SequencePlan;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `grasp-gen plan`.
+#[derive(Debug, clap::Args)]
+pub struct PlanArgs {
+    /// Generator config (TOML); the built-in defaults when omitted.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Object catalog folder; the built-in catalog when omitted.
+    #[arg(long)]
+    pub catalog: Option<PathBuf>,
+    /// Write every planned sequence here, one JSON object per line.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Draw top and side views of planned paths into this PNG.
+    #[arg(long)]
+    pub show: Option<PathBuf>,
+    /// With --show: paths drawn per (object, part) pair and condition.
+    #[arg(long, default_value_t = 6)]
+    pub show_per_pair: u32,
+    /// Hide the progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn load_inputs(
+    config: Option<&Path>,
+    catalog: Option<&Path>,
+) -> Result<(GeneratorConfig, Catalog)> {
+    let config = match config {
+        Some(p) => GeneratorConfig::load(p)?,
+        None => GeneratorConfig::default(),
+    };
+    config
+        .plan
+        .validate()
+        .context("invalid [plan] section of the config")?;
+    let catalog = match catalog {
+        Some(dir) => Catalog::load_dir(dir)
+            .with_context(|| format!("loading the catalog {}", dir.display()))?,
+        None => Catalog::builtin().context("loading the built-in catalog")?,
+    };
+    Ok((config, catalog))
+}
+
+pub fn run(args: &PlanArgs) -> Result<()> {
+    if args.out.is_none() && args.show.is_none() {
+        bail!("nothing to do: give --out FILE.jsonl and/or --show FILE.png");
+    }
+    let (config, catalog) = load_inputs(args.config.as_deref(), args.catalog.as_deref())?;
+    let mut keys = sequence_keys(&config, &catalog);
+    if keys.is_empty() {
+        bail!("the config selects no sequences (check dataset.objects, dataset.parts and dataset.conditions)");
+    }
+    if args.out.is_none() {
+        keys.retain(|k| k.index < args.show_per_pair);
+    }
+    let planner = Planner::new(&config, &catalog)?;
+    let started = Instant::now();
+    let plans = plan_all(&planner, &keys, args.quiet)?;
+    let secs = started.elapsed().as_secs_f64();
+    eprintln!(
+        "planned {} sequences in {secs:.2} s ({:.2} ms per sequence)",
+        plans.len(),
+        1e3 * secs / plans.len() as f64
+    );
+    if let Some(out) = &args.out {
+        write_jsonl(out, &plans)?;
+        eprintln!("wrote {}", out.display());
+    }
+    if let Some(png) = &args.show {
+        let shown: Vec<&SequencePlan> = plans
+            .iter()
+            .filter(|p| p.key.index < args.show_per_pair)
+            .collect();
+        super::draw::draw_paths(&shown, &planner, png)?;
+        eprintln!("drew {} paths into {}", shown.len(), png.display());
+    }
+    Ok(())
+}
+
+/// Plans every key in order, with a progress bar.
+pub fn plan_all(
+    planner: &Planner,
+    keys: &[grasp_schema::SequenceKey],
+    quiet: bool,
+) -> Result<Vec<SequencePlan>> {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(keys.len() as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "planning {bar:40} {pos}/{len} [{elapsed} < {eta}] {msg}",
+        )
+        .expect("valid template"),
+    );
+    let plans = keys
+        .iter()
+        .map(|k| {
+            bar.inc(1);
+            planner.plan(k)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    bar.finish_and_clear();
+    Ok(plans)
+}
+
+/// Writes plans as JSON lines through a temporary file and a rename.
+pub fn write_jsonl(path: &Path, plans: &[SequencePlan]) -> Result<()> {
+    let tmp = tmp_path(path);
+    let write = || -> Result<()> {
+        let file = std::fs::File::create(&tmp)
+            .with_context(|| format!("cannot create {}", tmp.display()))?;
+        let mut w = std::io::BufWriter::new(file);
+        for p in plans {
+            serde_json::to_writer(&mut w, p)?;
+            w.write_all(b"\n")?;
+        }
+        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        Ok(())
+    };
+    if let Err(e) = write() {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.context(format!("writing {}", path.display())));
+    }
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+}
+
+/// `dir/.name.tmp` next to the destination, so the rename stays on one filesystem.
+pub fn tmp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp"))
+}
+
+/// Reads plans written by [`write_jsonl`], naming the file and line on error.
+pub fn read_jsonl(path: &Path) -> Result<Vec<SequencePlan>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .with_context(|| format!("{}:{}: not a sequence plan", path.display(), i + 1))
+        })
+        .collect()
+}

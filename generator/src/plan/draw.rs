@@ -1,0 +1,367 @@
+//! The `grasp-gen plan --show` picture: one cell per (object, part,
+//! condition) with a top view (x right, y up) and a side view (x right,
+//! z up) of the planned camera paths over the table and the object's
+//! silhouette, coloured by pre-shape.
+
+use super::wrist;
+use super::Planner;
+use anyhow::{Context, Result};
+use grasp_schema::{Preshape, SequencePlan};
+use image::{Rgb, RgbImage};
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+const CELL: u32 = 190; // panel size, pixels
+const GAP: u32 = 8;
+const TITLE: u32 = 14;
+const COLUMNS: u32 = 3;
+const HEADER: u32 = 40;
+
+const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
+const INK: Rgb<u8> = Rgb([40, 40, 40]);
+const FRAME: Rgb<u8> = Rgb([170, 170, 170]);
+const TABLE: Rgb<u8> = Rgb([233, 220, 196]);
+const TABLE_EDGE: Rgb<u8> = Rgb([190, 170, 135]);
+const AREA: Rgb<u8> = Rgb([200, 200, 200]);
+const OBJECT: Rgb<u8> = Rgb([150, 150, 150]);
+
+/// Line colour of a pre-shape.
+pub fn preshape_color(p: Preshape) -> Rgb<u8> {
+    match p {
+        Preshape::Power => Rgb([31, 119, 180]),
+        Preshape::Lateral => Rgb([255, 127, 14]),
+        Preshape::Pinch => Rgb([44, 160, 44]),
+        Preshape::Pinch3 => Rgb([200, 30, 120]),
+    }
+}
+
+/// World-to-pixel mapping of one panel: horizontal world axis `h`, vertical `v`.
+#[derive(Clone, Copy)]
+struct View {
+    h: usize,
+    v: usize,
+    min: [f64; 2],
+    scale: f64, // pixels per metre
+    origin: (i64, i64),
+}
+
+impl View {
+    fn fit(h: usize, v: usize, points: &[Vector3<f64>], origin: (i64, i64)) -> View {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points {
+            for (k, axis) in [h, v].into_iter().enumerate() {
+                lo[k] = lo[k].min(p[axis]);
+                hi[k] = hi[k].max(p[axis]);
+            }
+        }
+        let span = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.05) * 1.08;
+        let centre = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+        View {
+            h,
+            v,
+            min: [centre[0] - span / 2.0, centre[1] - span / 2.0],
+            scale: f64::from(CELL) / span,
+            origin,
+        }
+    }
+
+    fn px(&self, p: &Vector3<f64>) -> (i64, i64) {
+        let x = (p[self.h] - self.min[0]) * self.scale;
+        let y = (p[self.v] - self.min[1]) * self.scale;
+        (
+            self.origin.0 + x as i64,
+            self.origin.1 + i64::from(CELL) - y as i64,
+        )
+    }
+}
+
+struct Canvas {
+    img: RgbImage,
+    clip: Option<(i64, i64, i64, i64)>,
+}
+
+impl Canvas {
+    fn put(&mut self, x: i64, y: i64, c: Rgb<u8>) {
+        if let Some((x0, y0, x1, y1)) = self.clip {
+            if x < x0 || y < y0 || x >= x1 || y >= y1 {
+                return;
+            }
+        }
+        if x >= 0 && y >= 0 && (x as u32) < self.img.width() && (y as u32) < self.img.height() {
+            self.img.put_pixel(x as u32, y as u32, c);
+        }
+    }
+
+    fn rect(&mut self, a: (i64, i64), b: (i64, i64), c: Rgb<u8>) {
+        for y in a.1.min(b.1)..=a.1.max(b.1) {
+            for x in a.0.min(b.0)..=a.0.max(b.0) {
+                self.put(x, y, c);
+            }
+        }
+    }
+
+    fn outline(&mut self, a: (i64, i64), b: (i64, i64), c: Rgb<u8>) {
+        let (x0, x1, y0, y1) = (a.0.min(b.0), a.0.max(b.0), a.1.min(b.1), a.1.max(b.1));
+        self.line((x0, y0), (x1, y0), c, 1);
+        self.line((x1, y0), (x1, y1), c, 1);
+        self.line((x1, y1), (x0, y1), c, 1);
+        self.line((x0, y1), (x0, y0), c, 1);
+    }
+
+    fn line(&mut self, a: (i64, i64), b: (i64, i64), c: Rgb<u8>, width: i64) {
+        let steps = (b.0 - a.0).abs().max((b.1 - a.1).abs()).max(1);
+        for s in 0..=steps {
+            let x = a.0 + (b.0 - a.0) * s / steps;
+            let y = a.1 + (b.1 - a.1) * s / steps;
+            self.dot((x, y), width / 2, c);
+        }
+    }
+
+    fn dot(&mut self, p: (i64, i64), r: i64, c: Rgb<u8>) {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if dx * dx + dy * dy <= r * r + r {
+                    self.put(p.0 + dx, p.1 + dy, c);
+                }
+            }
+        }
+    }
+
+    fn ring(&mut self, p: (i64, i64), r: i64, c: Rgb<u8>) {
+        for k in 0..64 {
+            let a = k as f64 / 64.0 * std::f64::consts::TAU;
+            self.put(
+                p.0 + (r as f64 * a.cos()).round() as i64,
+                p.1 + (r as f64 * a.sin()).round() as i64,
+                c,
+            );
+        }
+    }
+
+    fn text(&mut self, x: i64, y: i64, s: &str, c: Rgb<u8>) {
+        for (i, ch) in s.chars().enumerate() {
+            let rows = glyph(ch.to_ascii_uppercase());
+            for (r, bits) in rows.iter().enumerate() {
+                for col in 0..5 {
+                    if bits & (0x10 >> col) != 0 {
+                        self.put(x + i as i64 * 6 + col, y + r as i64, c);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Draws the plans (grouped by object, part and condition) into a PNG.
+pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Result<()> {
+    let mut groups: BTreeMap<(String, String, String), Vec<&SequencePlan>> = BTreeMap::new();
+    for p in plans {
+        groups
+            .entry((
+                p.key.object.clone(),
+                p.key.part.clone(),
+                p.key.condition.to_string(),
+            ))
+            .or_default()
+            .push(p);
+    }
+    anyhow::ensure!(!groups.is_empty(), "no plans to draw");
+    let scene = &planner.config().plan.scene;
+    // Common bounds for every cell: all paths and the placement area.
+    let (alo, ahi) = scene.placement_bounds();
+    let mut pts: Vec<Vector3<f64>> = plans
+        .iter()
+        .flat_map(|p| p.frames.iter().map(|f| Vector3::from(f.camera.position)))
+        .collect();
+    pts.push(Vector3::new(alo[0], alo[1], scene.table_height));
+    pts.push(Vector3::new(ahi[0], ahi[1], scene.table_height + 0.1));
+    pts.push(Vector3::new(
+        scene.near_edge_x(),
+        alo[1],
+        scene.table_height - scene.table_thickness,
+    ));
+
+    let cell_w = 2 * CELL + 3 * GAP;
+    let cell_h = CELL + TITLE + 2 * GAP;
+    let rows = (groups.len() as u32).div_ceil(COLUMNS);
+    let mut canvas = Canvas {
+        img: RgbImage::from_pixel(COLUMNS * cell_w + GAP, HEADER + rows * cell_h + GAP, WHITE),
+        clip: None,
+    };
+    draw_header(&mut canvas, plans.len());
+    for (i, ((object, part, condition), group)) in groups.iter().enumerate() {
+        let ox = i64::from(GAP + (i as u32 % COLUMNS) * cell_w);
+        let oy = i64::from(HEADER + (i as u32 / COLUMNS) * cell_h);
+        canvas.clip = None;
+        canvas.text(ox, oy + 2, &format!("{object}/{part} ({condition})"), INK);
+        let top = View::fit(0, 1, &pts, (ox, oy + i64::from(TITLE)));
+        let side = View::fit(
+            0,
+            2,
+            &pts,
+            (ox + i64::from(CELL + GAP), oy + i64::from(TITLE)),
+        );
+        for view in [top, side] {
+            draw_panel(&mut canvas, &view, planner, group);
+        }
+    }
+    let tmp = super::cli::tmp_path(out);
+    canvas
+        .img
+        .save_with_format(&tmp, image::ImageFormat::Png)
+        .with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, out).with_context(|| format!("renaming to {}", out.display()))
+}
+
+fn draw_header(c: &mut Canvas, count: usize) {
+    c.text(
+        i64::from(GAP),
+        6,
+        &format!("{count} planned camera paths. left: top view (x right, y up); right: side view (x right, z up). o = start, dot = target"),
+        INK,
+    );
+    let mut x = i64::from(GAP);
+    for p in Preshape::ALL {
+        c.rect((x, 22), (x + 10, 30), preshape_color(p));
+        c.text(x + 14, 23, p.name(), INK);
+        x += 14 + 6 * p.name().len() as i64 + 16;
+    }
+    c.text(x + 10, 23, "grey: table top and object silhouette", INK);
+}
+
+fn draw_panel(c: &mut Canvas, view: &View, planner: &Planner, plans: &[&SequencePlan]) {
+    let (ox, oy) = view.origin;
+    let size = i64::from(CELL);
+    c.clip = Some((ox, oy, ox + size, oy + size));
+    let scene = &planner.config().plan.scene;
+    let (lo, hi) = scene.table_slab();
+    let (alo, ahi) = scene.placement_bounds();
+    let h = scene.table_height;
+    if view.v == 1 {
+        let a = view.px(&Vector3::new(lo[0], lo[1], h));
+        let b = view.px(&Vector3::new(hi[0], hi[1], h));
+        c.rect(a, b, TABLE);
+        c.outline(a, b, TABLE_EDGE);
+        let a = view.px(&Vector3::new(alo[0], alo[1], h));
+        let b = view.px(&Vector3::new(ahi[0], ahi[1], h));
+        c.outline(a, b, AREA);
+    } else {
+        let a = view.px(&Vector3::new(lo[0], 0.0, lo[2]));
+        let b = view.px(&Vector3::new(hi[0], 0.0, hi[2]));
+        c.rect(a, b, TABLE);
+        c.outline(a, b, TABLE_EDGE);
+    }
+    for plan in plans {
+        draw_object(c, view, planner, plan);
+    }
+    for plan in plans {
+        draw_path(c, view, plan);
+    }
+    // Scale bar: 10 cm.
+    let bar = (0.1 * view.scale) as i64;
+    c.line(
+        (ox + 4, oy + size - 6),
+        (ox + 4 + bar, oy + size - 6),
+        INK,
+        1,
+    );
+    c.text(ox + 8 + bar, oy + size - 10, "10cm", INK);
+    c.clip = None;
+    c.outline((ox, oy), (ox + size - 1, oy + size - 1), FRAME);
+}
+
+fn draw_object(c: &mut Canvas, view: &View, planner: &Planner, plan: &SequencePlan) {
+    let Some(geo) = planner.object(&plan.key.object) else {
+        return;
+    };
+    let q = wrist::from_wxyz(plan.object.pose.rotation_wxyz);
+    let t = Vector3::from(plan.object.pose.position);
+    for v in &geo.outline {
+        c.put_px(view.px(&(q * v + t)), OBJECT);
+    }
+}
+
+fn draw_path(c: &mut Canvas, view: &View, plan: &SequencePlan) {
+    let color = preshape_color(plan.preshape);
+    let pts: Vec<(i64, i64)> = plan
+        .frames
+        .iter()
+        .map(|f| view.px(&Vector3::from(f.camera.position)))
+        .collect();
+    for w in pts.windows(2) {
+        c.line(w[0], w[1], color, 2);
+    }
+    if let (Some(first), Some(last)) = (plan.frames.first(), plan.frames.last()) {
+        c.ring(view.px(&Vector3::from(first.camera.position)), 3, color);
+        // The final view direction, 5 cm long.
+        let q = wrist::from_wxyz(last.camera.rotation_wxyz);
+        let p = Vector3::from(last.camera.position);
+        c.line(
+            view.px(&p),
+            view.px(&(p + wrist::view_direction(&q) * 0.05)),
+            INK,
+            1,
+        );
+    }
+    c.dot(view.px(&Vector3::from(plan.target)), 2, INK);
+}
+
+impl Canvas {
+    fn put_px(&mut self, p: (i64, i64), c: Rgb<u8>) {
+        self.put(p.0, p.1, c);
+    }
+}
+
+/// 5x7 bitmap glyphs (bit 4 is the leftmost column).
+fn glyph(c: char) -> [u8; 7] {
+    match c {
+        '0' => [0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E],
+        '1' => [0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E],
+        '2' => [0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F],
+        '3' => [0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E],
+        '4' => [0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02],
+        '5' => [0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E],
+        '6' => [0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E],
+        '7' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
+        '8' => [0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E],
+        '9' => [0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C],
+        'A' => [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
+        'B' => [0x1E, 0x11, 0x11, 0x1E, 0x11, 0x11, 0x1E],
+        'C' => [0x0E, 0x11, 0x10, 0x10, 0x10, 0x11, 0x0E],
+        'D' => [0x1C, 0x12, 0x11, 0x11, 0x11, 0x12, 0x1C],
+        'E' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x1F],
+        'F' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x10],
+        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
+        'H' => [0x11, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
+        'I' => [0x0E, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E],
+        'J' => [0x07, 0x02, 0x02, 0x02, 0x02, 0x12, 0x0C],
+        'K' => [0x11, 0x12, 0x14, 0x18, 0x14, 0x12, 0x11],
+        'L' => [0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F],
+        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
+        'N' => [0x11, 0x11, 0x19, 0x15, 0x13, 0x11, 0x11],
+        'O' => [0x0E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
+        'P' => [0x1E, 0x11, 0x11, 0x1E, 0x10, 0x10, 0x10],
+        'Q' => [0x0E, 0x11, 0x11, 0x11, 0x15, 0x12, 0x0D],
+        'R' => [0x1E, 0x11, 0x11, 0x1E, 0x14, 0x12, 0x11],
+        'S' => [0x0F, 0x10, 0x10, 0x0E, 0x01, 0x01, 0x1E],
+        'T' => [0x1F, 0x04, 0x04, 0x04, 0x04, 0x04, 0x04],
+        'U' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
+        'V' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x0A, 0x04],
+        'W' => [0x11, 0x11, 0x11, 0x15, 0x15, 0x15, 0x0A],
+        'X' => [0x11, 0x11, 0x0A, 0x04, 0x0A, 0x11, 0x11],
+        'Y' => [0x11, 0x11, 0x11, 0x0A, 0x04, 0x04, 0x04],
+        'Z' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x10, 0x1F],
+        '_' => [0, 0, 0, 0, 0, 0, 0x1F],
+        '/' => [0x01, 0x01, 0x02, 0x04, 0x08, 0x10, 0x10],
+        '.' => [0, 0, 0, 0, 0, 0x0C, 0x0C],
+        '-' => [0, 0, 0, 0x1F, 0, 0, 0],
+        ':' => [0, 0x0C, 0x0C, 0, 0x0C, 0x0C, 0],
+        ';' => [0, 0x0C, 0x0C, 0, 0x0C, 0x04, 0x08],
+        '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
+        ')' => [0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08],
+        '=' => [0, 0, 0x1F, 0, 0x1F, 0, 0],
+        ',' => [0, 0, 0, 0, 0x0C, 0x04, 0x08],
+        _ => [0; 7],
+    }
+}

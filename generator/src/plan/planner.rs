@@ -1,0 +1,660 @@
+//! The planner: scene sampling, the validity search and frame generation.
+
+use super::conditions::{sample_path, PathContext, PathSample};
+use super::scene::{sample_placement, Placement};
+use super::trajectory::{frame_tau, linear_window, min_jerk, min_jerk_window, WristTiming};
+use super::validity::{
+    aabb, check_batch, Acceptance, Obb, Obstacles, PolylineCheck, RayCaster, Rejection,
+};
+use super::wrist::{self, look_at, RollRule};
+use crate::catalog::{Catalog, GraspPart, ObjectSpec, Pronation, TriMesh};
+use crate::config::GeneratorConfig;
+use anyhow::{bail, Context, Result};
+use grasp_schema::plan::{
+    substream_seed, FramePlan, ObjectPlacement, Pose, SequenceKey, SequencePlan,
+    PLAN_SCHEMA_VERSION,
+};
+use grasp_schema::{Class, Condition};
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::json;
+use std::collections::BTreeMap;
+
+/// One object's geometry as the planner needs it.
+pub struct ObjectGeometry {
+    pub spec: ObjectSpec,
+    /// Ray casts against the object's mesh (object frame).
+    pub caster: Box<dyn RayCaster>,
+    /// Extent of the mesh along the object's Z (min, max).
+    pub z_range: [f64; 2],
+    /// Bounding sphere of the mesh (object frame).
+    pub sphere_center: Vector3<f64>,
+    pub sphere_radius: f64,
+    /// The parts' boxes, in the catalog's part order (object frame).
+    pub boxes: Vec<Obb>,
+    /// Up to 4000 mesh vertices, for drawing the object's silhouette.
+    pub outline: Vec<Vector3<f64>>,
+}
+
+impl ObjectGeometry {
+    pub fn new(spec: ObjectSpec, mesh: &TriMesh, caster: Box<dyn RayCaster>) -> Result<Self> {
+        anyhow::ensure!(
+            !mesh.vertices.is_empty(),
+            "object {}: the mesh has no vertices",
+            spec.id
+        );
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for v in &mesh.vertices {
+            let v = Vector3::from(*v);
+            lo = lo.inf(&v);
+            hi = hi.sup(&v);
+        }
+        let center = (lo + hi) / 2.0;
+        let radius = mesh
+            .vertices
+            .iter()
+            .map(|v| (Vector3::from(*v) - center).norm())
+            .fold(0.0, f64::max);
+        let boxes = spec
+            .parts
+            .iter()
+            .map(|p| part_box(&spec.id, p))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(ObjectGeometry {
+            spec,
+            caster,
+            z_range: [lo.z, hi.z],
+            sphere_center: center,
+            sphere_radius: radius,
+            boxes,
+            outline: mesh
+                .vertices
+                .iter()
+                .step_by(mesh.vertices.len().div_ceil(4000).max(1))
+                .map(|v| Vector3::from(*v))
+                .collect(),
+        })
+    }
+}
+
+fn part_box(object: &str, p: &GraspPart) -> Result<Obb> {
+    let q = p.rotation_wxyz;
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    anyhow::ensure!(
+        norm.is_finite() && norm > 1e-9,
+        "object {object}, part {}: rotation_wxyz {q:?} is not a rotation",
+        p.name
+    );
+    anyhow::ensure!(
+        p.size.iter().all(|s| s.is_finite() && *s > 0.0),
+        "object {object}, part {}: size {:?} must be positive",
+        p.name,
+        p.size
+    );
+    Ok(Obb {
+        center: Vector3::from(p.center),
+        rotation: wrist::from_wxyz(q),
+        half: Vector3::from(p.size) / 2.0,
+    })
+}
+
+/// Plans sequences. Holds each object's mesh query.
+pub struct Planner {
+    config: GeneratorConfig,
+    objects: BTreeMap<String, ObjectGeometry>,
+}
+
+/// Every sequence the config asks for, in a deterministic order (pair,
+/// condition, index).
+pub fn sequence_keys(config: &GeneratorConfig, catalog: &Catalog) -> Vec<SequenceKey> {
+    let d = &config.dataset;
+    let mut keys = Vec::new();
+    for (object, part) in selected_pairs(config, catalog) {
+        for &condition in &d.conditions {
+            for index in 0..d.sequences_per_pair {
+                keys.push(SequenceKey {
+                    object: object.id.clone(),
+                    part: part.name.clone(),
+                    index,
+                    condition,
+                });
+            }
+        }
+    }
+    keys
+}
+
+/// The catalog's (object, part) pairs that pass the dataset filters.
+pub fn selected_pairs<'a>(
+    config: &GeneratorConfig,
+    catalog: &'a Catalog,
+) -> Vec<(&'a ObjectSpec, &'a GraspPart)> {
+    let d = &config.dataset;
+    catalog
+        .pairs()
+        .into_iter()
+        .filter_map(|(id, index)| {
+            let object = catalog.object(&id)?;
+            Some((object, object.parts.get(index)?))
+        })
+        .filter(|(o, _)| d.objects.as_ref().is_none_or(|ids| ids.contains(&o.id)))
+        .filter(|(o, p)| {
+            d.parts.as_ref().is_none_or(|names| {
+                names
+                    .iter()
+                    .any(|n| *n == p.name || *n == format!("{}/{}", o.id, p.name))
+            })
+        })
+        .collect()
+}
+
+/// A drawn candidate scene.
+struct Candidate {
+    placement: Placement,
+    target_sign: f64,
+    target: Vector3<f64>,
+    other_end: Vector3<f64>,
+    sample: Option<PathSample>,
+}
+
+struct Accepted {
+    candidate: Candidate,
+    acceptance: Acceptance,
+    attempts: u32,
+    rejections: BTreeMap<Rejection, u32>,
+}
+
+impl Planner {
+    /// Builds mesh queries (trimesh) for every object the config selects.
+    pub fn new(config: &GeneratorConfig, catalog: &Catalog) -> Result<Planner> {
+        config.plan.validate()?;
+        let mut geometries = Vec::new();
+        let mut seen = std::collections::BTreeSet::new();
+        for (object, _) in selected_pairs(config, catalog) {
+            if !seen.insert(object.id.clone()) {
+                continue;
+            }
+            let mesh = object
+                .mesh()
+                .with_context(|| format!("loading the mesh of object {}", object.id))?;
+            let query = crate::geometry::MeshQuery::new(&mesh)
+                .with_context(|| format!("building the mesh query of object {}", object.id))?;
+            geometries.push(ObjectGeometry::new(object.clone(), &mesh, Box::new(query))?);
+        }
+        Planner::from_geometries(config, geometries)
+    }
+
+    /// A planner over prepared geometries (any [`RayCaster`]).
+    pub fn from_geometries(
+        config: &GeneratorConfig,
+        objects: Vec<ObjectGeometry>,
+    ) -> Result<Planner> {
+        config.plan.validate()?;
+        Ok(Planner {
+            config: config.clone(),
+            objects: objects
+                .into_iter()
+                .map(|g| (g.spec.id.clone(), g))
+                .collect(),
+        })
+    }
+
+    pub fn config(&self) -> &GeneratorConfig {
+        &self.config
+    }
+
+    pub fn object(&self, id: &str) -> Option<&ObjectGeometry> {
+        self.objects.get(id)
+    }
+
+    /// Plans one sequence: a pure function of the key, the dataset seed and
+    /// the config.
+    pub fn plan(&self, key: &SequenceKey) -> Result<SequencePlan> {
+        let geo = self.objects.get(&key.object).with_context(|| {
+            format!(
+                "unknown object '{}' (planner has: {})",
+                key.object,
+                self.objects.keys().cloned().collect::<Vec<_>>().join(", ")
+            )
+        })?;
+        let (part_index, part) = geo
+            .spec
+            .parts
+            .iter()
+            .enumerate()
+            .find(|(_, p)| p.name == key.part)
+            .with_context(|| {
+                format!(
+                    "object {} has no part '{}' (parts: {})",
+                    key.object,
+                    key.part,
+                    geo.spec
+                        .parts
+                        .iter()
+                        .map(|p| p.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?;
+        let stream = key.stream_seed(self.config.dataset.seed);
+        let accepted = self
+            .search(geo, part_index, key.condition, stream)
+            .with_context(|| format!("planning {}", key.id()))?;
+        self.build_plan(key, geo, part_index, part, stream, accepted)
+    }
+
+    fn path_context(&self, condition: Condition) -> PathContext<'_> {
+        let p = &self.config.plan;
+        PathContext {
+            condition,
+            presets: &p.conditions,
+            region: &p.camera.start,
+            scene: &p.scene,
+            standoff: p.trajectory.standoff_m,
+            curve_segments: p.validity.curve_segments,
+        }
+    }
+
+    fn draw(
+        &self,
+        geo: &ObjectGeometry,
+        part_index: usize,
+        ctx: &PathContext<'_>,
+        rng: &mut ChaCha8Rng,
+    ) -> Candidate {
+        let part = &geo.spec.parts[part_index];
+        let placement = sample_placement(&self.config.plan.scene, part, geo.z_range, rng);
+        let target_sign = if rng.gen::<bool>() { 1.0 } else { -1.0 };
+        let bx = &geo.boxes[part_index];
+        let axis = bx.rotation * Vector3::new(0.0, 0.0, bx.half.z);
+        let target = placement.to_world(&(bx.center + axis * target_sign));
+        let other_end = placement.to_world(&(bx.center - axis * target_sign));
+        let sample = sample_path(ctx, &target, rng);
+        Candidate {
+            placement,
+            target_sign,
+            target,
+            other_end,
+            sample,
+        }
+    }
+
+    /// Cheap Rust-side checks before any ray cast.
+    fn precheck(
+        &self,
+        geo: &ObjectGeometry,
+        c: &Candidate,
+        condition: Condition,
+    ) -> Result<(), Rejection> {
+        let cfg = &self.config.plan;
+        let s = c.sample.as_ref().ok_or(Rejection::StartDistance)?;
+        let scale = if condition == Condition::Seated {
+            cfg.conditions.seated.distance_scale
+        } else {
+            1.0
+        };
+        let [lo, hi] = cfg.camera.start.distance_m;
+        if s.view_distance < lo * scale || s.view_distance > hi * scale {
+            return Err(Rejection::StartDistance);
+        }
+        if cfg.validity.require_object_in_view && !self.object_in_view(geo, c, s) {
+            return Err(Rejection::NotInView);
+        }
+        Ok(())
+    }
+
+    /// The object's bounding-sphere centre lies inside the image and the
+    /// sphere does not fill it, seen from the view point looking at the target.
+    fn object_in_view(&self, geo: &ObjectGeometry, c: &Candidate, s: &PathSample) -> bool {
+        let k = self.config.plan.camera.intrinsics();
+        let half = k.fov_x_deg.min(k.fov_y_deg).to_radians() / 2.0;
+        let center = c.placement.to_world(&geo.sphere_center);
+        let to_center = center - s.view_point;
+        let dist = to_center.norm();
+        if dist <= geo.sphere_radius {
+            return false;
+        }
+        let view = c.target - s.view_point;
+        let off_axis = view.angle(&to_center);
+        let angular_radius = (geo.sphere_radius / dist).asin();
+        off_axis < 0.9 * half && angular_radius < half
+    }
+
+    fn polyline(&self, c: &Candidate) -> Vec<Vector3<f64>> {
+        let s = c.sample.as_ref().expect("prechecked");
+        let n = self.config.plan.validity.curve_segments.max(1);
+        let mut pts = s.path.polyline(n);
+        if matches!(s.path, super::trajectory::Path::Straight { .. }) {
+            pts.pop(); // the straight segment runs start -> target directly
+        }
+        pts.push(c.target);
+        pts.iter().map(|p| c.placement.to_object(p)).collect()
+    }
+
+    fn search(
+        &self,
+        geo: &ObjectGeometry,
+        part_index: usize,
+        condition: Condition,
+        stream: u64,
+    ) -> Result<Accepted> {
+        let cfg = &self.config.plan;
+        let ctx = self.path_context(condition);
+        let mut rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "scene"));
+        let (slab_min, slab_max) = cfg.scene.table_slab();
+        let table_world = aabb(slab_min, slab_max);
+        let others: Vec<Obb> = geo
+            .boxes
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != part_index)
+            .map(|(_, b)| *b)
+            .collect();
+        let max = cfg.trajectory.max_attempts;
+        let mut rejections = BTreeMap::new();
+        let (mut drawn, mut batch) = (0u32, 2u32);
+        while drawn < max {
+            let count = batch.min(max - drawn);
+            let candidates: Vec<Candidate> = (0..count)
+                .map(|_| self.draw(geo, part_index, &ctx, &mut rng))
+                .collect();
+            let pre: Vec<Result<(), Rejection>> = candidates
+                .iter()
+                .map(|c| self.precheck(geo, c, condition))
+                .collect();
+            let checks: Vec<PolylineCheck<'_>> = candidates
+                .iter()
+                .zip(&pre)
+                .filter(|(_, p)| p.is_ok())
+                .map(|(c, _)| PolylineCheck {
+                    points: self.polyline(c),
+                    obstacles: Obstacles {
+                        target: geo.boxes[part_index],
+                        others: &others,
+                        table: Obb {
+                            center: c.placement.to_object(&table_world.center),
+                            rotation: c.placement.rotation.inverse(),
+                            half: table_world.half,
+                        },
+                    },
+                })
+                .collect();
+            let mut results =
+                check_batch(&checks, geo.caster.as_ref(), cfg.validity.mesh_tolerance_m)?
+                    .into_iter();
+            for (i, (c, p)) in candidates.into_iter().zip(pre).enumerate() {
+                let outcome = match p {
+                    Ok(()) => results.next().expect("one result per check"),
+                    Err(r) => Err(r),
+                };
+                match outcome {
+                    Ok(acceptance) => {
+                        return Ok(Accepted {
+                            candidate: c,
+                            acceptance,
+                            attempts: drawn + i as u32 + 1,
+                            rejections,
+                        })
+                    }
+                    Err(r) => *rejections.entry(r).or_insert(0) += 1,
+                }
+            }
+            drawn += count;
+            batch = (batch * 2).min(cfg.validity.batch_size.max(1) as u32);
+        }
+        let reasons: Vec<String> = rejections
+            .iter()
+            .map(|(r, n)| format!("{n} x {}", r.describe()))
+            .collect();
+        bail!(
+            "object {}, part {}: no valid {condition} approach in {max} attempts ({})",
+            geo.spec.id,
+            geo.spec.parts[part_index].name,
+            reasons.join("; ")
+        )
+    }
+
+    fn build_plan(
+        &self,
+        key: &SequenceKey,
+        geo: &ObjectGeometry,
+        part_index: usize,
+        part: &GraspPart,
+        stream: u64,
+        accepted: Accepted,
+    ) -> Result<SequencePlan> {
+        let cfg = &self.config.plan;
+        let traj = &cfg.trajectory;
+        let duration = cfg.conditions.duration_s(key.condition, traj.duration_s);
+        let n = traj.frame_count(duration)?;
+        let c = &accepted.candidate;
+        let s = c.sample.as_ref().expect("accepted candidates have a path");
+        let mut wrist_rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "wrist"));
+        let schedule = WristSchedule::sample(traj, s.approach_tau, &mut wrist_rng);
+
+        let up = Vector3::z();
+        let forward = Vector3::x();
+        let final_dir = (c.target - s.path.end())
+            .try_normalize(1e-12)
+            .unwrap_or_else(|| (c.target - s.path.position(1.0 - 1e-6)).normalize());
+        let look = |p: &Vector3<f64>| {
+            let d = c.target - p;
+            let d = if d.norm() > 1e-9 { d } else { final_dir };
+            look_at(&d, &up, &forward)
+        };
+        // Pronation-supination: turn the camera's X onto the box's X axis.
+        let end = s.path.end();
+        let q_end = look(&end);
+        let bx = &geo.boxes[part_index];
+        let box_x = c.placement.rotation * (bx.rotation * Vector3::x());
+        let ps_angle = match part.pronation {
+            Pronation::None => None,
+            rule => {
+                wrist::signed_angle_about(&final_dir, &wrist::right_axis(&q_end), &box_x).map(|a| {
+                    wrist::wrap_roll(
+                        a,
+                        if rule == Pronation::Supination {
+                            RollRule::Supination
+                        } else {
+                            RollRule::Shortest
+                        },
+                    )
+                })
+            }
+        }
+        .unwrap_or(0.0);
+        // Flexion-extension: pitch about the camera's X towards the other end.
+        let q_end_ps = wrist::roll(&q_end, ps_angle * schedule.ps(1.0));
+        let fe_angle = wrist::signed_angle_about(
+            &wrist::right_axis(&q_end_ps),
+            &wrist::view_direction(&q_end_ps),
+            &(c.other_end - end),
+        )
+        .unwrap_or(0.0);
+        let q_down = look_at(&-up, &up, &forward);
+
+        let tail = traj.tail_frames(n);
+        let class = Class::from(part.grasp_type.preshape());
+        let frames = (0..n)
+            .map(|i| {
+                let tau = frame_tau(i, n);
+                let p = s.path.position(tau);
+                let mut q = look(&p);
+                if let Some(t1) = s.rise_until.filter(|t1| tau < *t1) {
+                    q = wrist::slerp(&q_down, &q, min_jerk(tau / t1));
+                }
+                let q = wrist::pitch(
+                    &wrist::roll(&q, ps_angle * schedule.ps(tau)),
+                    fe_angle * schedule.fe(tau),
+                );
+                FramePlan {
+                    index: i as u32,
+                    time_s: i as f64 / traj.fps,
+                    camera: Pose {
+                        position: [p.x, p.y, p.z],
+                        rotation_wxyz: wrist::to_wxyz(&q),
+                    },
+                    class: if i >= n - tail { Class::NoGrasp } else { class },
+                    head_camera: None,
+                }
+            })
+            .collect();
+
+        let mut sampled = BTreeMap::new();
+        let mut put = |k: &str, v: serde_json::Value| {
+            sampled.insert(k.to_string(), v);
+        };
+        put("attempts", json!(accepted.attempts));
+        put(
+            "rejections",
+            json!(accepted
+                .rejections
+                .iter()
+                .map(|(r, n)| (format!("{r:?}"), *n))
+                .collect::<BTreeMap<_, _>>()),
+        );
+        put("object_x", json!(c.placement.position.x));
+        put("object_y", json!(c.placement.position.y));
+        put("object_yaw_deg", json!(c.placement.yaw.to_degrees()));
+        put("upside_down", json!(c.placement.upside_down));
+        put(
+            "target_end",
+            json!(if c.target_sign > 0.0 { "+z" } else { "-z" }),
+        );
+        for (k, v) in &s.sampled {
+            put(k, v.clone());
+        }
+        put("end", json!(end.as_slice()));
+        put("standoff_m", json!(traj.standoff_m));
+        put(
+            "mesh_tolerance_used",
+            json!(accepted.acceptance.mesh_contact_before_box_m.is_some()),
+        );
+        if let Some(gap) = accepted.acceptance.mesh_contact_before_box_m {
+            put("mesh_contact_before_box_m", json!(gap));
+        }
+        put(
+            "pronation_rule",
+            json!(format!("{:?}", part.pronation).to_lowercase()),
+        );
+        put("ps_angle_deg", json!(ps_angle.to_degrees()));
+        put("fe_angle_deg", json!(fe_angle.to_degrees()));
+        schedule.record(&mut put);
+
+        let appearance = None;
+        Ok(SequencePlan {
+            schema_version: PLAN_SCHEMA_VERSION,
+            dataset_seed: self.config.dataset.seed,
+            key: key.clone(),
+            stream_seed: stream,
+            category: geo.spec.category.clone(),
+            grasp_type: part.grasp_type,
+            preshape: part.grasp_type.preshape(),
+            part_index,
+            fps: traj.fps,
+            duration_s: n as f64 / traj.fps,
+            intrinsics: cfg.camera.intrinsics(),
+            object: ObjectPlacement {
+                pose: Pose {
+                    position: c.placement.position.into(),
+                    rotation_wxyz: wrist::to_wxyz(&c.placement.rotation),
+                },
+                yaw_deg: c.placement.yaw.to_degrees(),
+                upside_down: c.placement.upside_down,
+                on_table_border: c.placement.on_border,
+            },
+            target: c.target.into(),
+            other_end: c.other_end.into(),
+            frames,
+            sampled,
+            appearance,
+        })
+    }
+}
+
+/// The sampled wrist-rotation timing, in normalised time.
+struct WristSchedule {
+    timing: WristTiming,
+    approach_tau: f64,
+    ps_onset_frame: f64,
+    ps_duration_frames: f64,
+    ps_fraction: f64,
+    fe_onset_frame: f64,
+    frames: f64,
+    fe_rate: f64,
+}
+
+impl WristSchedule {
+    fn sample(t: &super::TrajectoryConfig, approach_tau: f64, rng: &mut ChaCha8Rng) -> Self {
+        use super::scene::uniform;
+        // The authors round the frame draws to integers.
+        WristSchedule {
+            timing: t.wrist_timing,
+            approach_tau,
+            ps_onset_frame: uniform(rng, t.ps_onset_frames[0], t.ps_onset_frames[1]).round(),
+            ps_duration_frames: uniform(rng, t.ps_duration_frames[0], t.ps_duration_frames[1])
+                .round(),
+            ps_fraction: uniform(rng, t.ps_fraction[0], t.ps_fraction[1]),
+            fe_onset_frame: uniform(rng, t.fe_onset_frames[0], t.fe_onset_frames[1]).round(),
+            frames: t.authors_frames,
+            fe_rate: t.fe_rate_per_frame,
+        }
+    }
+
+    /// Authors' frame -> normalised time of the approach phase.
+    fn tau_of(&self, frame: f64) -> f64 {
+        self.approach_tau + (frame / self.frames).min(1.0) * (1.0 - self.approach_tau)
+    }
+
+    fn approach_frames(&self, tau: f64) -> f64 {
+        (tau - self.approach_tau) / (1.0 - self.approach_tau).max(1e-12) * self.frames
+    }
+
+    /// Executed fraction of the pronation-supination angle at `tau`.
+    fn ps(&self, tau: f64) -> f64 {
+        let a = self.approach_tau;
+        self.ps_fraction
+            * match self.timing {
+                WristTiming::Authors => {
+                    let on = self.tau_of(self.ps_onset_frame);
+                    let len = self.tau_of(self.ps_onset_frame + self.ps_duration_frames) - on;
+                    linear_window(tau, on, len)
+                }
+                WristTiming::Human => min_jerk_window(tau, a, 1.0 - a),
+            }
+    }
+
+    /// Executed fraction of the flexion-extension angle at `tau`.
+    fn fe(&self, tau: f64) -> f64 {
+        let keep = 1.0 - self.fe_rate;
+        let k = self.approach_frames(tau) - self.fe_onset_frame;
+        match self.timing {
+            WristTiming::Authors => {
+                if k <= 0.0 {
+                    0.0
+                } else {
+                    1.0 - keep.powf(k)
+                }
+            }
+            WristTiming::Human => {
+                let on = self.tau_of(self.fe_onset_frame);
+                let left = (self.frames - self.fe_onset_frame).max(0.0);
+                (1.0 - keep.powf(left)) * min_jerk_window(tau, on, 1.0 - on)
+            }
+        }
+    }
+
+    fn record(&self, put: &mut impl FnMut(&str, serde_json::Value)) {
+        put(
+            "wrist_timing",
+            json!(format!("{:?}", self.timing).to_lowercase()),
+        );
+        put("ps_onset_frame", json!(self.ps_onset_frame));
+        put("ps_duration_frames", json!(self.ps_duration_frames));
+        put("ps_fraction", json!(self.ps_fraction));
+        put("fe_onset_frame", json!(self.fe_onset_frame));
+        put("fe_final_fraction", json!(self.fe(1.0)));
+    }
+}
