@@ -543,7 +543,11 @@ impl Planner {
         put("fe_angle_deg", json!(fe_angle.to_degrees()));
         schedule.record(&mut put);
 
-        let appearance = None;
+        let appearance = Some(crate::appearance::sample(
+            &self.config.appearance,
+            key.condition,
+            substream_seed(stream, "appearance"),
+        ));
         Ok(SequencePlan {
             schema_version: PLAN_SCHEMA_VERSION,
             dataset_seed: self.config.dataset.seed,
