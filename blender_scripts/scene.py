@@ -12,7 +12,10 @@ from blender_scripts import materials
 # Hand and forearm in the camera frame. The camera sits below the wrist,
 # looking along the forearm, so the hand's back and fingers enter the top of
 # the image while the forearm stays behind the camera.
-HAND_OFFSET = (0.0, 0.075, -0.02)
+HAND_OFFSET = (0.0, 0.0, -0.02)
+# Lowest point of the fingers above the hand root, and their distance ahead.
+FINGER_TIP = 0.0075
+FINGER_REACH = 0.19
 
 
 def _face_uv(verts, face):
@@ -158,6 +161,11 @@ class Arm:
         sleeve = bpy.data.materials.new("sleeve")
         materials.apply_plain(sleeve, (0.12, 0.16, 0.25), 0.8)
         self.parts = []
+        # Every hand part hangs from one root, raised or lowered per camera
+        # so the fingers just enter the top of the image (set_intrinsics).
+        self.hand_root = bpy.data.objects.new("hand_root", None)
+        bpy.context.scene.collection.objects.link(self.hand_root)
+        self.hand_root.parent = self.camera
         ox, oy, oz = HAND_OFFSET
         # Forearm: behind the camera, along +Z of the camera frame.
         forearm = cylinder("forearm", 0.04, 0.30, material=sleeve)
@@ -178,7 +186,7 @@ class Arm:
         self._attach(thumb)
 
     def _attach(self, obj):
-        obj.parent = self.camera
+        obj.parent = self.hand_root
         self.parts.append(obj)
 
     def set_hand_visible(self, visible):
@@ -199,6 +207,10 @@ class Arm:
         big = max(w, h)
         cam.shift_x = (w / 2 - k["cx"]) / big
         cam.shift_y = (k["cy"] - h / 2) / big
+        # Finger tips (FINGER_TIP below the root, FINGER_REACH ahead) at 80 %
+        # of the upper half-height of the image.
+        tan_half = (h / 2) / k["fy"]
+        self.hand_root.location = (0.0, 0.8 * tan_half * FINGER_REACH - FINGER_TIP, 0.0)
         cam.clip_start = k["clip_near"]
         cam.clip_end = k["clip_far"]
         scene = bpy.context.scene

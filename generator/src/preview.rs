@@ -97,7 +97,12 @@ fn contact_sheet(
     chosen: &[&(String, SequenceRecord)],
     opts: &PreviewOptions,
 ) -> Result<(RgbaImage, String)> {
-    let cols = opts.columns.max(1) as u32;
+    let longest = chosen
+        .iter()
+        .map(|(_, r)| r.frame_files.len())
+        .max()
+        .unwrap_or(1);
+    let cols = opts.columns.clamp(1, longest.max(1)) as u32;
     let cell_w = opts.thumb + GAP;
     let cell_h = opts.thumb + STRIP + GAP;
     let mut sheet = RgbaImage::from_pixel(

@@ -73,6 +73,12 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         s.retries,
         s.seconds
     );
+    if s.peak_worker_rss_kib > 0 {
+        println!(
+            "peak worker memory (RSS): {:.0} MiB",
+            s.peak_worker_rss_kib as f64 / 1024.0
+        );
+    }
     if s.interrupted {
         bail!("interrupted; run again with --resume to finish");
     }

@@ -51,6 +51,8 @@ pub struct RenderSummary {
     pub failed: Vec<(String, String)>,
     pub seconds: f64,
     pub interrupted: bool,
+    /// Largest peak resident memory reported by any worker, KiB.
+    pub peak_worker_rss_kib: u64,
 }
 
 impl RenderSummary {
@@ -66,6 +68,7 @@ struct Job {
 
 enum Event {
     Rendered {
+        peak_rss_kib: u64,
         job: Job,
         plan: Box<SequencePlan>,
         partial: PathBuf,
@@ -140,6 +143,9 @@ pub fn render(
     let total = todo.len();
     if total > 0 {
         let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
+        // Kept for re-renders and the naive benchmark script.
+        let scene_json = serde_json::to_vec_pretty(&source.scene())?;
+        write_atomic(&dataset.work_dir().join("scene.json"), &scene_json)?;
         let workers = opts.workers.clamp(1, total);
         let ctx = Arc::new(Shared {
             geometry: source.scene(),
@@ -155,8 +161,7 @@ pub fn render(
             stop: opts.stop.clone(),
             children: Mutex::new(vec![None; workers]),
         });
-        run_pool(&ctx, workers, total, opts.progress, &mut summary)?;
-        summary.interrupted = opts.stop.load(Ordering::SeqCst);
+        summary.interrupted = run_pool(&ctx, workers, total, opts.progress, &mut summary)?;
     }
     dataset.clean_partials()?;
     dataset.rebuild_manifest()?;
@@ -227,7 +232,7 @@ fn run_pool(
     total: usize,
     show_progress: bool,
     summary: &mut RenderSummary,
-) -> Result<()> {
+) -> Result<bool> {
     let (tx, rx) = channel();
     let threads: Vec<_> = (0..workers)
         .map(|slot| {
@@ -245,12 +250,14 @@ fn run_pool(
         }
         match rx.recv_timeout(Duration::from_millis(200)) {
             Ok(Event::Rendered {
+                peak_rss_kib,
                 job,
                 plan,
                 partial,
                 files,
             }) => {
                 let frames = plan.frames.len();
+                summary.peak_worker_rss_kib = summary.peak_worker_rss_kib.max(peak_rss_kib);
                 let record = SequenceRecord {
                     plan: *plan,
                     frame_files: files,
@@ -284,13 +291,15 @@ fn run_pool(
         }
     }
     pb.finish_and_clear();
+    // Whether the user stopped us, before stopping the workers ourselves.
+    let interrupted = ctx.stopped();
     ctx.stop_and_kill();
     for t in threads {
         if t.join().is_err() {
             return Err(anyhow!("a worker thread panicked"));
         }
     }
-    Ok(())
+    Ok(interrupted)
 }
 
 fn first_line(s: &str) -> &str {
@@ -430,13 +439,13 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
         };
         let partial = request.out_dir.clone();
         let files = request.frame_files.clone();
-        let outcome = (|| -> Result<()> {
+        let outcome = (|| -> Result<u64> {
             if proc.is_none() {
                 proc = Some(WorkerProc::spawn(slot, ctx)?);
             }
             let p = proc.as_mut().expect("worker started above");
             match p.call(&Request::Render(Box::new(request)), &log) {
-                Ok(Response::Done { .. }) => Ok(()),
+                Ok(Response::Done { peak_rss_kib, .. }) => Ok(peak_rss_kib),
                 Ok(Response::Error { message, .. }) => Err(anyhow!(message)),
                 Ok(other) => Err(anyhow!("unexpected worker answer {other:?}")),
                 Err(e) => {
@@ -446,9 +455,10 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
             }
         })();
         match outcome {
-            Ok(()) => {
+            Ok(peak_rss_kib) => {
                 served += 1;
                 let _ = tx.send(Event::Rendered {
+                    peak_rss_kib,
                     job,
                     plan: Box::new(plan),
                     partial,

@@ -44,7 +44,18 @@ pub struct MeshFiles {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Response {
-    Ready { pid: u32 },
-    Done { id: String, seconds: f64 },
-    Error { id: Option<String>, message: String },
+    Ready {
+        pid: u32,
+    },
+    Done {
+        id: String,
+        seconds: f64,
+        /// The worker's peak resident memory so far (Linux VmHWM), KiB.
+        #[serde(default)]
+        peak_rss_kib: u64,
+    },
+    Error {
+        id: Option<String>,
+        message: String,
+    },
 }

@@ -53,6 +53,7 @@ pub fn run() -> Result<()> {
                     Ok(()) => Response::Done {
                         id: req.id.clone(),
                         seconds: start.elapsed().as_secs_f64(),
+                        peak_rss_kib: peak_rss_kib(),
                     },
                     Err(e) => Response::Error {
                         id: Some(req.id.clone()),
@@ -87,6 +88,19 @@ fn send(out: &mut File, response: &Response) -> Result<()> {
     out.write_all(line.as_bytes())
         .and_then(|_| out.flush())
         .context("cannot write to the parent")
+}
+
+/// Peak resident set size of this process (0 where /proc is unavailable).
+pub fn peak_rss_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse().ok())
+        })
+        .unwrap_or(0)
 }
 
 fn crash_once_if_asked() {
