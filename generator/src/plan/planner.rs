@@ -354,7 +354,7 @@ impl Planner {
             .collect();
         let max = cfg.trajectory.max_attempts;
         let mut rejections = BTreeMap::new();
-        let (mut drawn, mut batch) = (0u32, 2u32);
+        let (mut drawn, mut batch) = (0u32, 1u32);
         while drawn < max {
             let count = batch.min(max - drawn);
             let candidates: Vec<Candidate> = (0..count)
