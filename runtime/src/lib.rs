@@ -1,1 +1,27 @@
 //! Streaming pre-shape classification and the Hannes serial link.
+//!
+//! - [`source`], [`feed`] (and `camera` with the `camera` feature): frames in,
+//!   dropping stale frames when the classifier falls behind;
+//! - [`classifier`], [`policy`], [`trigger`], [`approach`]: the paper's demo
+//!   decision loop;
+//! - [`protocol`], [`decoder`], [`transport`], [`link`]: the wire protocol of
+//!   docs/hannes-protocol.md and its host side;
+//! - [`simhand`]: the device side, as a simulated hand;
+//! - `model` (once the trainer checkpoint API lands): the trained checkpoint;
+//! - [`bench`]: latency measurements.
+
+pub mod approach;
+pub mod bench;
+#[cfg(feature = "camera")]
+pub mod camera;
+pub mod classifier;
+pub mod config;
+pub mod decoder;
+pub mod feed;
+pub mod link;
+pub mod policy;
+pub mod protocol;
+pub mod simhand;
+pub mod source;
+pub mod transport;
+pub mod trigger;

@@ -1,0 +1,191 @@
+//! Latency measurements for `hannes-run bench`: per-frame inference, the
+//! host-to-hand link round trip, and trigger-to-command for whole approaches
+//! against a simulated hand on a pseudo-terminal.
+
+use crate::approach::{actuate, classify_window};
+use crate::classifier::FrameClassifier;
+use crate::feed::FeedMode;
+use crate::link::{Hand, HandLink, LinkConfig};
+use crate::policy::PolicyConfig;
+use crate::protocol::preshape_command;
+use crate::simhand::PtyHand;
+use crate::source::{FrameSource, MemorySource, Pacing};
+use crate::transport::SerialConnector;
+use anyhow::Result;
+use grasp_schema::taxonomy::Preshape;
+use image::RgbImage;
+use serde::Serialize;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+/// Order statistics of a sample of durations, in milliseconds.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Summary {
+    pub n: usize,
+    pub mean_ms: f64,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    pub max_ms: f64,
+}
+
+impl Summary {
+    /// Nearest-rank percentiles (no interpolation: every value reported was
+    /// measured).
+    pub fn of(samples: &[Duration]) -> Summary {
+        assert!(!samples.is_empty(), "no samples");
+        let mut ms: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1e3).collect();
+        ms.sort_by(f64::total_cmp);
+        let rank = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+        Summary {
+            n: ms.len(),
+            mean_ms: ms.iter().sum::<f64>() / ms.len() as f64,
+            p50_ms: rank(0.50),
+            p99_ms: rank(0.99),
+            max_ms: ms[ms.len() - 1],
+        }
+    }
+}
+
+/// Deterministic 224x224 test frames (the model's input size).
+pub fn synthetic_frames(n: usize, size: u32) -> Vec<RgbImage> {
+    (0..n)
+        .map(|i| {
+            RgbImage::from_fn(size, size, |x, y| {
+                let v = (x * 7 + y * 13 + i as u32 * 31) % 256;
+                image::Rgb([v as u8, (255 - v) as u8, ((x ^ y) % 256) as u8])
+            })
+        })
+        .collect()
+}
+
+/// Per-frame inference time, after `warmup` untimed frames.
+pub fn inference(
+    classifier: &mut dyn FrameClassifier,
+    frames: &[RgbImage],
+    warmup: usize,
+) -> Result<Summary> {
+    for f in frames.iter().cycle().take(warmup) {
+        classifier.classify(f)?;
+    }
+    let mut samples = Vec::with_capacity(frames.len());
+    for f in frames {
+        let t = Instant::now();
+        classifier.classify(f)?;
+        samples.push(t.elapsed());
+    }
+    Ok(Summary::of(&samples))
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkBench {
+    pub baud: u32,
+    /// PRESHAPE sent to its ACK received.
+    pub round_trip: Summary,
+}
+
+/// PRESHAPE round trips to a simulated hand on a pseudo-terminal.
+pub fn link_round_trip(sends: usize, baud: u32) -> Result<LinkBench> {
+    let dir = tempfile::tempdir()?;
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {})?;
+    let hand = Hand::start(HandLink::new(
+        Box::new(SerialConnector::new(pty.path(), baud)),
+        LinkConfig::default(),
+    ))?;
+    let mut samples = Vec::with_capacity(sends);
+    for i in 0..sends {
+        let p = Preshape::ALL[i % Preshape::ALL.len()];
+        let t = Instant::now();
+        hand.send(preshape_command(p))?;
+        samples.push(t.elapsed());
+    }
+    drop(hand);
+    Ok(LinkBench {
+        baud,
+        round_trip: Summary::of(&samples),
+    })
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ApproachBench {
+    pub fps: f64,
+    pub window_s: f64,
+    /// Trigger to the pre-shape's ACK.
+    pub trigger_to_command: Summary,
+    /// The part of it after the window closed: last inference, decision,
+    /// link round trip.
+    pub after_window: Summary,
+    pub frames_classified: u64,
+    pub frames_dropped: u64,
+}
+
+/// Whole approaches: a 30 fps recording replayed in real time (stale frames
+/// dropped), the default policy, a simulated hand on a pseudo-terminal.
+pub fn approaches(
+    classifier: &mut dyn FrameClassifier,
+    frames: Vec<RgbImage>,
+    fps: f64,
+    runs: usize,
+    baud: u32,
+) -> Result<ApproachBench> {
+    let dir = tempfile::tempdir()?;
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {})?;
+    let hand = Hand::start(HandLink::new(
+        Box::new(SerialConnector::new(pty.path(), baud)),
+        LinkConfig::default(),
+    ))?;
+    let policy = PolicyConfig {
+        fallback: Some(Preshape::Power), // an untrained model still commands
+        ..PolicyConfig::default()
+    };
+    let stop = AtomicBool::new(false);
+    let mut source: Box<dyn FrameSource> =
+        Box::new(MemorySource::new(frames, fps, Pacing::RealTime)?);
+    let (mut total, mut after) = (Vec::new(), Vec::new());
+    let (mut classified, mut dropped) = (0, 0);
+    let window = Duration::from_secs_f64(policy.window_s);
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        let (s, report) = classify_window(
+            source,
+            FeedMode::Latest,
+            classifier,
+            &policy,
+            t0,
+            &mut |_| {},
+        )?;
+        source = s;
+        classified += report.feed.delivered;
+        dropped += report.feed.dropped;
+        let report = actuate(&hand, report, None, &stop, t0)?;
+        let acked = report.preshape.ok_or_else(|| {
+            anyhow::anyhow!("approach sent no pre-shape: {:?}", report.link_error)
+        })?;
+        let elapsed = Duration::from_secs_f64(acked.since_trigger_ms / 1e3);
+        total.push(elapsed);
+        after.push(elapsed.saturating_sub(window));
+    }
+    drop(hand);
+    Ok(ApproachBench {
+        fps,
+        window_s: policy.window_s,
+        trigger_to_command: Summary::of(&total),
+        after_window: Summary::of(&after),
+        frames_classified: classified,
+        frames_dropped: dropped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rank_percentiles() {
+        let s: Vec<Duration> = (1..=100).map(Duration::from_millis).collect();
+        let sum = Summary::of(&s);
+        assert_eq!((sum.p50_ms, sum.p99_ms, sum.max_ms), (50.0, 99.0, 100.0));
+        assert!((sum.mean_ms - 50.5).abs() < 1e-9);
+        let one = Summary::of(&[Duration::from_millis(7)]);
+        assert_eq!((one.p50_ms, one.p99_ms), (7.0, 7.0));
+    }
+}
