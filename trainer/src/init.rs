@@ -86,14 +86,15 @@ fn normal(rng: &mut impl Rng) -> f64 {
 /// Writes a randomly initialised MobileNetV2 (ImageNet-sized classifier) as
 /// safetensors: a stand-in for pretrained weights on machines without them,
 /// used by tests, examples and benchmarks. Its batch-norm running statistics
-/// are calibrated by train-mode passes over random colour images at
-/// `input_size`: with torchvision's initialisation and unit running
-/// variances, eval-mode activations would otherwise shrink to ~1e-7 by the
-/// last layer, unlike a trained network's.
+/// are calibrated by 40 train-mode passes over batches of `calibration`
+/// images (batch-norm adaptation): with torchvision's initialisation and
+/// unit running variances, eval-mode features would otherwise vary by
+/// ~1e-3 of their mean between images, far from a trained network's.
 pub fn write_random_backbone(
     path: &std::path::Path,
     width_mult: f64,
     input_size: u32,
+    calibration: &[image::RgbImage],
     seed: u64,
 ) -> Result<()> {
     use crate::model::{MobileNetV2, MobileNetV2Config};
@@ -107,21 +108,11 @@ pub fn write_random_backbone(
     let net = MobileNetV2::new(vb, &cfg)?;
     reinit_backbone(&vm, seed)?;
     let mut rng = crate::rng::stream(seed, "init/calibration");
-    for _ in 0..40 {
-        // Smooth colour fields with stripes: image-level variation, like
-        // photos, rather than per-pixel noise (which would calibrate the
-        // statistics to spatial noise and squash differences between images).
-        let images: Vec<image::RgbImage> = (0..8)
-            .map(|_| {
-                let base: [f32; 3] = [rng.gen(), rng.gen(), rng.gen()];
-                let period = rng.gen_range(2..12u32);
-                image::RgbImage::from_fn(input_size, input_size, |x, y| {
-                    let s = if (x + y) / period % 2 == 0 { 1.0 } else { 0.6 };
-                    image::Rgb(base.map(|b| (b * s * 255.0) as u8))
-                })
-            })
+    for _ in 0..if calibration.len() < 2 { 0 } else { 40 } {
+        let batch: Vec<image::RgbImage> = (0..16)
+            .map(|_| calibration[rng.gen_range(0..calibration.len())].clone())
             .collect();
-        let x = crate::model::preprocess::to_tensor(&images, input_size, &Device::Cpu)?;
+        let x = crate::model::preprocess::to_tensor(&batch, input_size, &Device::Cpu)?;
         net.features(&x, true)?;
     }
     let tmp = crate::checkpoint::temp_path(path);

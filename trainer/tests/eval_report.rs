@@ -1,0 +1,145 @@
+//! The report's numbers on a hand-made case: predictions and labels built by
+//! hand, expected accuracies computed by hand below.
+
+use grasp_schema::taxonomy::{Class, Preshape};
+use trainer::eval::report::RunReport;
+use trainer::eval::{compute_metrics, write_report, Report, VideoPrediction};
+
+const P: [f32; 5] = [0.7, 0.1, 0.1, 0.05, 0.05]; // power
+const L: [f32; 5] = [0.1, 0.7, 0.1, 0.05, 0.05]; // lateral
+const N: [f32; 5] = [0.05, 0.05, 0.1, 0.1, 0.7]; // no_grasp
+const Q: [f32; 5] = [0.1, 0.05, 0.1, 0.7, 0.05]; // pinch3
+
+fn video(
+    id: &str,
+    object: &str,
+    preshape: Preshape,
+    multi: bool,
+    probs: Vec<[f32; 5]>,
+) -> VideoPrediction {
+    let n = probs.len();
+    // Last frame labelled no_grasp, the others the video's pre-shape.
+    let labels = (0..n)
+        .map(|i| {
+            if i + 1 == n {
+                Class::NoGrasp
+            } else {
+                Class::from(preshape)
+            }
+        })
+        .collect();
+    VideoPrediction {
+        id: id.into(),
+        object: object.into(),
+        part: "p".into(),
+        preshape,
+        multi_grasp: multi,
+        labels,
+        probs,
+        times_s: (0..n).map(|i| i as f64 * 0.5).collect(),
+    }
+}
+
+/// Four videos of four frames (times 0, 0.5, 1.0, 1.5 s):
+/// - a: mug (multi), power.   frames P P L N -> vote power (2-1): right.
+///   frame hits: P=P, P=P, L!=P, N=N -> 3/4; without no_grasp 2/3.
+/// - b: mug (multi), lateral. frames P P L N -> vote power: wrong.
+///   hits: P!=L, P!=L, L=L, N=N -> 2/4; without 1/3.
+/// - c: mug (multi), lateral. frames L N N N -> vote lateral: right.
+///   hits: L, N!=L, N!=L, N=N -> 2/4; without 1/3.
+/// - d: marker (single), pinch3. frames Q Q Q P -> vote pinch3: right.
+///   hits: Q, Q, Q, P!=N -> 3/4; without 3/3.
+fn videos() -> Vec<VideoPrediction> {
+    vec![
+        video("a", "mug", Preshape::Power, true, vec![P, P, L, N]),
+        video("b", "mug", Preshape::Lateral, true, vec![P, P, L, N]),
+        video("c", "mug", Preshape::Lateral, true, vec![L, N, N, N]),
+        video("d", "marker", Preshape::Pinch3, false, vec![Q, Q, Q, P]),
+    ]
+}
+
+#[test]
+fn hand_made_case_gives_hand_computed_numbers() {
+    let m = compute_metrics(&videos(), 0.5);
+    // Frames: (3 + 2 + 2 + 3) / 16 correct.
+    assert_eq!(m.frames, 16);
+    assert!((m.frame_accuracy - 10.0 / 16.0).abs() < 1e-12);
+    // Without no_grasp frames: (2 + 1 + 1 + 3) / 12.
+    assert_eq!(m.grasp_frames, 12);
+    assert!((m.frame_accuracy_without_no_grasp - 7.0 / 12.0).abs() < 1e-12);
+    // Videos: a, c, d right; b wrong.
+    assert!((m.video_accuracy - 0.75).abs() < 1e-12);
+    assert_eq!(m.video_accuracy_single, Some(1.0));
+    assert!((m.video_accuracy_multi.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+    // Video confusion: power->power 1, lateral->power 1, lateral->lateral 1,
+    // pinch3->pinch3 1.
+    assert_eq!(m.video_confusion[0][0], 1);
+    assert_eq!(m.video_confusion[1][0], 1);
+    assert_eq!(m.video_confusion[1][1], 1);
+    assert_eq!(m.video_confusion[3][3], 1);
+    // Frame confusion row no_grasp (4 frames): 3 predicted no_grasp, 1 power.
+    assert_eq!(m.frame_confusion[4], vec![1, 0, 0, 0, 3]);
+    // Baseline: the mug's most frequent pre-shape is lateral (2 of 3), the
+    // marker's pinch3: right on b, c, d -> 3/4; multi 2/3, single 1.
+    assert_eq!(m.baseline.object_preshape["mug"], Preshape::Lateral);
+    assert!((m.baseline.video_accuracy - 0.75).abs() < 1e-12);
+    assert!((m.baseline.video_accuracy_multi.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+    // Accuracy against time (frame right if it equals the video's pre-shape),
+    // multi-grasp videos a, b, c at t = 0: P/power yes, P/lateral no,
+    // L/lateral yes -> 2/3; at t = 1.5 s: all N -> 0/3.
+    let multi = m.time.multi.accuracy();
+    assert!((multi[0].unwrap() - 2.0 / 3.0).abs() < 1e-12);
+    assert_eq!(multi[3], Some(0.0));
+    // Single-grasp video d: Q Q Q P -> 1, 1, 1, 0.
+    assert_eq!(
+        m.time.single.accuracy(),
+        vec![Some(1.0), Some(1.0), Some(1.0), Some(0.0)]
+    );
+}
+
+#[test]
+fn report_aggregates_seeds_and_writes_its_files() {
+    let m1 = compute_metrics(&videos(), 0.5);
+    // Second "seed": video b now right (frames L L L N): video accuracy 1.
+    let mut v2 = videos();
+    v2[1].probs = vec![L, L, L, N];
+    let m2 = compute_metrics(&v2, 0.5);
+    assert_eq!(m2.video_accuracy, 1.0);
+    let runs = vec![
+        RunReport {
+            checkpoint: "s0".into(),
+            seed: 0,
+            metrics: m1,
+        },
+        RunReport {
+            checkpoint: "s1".into(),
+            seed: 1,
+            metrics: m2,
+        },
+    ];
+    let r = Report::new(
+        "frozen-pretrained",
+        "fc",
+        std::path::Path::new("data"),
+        runs,
+    );
+    // Mean of 0.75 and 1.0 is 0.875, population std 0.125.
+    let v = r.aggregate["video_accuracy"];
+    assert!((v.mean - 0.875).abs() < 1e-12);
+    assert!((v.std - 0.125).abs() < 1e-12);
+    assert_eq!(v.n, 2);
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&r, dir.path()).unwrap();
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(md.contains("**Mode: frozen-pretrained**"));
+    assert!(md.contains("| per-video (majority vote, no_grasp excluded) | 87.5 ± 12.5 |"));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["mode"], "frozen-pretrained");
+    assert_eq!(json["runs"].as_array().unwrap().len(), 2);
+    for png in ["time_accuracy.png", "confusion.png"] {
+        let img = image::open(dir.path().join(png)).unwrap();
+        assert!(img.width() > 100);
+    }
+}
