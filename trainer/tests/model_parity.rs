@@ -48,6 +48,10 @@ fn check_eval(file: &str) {
     assert_eq!(model.feature_dim(), 1280);
     let d = max_rel_diff(&features, &io["features"]);
     assert!(d < TOL, "{file}: features differ by {d}");
+    // batch 1 takes the intra-image parallel path, batches one image per task
+    let single = model.features(&x.narrow(0, 1, 1).unwrap(), false).unwrap();
+    let d = max_rel_diff(&single, &io["features"].narrow(0, 1, 1).unwrap());
+    assert!(d < TOL, "{file}: batch-1 features differ by {d}");
     let logits = model.forward(x, false).unwrap();
     let d = max_rel_diff(&logits, &io["logits"]);
     assert!(d < TOL, "{file}: logits differ by {d}");

@@ -198,7 +198,8 @@ fn conv_plane(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst: &mu
 
 /// Forward over all planes, in parallel.
 fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
-    let mut out = vec![0f32; g.n * g.c * g.out_plane()];
+    // every element is written by conv_plane (which starts from the bias)
+    let mut out = super::pointwise::alloc_uninit(g.n * g.c * g.out_plane());
     out.par_chunks_mut(g.out_plane()).enumerate().for_each_init(
         || vec![0f32; g.pad_len()],
         |pad, (plane, dst)| {

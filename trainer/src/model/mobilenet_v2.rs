@@ -13,10 +13,11 @@ use std::sync::{Arc, Mutex};
 
 use candle_core::{Module, Result, Tensor, D};
 use candle_nn::{Init, Linear, VarBuilder};
+use rayon::prelude::*;
 
 use super::batch_norm::BatchNorm2d;
 use super::depthwise::{depthwise_conv3x3, depthwise_conv3x3_bias_act};
-use super::pointwise::{pointwise_conv, pointwise_conv_bias_act};
+use super::pointwise::{im2col3x3, pointwise_conv, pointwise_conv_bias_act};
 
 /// Architecture options, as torchvision's `mobilenet_v2(width_mult=..., num_classes=..., dropout=...)`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -175,12 +176,11 @@ impl FoldedConv {
                 add_residual(y, residual)
             }
             ConvKind::Full3x3 => {
-                let c = self.bias.dim(0)?;
-                let y = x
-                    .conv2d(&self.weight, 1, self.stride, 1, 1)?
-                    .broadcast_add(&self.bias.reshape((1, c, 1, 1))?)?;
-                let y = if self.relu6 { y.clamp(0f32, 6f32)? } else { y };
-                add_residual(y, residual)
+                // im2col, then the same fused matmul kernel as the 1x1 layers
+                let cols = im2col3x3(x, self.stride)?;
+                let cout = self.weight.dim(0)?;
+                let w = self.weight.reshape((cout, cols.dim(1)?))?;
+                pointwise_conv_bias_act(&cols, &w, &self.bias, residual, self.relu6)
             }
         }
     }
@@ -315,6 +315,16 @@ struct Folded {
     head: FoldedConv,
 }
 
+impl Folded {
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let mut y = self.stem.forward(x, None)?;
+        for b in &self.blocks {
+            y = b.forward(&y)?;
+        }
+        self.head.forward(&y, None)
+    }
+}
+
 /// MobileNetV2 with torchvision's layout and parameter names.
 #[derive(Debug)]
 pub struct MobileNetV2 {
@@ -394,13 +404,12 @@ impl MobileNetV2 {
         if c != 3 {
             candle_core::bail!("MobileNetV2 expects 3 input channels, got {:?}", x.dims());
         }
-        let map = if train {
+        if train {
             self.invalidate_inference_cache();
-            self.feature_map_train(x)?
+            pool(&self.feature_map_train(x)?)
         } else {
-            self.feature_map_eval(x)?
-        };
-        map.mean(D::Minus1)?.mean(D::Minus1)
+            self.features_eval(x)
+        }
     }
 
     /// Class logits (N, num_classes). Dropout is active only when `train`.
@@ -430,13 +439,20 @@ impl MobileNetV2 {
         self.head.forward_train(&y)
     }
 
-    fn feature_map_eval(&self, x: &Tensor) -> Result<Tensor> {
+    /// Pooled eval-mode features. A batch runs one image per task, so that
+    /// each image's activations stay in cache and buffers are reused; the
+    /// kernels split a single image across threads themselves.
+    fn features_eval(&self, x: &Tensor) -> Result<Tensor> {
         let folded = self.folded_network()?;
-        let mut y = folded.stem.forward(x, None)?;
-        for b in &folded.blocks {
-            y = b.forward(&y)?;
+        let n = x.dim(0)?;
+        if n == 1 {
+            return pool(&folded.forward(x)?);
         }
-        folded.head.forward(&y, None)
+        let rows = (0..n)
+            .into_par_iter()
+            .map(|i| pool(&folded.forward(&x.narrow(0, i, 1)?)?))
+            .collect::<Result<Vec<_>>>()?;
+        Tensor::cat(&rows, 0)
     }
 
     fn folded_network(&self) -> Result<Arc<Folded>> {
@@ -459,6 +475,11 @@ impl MobileNetV2 {
         *guard = Some(folded.clone());
         Ok(folded)
     }
+}
+
+/// Global average pooling: (N, C, H, W) -> (N, C).
+fn pool(x: &Tensor) -> Result<Tensor> {
+    x.flatten_from(2)?.mean(D::Minus1)
 }
 
 /// torch.nn.Linear with torchvision's MobileNetV2 init: N(0, 0.01), zero bias.

@@ -56,6 +56,19 @@ fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]>
     }
 }
 
+/// An output buffer without the cost of zeroing it, as candle's own CPU
+/// kernels allocate theirs. Callers must write every element before any read.
+pub(crate) fn alloc_uninit(len: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(len);
+    // SAFETY: f32 has no invalid bit patterns and callers overwrite every
+    // element before reading it.
+    #[allow(clippy::uninit_vec)]
+    unsafe {
+        v.set_len(len)
+    };
+    v
+}
+
 /// Raw pointer that may cross threads: every task writes a disjoint tile.
 #[derive(Clone, Copy)]
 struct SendPtr(*mut f32);
@@ -105,7 +118,8 @@ impl CustomOp3 for PointwiseBiasAct {
             None => None,
         };
         let hw = h * w;
-        let mut out = vec![0f32; n * cout * hw];
+        // every element is written by run_tile
+        let mut out = alloc_uninit(n * cout * hw);
         let tiles = hw.div_ceil(TILE);
         let ptr = SendPtr(out.as_mut_ptr());
         (0..n * tiles).into_par_iter().for_each(|job| {
@@ -192,5 +206,57 @@ unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
                 *o = o.clamp(0.0, 6.0);
             }
         }
+    }
+}
+
+/// im2col for a dense 3x3, padding 1 convolution: (N, C, H, W) ->
+/// (N, C*9, OH, OW), row `c*9 + ky*3 + kx` holding the input pixel under
+/// tap (ky, kx). A dense 3x3 convolution is then a pointwise one with the
+/// weight reshaped to (Cout, C*9). Inference only.
+pub fn im2col3x3(x: &Tensor, stride: usize) -> Result<Tensor> {
+    x.contiguous()?.apply_op1_no_bwd(&Im2Col3x3 { stride })
+}
+
+struct Im2Col3x3 {
+    stride: usize,
+}
+
+impl candle_core::CustomOp1 for Im2Col3x3 {
+    fn name(&self) -> &'static str {
+        "im2col3x3"
+    }
+
+    fn cpu_fwd(&self, storage: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
+        let (n, c, h, w) = l.shape().dims4()?;
+        let s = self.stride;
+        let (oh, ow) = ((h + 2 - 3) / s + 1, (w + 2 - 3) / s + 1);
+        let x = f32_slice(storage, l, "input")?;
+        // every element is written below
+        let mut out = alloc_uninit(n * c * 9 * oh * ow);
+        out.par_chunks_mut(oh * ow)
+            .enumerate()
+            .for_each(|(row, dst)| {
+                let (plane, tap) = (row / 9, row % 9);
+                let (ky, kx) = (tap / 3, tap % 3);
+                let src = &x[plane * h * w..(plane + 1) * h * w];
+                for oy in 0..oh {
+                    let iy = (s * oy + ky) as isize - 1;
+                    let out = &mut dst[oy * ow..(oy + 1) * ow];
+                    if iy < 0 || iy >= h as isize {
+                        out.fill(0.0); // padding
+                        continue;
+                    }
+                    let src_row = &src[iy as usize * w..(iy as usize + 1) * w];
+                    for (ox, d) in out.iter_mut().enumerate() {
+                        let ix = (s * ox + kx) as isize - 1;
+                        *d = if ix >= 0 && ix < w as isize {
+                            src_row[ix as usize]
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            });
+        Ok((CpuStorage::F32(out), Shape::from((n, c * 9, oh, ow))))
     }
 }
