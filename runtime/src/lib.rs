@@ -7,7 +7,7 @@
 //! - [`protocol`], [`decoder`], [`transport`], [`link`]: the wire protocol of
 //!   docs/hannes-protocol.md and its host side;
 //! - [`simhand`]: the device side, as a simulated hand;
-//! - `model` (once the trainer checkpoint API lands): the trained checkpoint;
+//! - [`model`]: the trained checkpoint as a [`classifier::FrameClassifier`];
 //! - [`bench`]: latency measurements.
 
 pub mod approach;
@@ -19,6 +19,7 @@ pub mod config;
 pub mod decoder;
 pub mod feed;
 pub mod link;
+pub mod model;
 pub mod policy;
 pub mod protocol;
 pub mod simhand;

@@ -1,11 +1,519 @@
-use clap::Parser;
+//! `hannes-run`: the pre-shape classifier driving the Hannes hand.
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use grasp_schema::taxonomy::{Class, Preshape};
+use runtime::approach::{actuate, classify_window, FramePrediction};
+use runtime::config::RuntimeConfig;
+use runtime::feed::FeedMode;
+use runtime::link::{Hand, HandLink};
+use runtime::policy::OnInvalid;
+use runtime::simhand::{HandEvent, PtyHand, RunningHand};
+use runtime::source::{FrameSource, Pacing, SequenceFolder};
+use runtime::transport::{open_serial, SerialConnector};
+use runtime::trigger::{parse_trigger, Trigger};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
-/// Drive the Hannes hand from a wrist camera.
+/// Drive the Hannes hand from a wrist camera: classify the frames of each
+/// approach, pick the pre-shape by majority vote and send it over the
+/// serial link (protocol: docs/hannes-protocol.md).
 #[derive(Parser)]
 #[command(name = "hannes-run", version, about)]
-struct Cli {}
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
 
-fn main() -> anyhow::Result<()> {
-    let _cli = Cli::parse();
+#[derive(Subcommand)]
+enum Cmd {
+    /// The demo: trigger, approach window, pre-shape, closure; repeated.
+    Run(RunArgs),
+    /// Classify a recorded sequence; print per-frame predictions and the
+    /// decision (no hand needed).
+    Replay(ReplayArgs),
+    /// The hand side of the protocol, simulated; prints one JSON line per
+    /// event.
+    SimulateHand(SimArgs),
+    /// Inference, link and trigger-to-command latency.
+    Bench(BenchArgs),
+}
+
+#[derive(Args, Clone)]
+struct PolicyArgs {
+    /// Config file (TOML, sections [policy] and [link]); flags override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Approach window in seconds.
+    #[arg(long)]
+    window: Option<f64>,
+    /// Decide early once the leading pre-shape is this many votes ahead.
+    #[arg(long)]
+    early_margin: Option<u32>,
+    /// Pre-shape sent on low confidence (power, lateral, pinch, pinch3), or
+    /// `none` to send nothing.
+    #[arg(long)]
+    fallback: Option<String>,
+    /// Minimum mean probability of the winning class.
+    #[arg(long)]
+    min_confidence: Option<f64>,
+    /// What an invalid model output (NaN, Inf) does.
+    #[arg(long, value_enum)]
+    on_invalid: Option<OnInvalid>,
+}
+
+#[derive(Args, Clone)]
+struct SourceArgs {
+    /// Trained checkpoint (from grasp-train).
+    #[arg(long)]
+    checkpoint: PathBuf,
+    /// A sequence folder (PNG frames, optionally sequence.json), or
+    /// `camera[:DEVICE]` (needs the `camera` feature; default /dev/video0).
+    #[arg(long)]
+    source: String,
+    /// Frame rate of a bare PNG folder (default: sequence.json, else 30).
+    #[arg(long)]
+    fps: Option<f64>,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+    #[command(flatten)]
+    policy: PolicyArgs,
+    /// Serial device of the hand (USB adapter, /dev/rfcomm0, pty link).
+    #[arg(long)]
+    port: PathBuf,
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+    /// Starts an approach: `stdin` (Enter), `now`, or `timer:SECONDS`.
+    #[arg(long, default_value = "stdin")]
+    trigger: String,
+    /// Closes the fingers after the pre-shape: `delay:SECONDS`, `stdin`, or
+    /// `none`.
+    #[arg(long, default_value = "delay:1.0")]
+    closure: String,
+    /// Number of approaches (default: 1 for a recording, unlimited for a
+    /// camera).
+    #[arg(long)]
+    approaches: Option<usize>,
+    /// Replay a recording as fast as possible instead of at its frame rate.
+    #[arg(long)]
+    as_fast: bool,
+    /// Append one JSON report per approach to this file.
+    #[arg(long)]
+    report: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+    #[command(flatten)]
+    policy: PolicyArgs,
+    /// Replay at the recording's frame rate, dropping frames the classifier
+    /// cannot keep up with (default: every frame, as fast as possible).
+    #[arg(long)]
+    realtime: bool,
+    /// Print the report as JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct SimArgs {
+    /// Serve an existing serial device.
+    #[arg(long, conflicts_with = "pty", required_unless_present = "pty")]
+    port: Option<PathBuf>,
+    /// Create a pseudo-terminal and link its host side at this path.
+    #[arg(long)]
+    pty: Option<PathBuf>,
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Trained checkpoint (from grasp-train).
+    #[arg(long)]
+    checkpoint: PathBuf,
+    /// Timed inference frames (224x224).
+    #[arg(long, default_value_t = 200)]
+    frames: usize,
+    /// Untimed warm-up frames.
+    #[arg(long, default_value_t = 10)]
+    warmup: usize,
+    /// Link round trips to time.
+    #[arg(long, default_value_t = 500)]
+    sends: usize,
+    /// Whole approaches (2 s window at 30 fps each) to time.
+    #[arg(long, default_value_t = 5)]
+    approaches: usize,
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+    /// Input size of the timed frames.
+    #[arg(long, default_value_t = 224)]
+    size: u32,
+}
+
+fn main() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    if let Err(e) = dispatch(Cli::parse()) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
+    match cli.command {
+        Cmd::Run(a) => run(a),
+        Cmd::Replay(a) => replay(a),
+        Cmd::SimulateHand(a) => simulate_hand(a),
+        Cmd::Bench(a) => bench(a),
+    }
+}
+
+fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C handler")?;
+    Ok(stop)
+}
+
+fn config(p: &PolicyArgs) -> Result<RuntimeConfig> {
+    let mut cfg = match &p.config {
+        Some(path) => RuntimeConfig::load(path)?,
+        None => RuntimeConfig::default(),
+    };
+    let policy = &mut cfg.policy;
+    if let Some(w) = p.window {
+        policy.window_s = w;
+    }
+    if p.early_margin.is_some() {
+        policy.early_margin = p.early_margin;
+    }
+    if let Some(f) = &p.fallback {
+        policy.fallback = match f.as_str() {
+            "none" => None,
+            name => Some(name.parse::<Preshape>().context("--fallback")?),
+        };
+    }
+    if let Some(c) = p.min_confidence {
+        policy.min_confidence = c;
+    }
+    if let Some(o) = p.on_invalid {
+        policy.on_invalid = o;
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// Opens the frame source; returns it with whether it is live.
+fn open_source(a: &SourceArgs, pacing: Pacing) -> Result<(Box<dyn FrameSource>, bool)> {
+    if let Some(rest) = a.source.strip_prefix("camera") {
+        let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
+        return Ok((open_camera(Path::new(device))?, true));
+    }
+    let folder = SequenceFolder::open(Path::new(&a.source), a.fps, pacing)?;
+    Ok((Box::new(folder), false))
+}
+
+#[cfg(feature = "camera")]
+fn open_camera(device: &Path) -> Result<Box<dyn FrameSource>> {
+    Ok(Box::new(runtime::camera::Camera::open(
+        device, 640, 480, 30,
+    )?))
+}
+
+#[cfg(not(feature = "camera"))]
+fn open_camera(device: &Path) -> Result<Box<dyn FrameSource>> {
+    anyhow::bail!(
+        "cannot open {}: hannes-run was built without the `camera` feature \
+         (rebuild with `cargo build --release -p runtime --features camera`)",
+        device.display()
+    )
+}
+
+fn run(a: RunArgs) -> Result<()> {
+    let cfg = config(&a.policy)?;
+    let stop = stop_flag()?;
+    let mut classifier = runtime::model::load(&a.source.checkpoint)?;
+    let pacing = if a.as_fast {
+        Pacing::AsFastAsPossible
+    } else {
+        Pacing::RealTime
+    };
+    let (mut source, live) = open_source(&a.source, pacing)?;
+    let mode = if a.as_fast && !live {
+        FeedMode::Lockstep
+    } else {
+        FeedMode::Latest
+    };
+    let mut stdin = None;
+    let mut trigger = parse_trigger(&a.trigger, &mut stdin)?;
+    let mut closure = match a.closure.as_str() {
+        "none" => None,
+        spec => Some(parse_trigger(spec, &mut stdin)?),
+    };
+    let link = HandLink::new(
+        Box::new(SerialConnector::new(&a.port, a.baud)),
+        cfg.link.clone(),
+    );
+    let hand = Hand::start(link).context("cannot start the link to the hand")?;
+    let approaches = a.approaches.unwrap_or(if live { usize::MAX } else { 1 });
+    for n in 0..approaches {
+        eprintln!(
+            "approach {}: waiting for trigger ({})",
+            n + 1,
+            trigger.describe()
+        );
+        if !trigger.wait(&stop)? {
+            break;
+        }
+        let t0 = Instant::now();
+        let (s, window) = classify_window(
+            source,
+            mode,
+            &mut classifier,
+            &cfg.policy,
+            t0,
+            &mut |p| tracing::debug!(frame = p.index, class = ?p.class, "classified"),
+        )?;
+        source = s;
+        let closure = closure.as_mut().map(|c| c.as_mut() as &mut dyn Trigger);
+        let report = actuate(&hand, window, closure, &stop, t0)?;
+        let d = &report.window.decision;
+        println!(
+            "approach {}: {} | votes {} | {} frames, {} dropped{}",
+            n + 1,
+            d.outcome,
+            votes(&d.votes),
+            d.frames,
+            report.window.feed.dropped,
+            match &report.preshape {
+                Some(c) => format!(
+                    " | acknowledged {:.1} ms after the trigger ({} attempts)",
+                    c.since_trigger_ms, c.attempts
+                ),
+                None => String::new(),
+            }
+        );
+        if let Some(e) = &report.link_error {
+            eprintln!("error: {e}");
+        }
+        if let Some(path) = &a.report {
+            append_json_line(path, &report)?;
+        }
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+    }
+    let stats = hand.stats();
+    eprintln!(
+        "link: {} transmissions, {} retransmissions, {} heartbeats, {} reconnects, {} CRC errors",
+        stats.transmissions,
+        stats.retransmissions,
+        stats.heartbeats,
+        stats.reconnects,
+        stats.rx_crc_errors
+    );
+    Ok(())
+}
+
+fn votes(v: &[u32; Class::COUNT]) -> String {
+    Class::ALL
+        .iter()
+        .map(|c| format!("{c} {}", v[c.index()]))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn append_json_line(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .with_context(|| format!("cannot open report {}", path.display()))?;
+    writeln!(f, "{}", serde_json::to_string(value)?)
+        .with_context(|| format!("cannot write report {}", path.display()))
+}
+
+fn replay(a: ReplayArgs) -> Result<()> {
+    let cfg = config(&a.policy)?;
+    let mut classifier = runtime::model::load(&a.source.checkpoint)?;
+    let pacing = if a.realtime {
+        Pacing::RealTime
+    } else {
+        Pacing::AsFastAsPossible
+    };
+    let folder = SequenceFolder::open(Path::new(&a.source.source), a.source.fps, pacing)?;
+    let info = folder.info().clone();
+    let mode = if a.realtime {
+        FeedMode::Latest
+    } else {
+        FeedMode::Lockstep
+    };
+    let json = a.json;
+    if !json {
+        println!("{}", header());
+    }
+    let mut print = |p: &FramePrediction| {
+        if !json {
+            let truth = info.labels.get(p.index as usize).copied();
+            println!("{}", row(p, truth));
+        }
+    };
+    let (_, window) = classify_window(
+        Box::new(folder),
+        mode,
+        &mut classifier,
+        &cfg.policy,
+        Instant::now(),
+        &mut print,
+    )?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&window)?);
+        return Ok(());
+    }
+    let d = &window.decision;
+    println!("decision: {}", d.outcome);
+    println!("votes: {}", votes(&d.votes));
+    if let Some(truth) = info.preshape {
+        let verdict = match d.outcome.preshape() {
+            Some(p) if p == truth => "correct",
+            _ => "WRONG",
+        };
+        println!("label: {truth} ({verdict})");
+    }
+    println!(
+        "frames: {} classified, {} dropped, {} invalid",
+        window.feed.delivered, window.feed.dropped, d.invalid_frames
+    );
+    Ok(())
+}
+
+fn header() -> String {
+    let classes: Vec<String> = Class::ALL.iter().map(|c| format!("{c:>8}")).collect();
+    format!(
+        "frame   time_s  {}  predicted  label     ms",
+        classes.join("")
+    )
+}
+
+fn row(p: &FramePrediction, truth: Option<Class>) -> String {
+    let probs: Vec<String> = p
+        .probabilities
+        .iter()
+        .map(|v| format!("{v:>8.3}"))
+        .collect();
+    let class = p.class.map_or("INVALID".to_string(), |c| c.to_string());
+    let truth = truth.map_or("-".to_string(), |c| c.to_string());
+    format!(
+        "{:>5} {:>8.3}  {}  {:<9}  {:<8} {:>5.1}",
+        p.index,
+        p.time_s,
+        probs.join(""),
+        class,
+        truth,
+        p.inference_ms
+    )
+}
+
+fn simulate_hand(a: SimArgs) -> Result<()> {
+    let stop = stop_flag()?;
+    let started = Instant::now();
+    let sink = move |e: &HandEvent| print_event(started, e);
+    if let Some(link) = &a.pty {
+        let pty = PtyHand::plug(link, sink)?;
+        eprintln!(
+            "simulated hand listening; connect the host to {}",
+            pty.path().display()
+        );
+        while !stop.load(Ordering::Relaxed) && !pty.hand.is_finished() {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = std::fs::remove_file(link);
+        return pty.hand.stop().context("simulated hand failed");
+    }
+    let port = a.port.expect("clap requires --port or --pty");
+    while !stop.load(Ordering::Relaxed) {
+        let conn = match open_serial(&port, a.baud, true) {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("waiting for {}: {e}", port.display());
+                std::thread::sleep(Duration::from_millis(500));
+                continue;
+            }
+        };
+        eprintln!("simulated hand serving {}", port.display());
+        let hand = RunningHand::spawn(Box::new(conn), sink)?;
+        while !stop.load(Ordering::Relaxed) && !hand.is_finished() {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        if let Err(e) = hand.stop() {
+            eprintln!("{}: {e}; re-opening", port.display());
+        }
+    }
+    Ok(())
+}
+
+fn print_event(started: Instant, e: &HandEvent) {
+    let mut v = serde_json::to_value(e).unwrap_or_default();
+    if let Some(obj) = v.as_object_mut() {
+        obj.insert(
+            "t_ms".into(),
+            serde_json::json!(started.elapsed().as_millis() as u64),
+        );
+    }
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{v}");
+    let _ = out.flush();
+}
+
+fn bench(a: BenchArgs) -> Result<()> {
+    use runtime::bench;
+    let mut classifier = runtime::model::load(&a.checkpoint)?;
+    let frames = bench::synthetic_frames(a.frames.max(1), a.size);
+    let inference = bench::inference(&mut classifier, &frames, a.warmup)?;
+    println!(
+        "inference {}x{} ({} frames): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
+        a.size,
+        a.size,
+        inference.n,
+        inference.p50_ms,
+        inference.p99_ms,
+        inference.mean_ms,
+        inference.max_ms
+    );
+    let link = bench::link_round_trip(a.sends.max(1), a.baud)?;
+    println!(
+        "link PRESHAPE->ACK over a pty at {} baud ({} sends): p50 {:.3} ms, p99 {:.3} ms",
+        link.baud, link.round_trip.n, link.round_trip.p50_ms, link.round_trip.p99_ms
+    );
+    let window = bench::synthetic_frames(60, a.size);
+    let ap = bench::approaches(&mut classifier, window, 30.0, a.approaches.max(1), a.baud)?;
+    println!(
+        "approach (window {} s at {} fps, {} runs): trigger->ACK p50 {:.1} ms, p99 {:.1} ms; \
+         after the window p50 {:.1} ms, p99 {:.1} ms; {} frames classified, {} dropped",
+        ap.window_s,
+        ap.fps,
+        ap.trigger_to_command.n,
+        ap.trigger_to_command.p50_ms,
+        ap.trigger_to_command.p99_ms,
+        ap.after_window.p50_ms,
+        ap.after_window.p99_ms,
+        ap.frames_classified,
+        ap.frames_dropped
+    );
     Ok(())
 }

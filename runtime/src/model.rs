@@ -1,0 +1,52 @@
+//! The trained checkpoint (trainer crate) as a [`FrameClassifier`], on the
+//! CPU.
+
+use crate::classifier::FrameClassifier;
+use anyhow::{Context, Result};
+use grasp_schema::taxonomy::Class;
+use image::RgbImage;
+use std::path::Path;
+use trainer::checkpoint::Classifier;
+use trainer::heads::HeadKind;
+
+/// Loads a checkpoint directory (or its `best.json`) for per-frame use.
+///
+/// Only FC heads classify frames independently, as the streaming loop
+/// needs; an LSTM head would have to re-read the whole window for every new
+/// frame, so it is refused with an explanation.
+pub fn load(path: &Path) -> Result<Classifier> {
+    let classifier = Classifier::load(path, &candle_core::Device::Cpu)
+        .with_context(|| format!("cannot load checkpoint {}", path.display()))?;
+    check(&classifier, path)?;
+    Ok(classifier)
+}
+
+fn check(c: &Classifier, path: &Path) -> Result<()> {
+    anyhow::ensure!(
+        c.meta.head.kind == HeadKind::Fc,
+        "checkpoint {} has an {} head; hannes-run classifies frame by frame and needs an FC head \
+         (train with --head fc)",
+        path.display(),
+        c.meta.head.kind.name()
+    );
+    anyhow::ensure!(
+        c.classes() == Class::ALL,
+        "checkpoint {}: classes {:?} are not the runtime's {:?} in index order",
+        path.display(),
+        c.classes(),
+        Class::names()
+    );
+    Ok(())
+}
+
+impl FrameClassifier for Classifier {
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT]> {
+        let mut out = self.predict(std::slice::from_ref(frame))?;
+        anyhow::ensure!(
+            out.len() == 1,
+            "classifier returned {} outputs for one frame",
+            out.len()
+        );
+        Ok(out.remove(0))
+    }
+}
