@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-const CELL: u32 = 190; // panel size, pixels
+const CELL: u32 = 230; // panel size, pixels
 const GAP: u32 = 8;
 const TITLE: u32 = 14;
 const COLUMNS: u32 = 3;
@@ -277,8 +277,9 @@ fn draw_object(c: &mut Canvas, view: &View, planner: &Planner, plan: &SequencePl
     };
     let q = wrist::from_wxyz(plan.object.pose.rotation_wxyz);
     let t = Vector3::from(plan.object.pose.position);
-    for v in &geo.outline {
-        c.put_px(view.px(&(q * v + t)), OBJECT);
+    for tri in &geo.outline {
+        let [a, b, d] = tri.map(|v| view.px(&(q * v + t)));
+        c.triangle(a, b, d, OBJECT);
     }
 }
 
@@ -308,8 +309,32 @@ fn draw_path(c: &mut Canvas, view: &View, plan: &SequencePlan) {
 }
 
 impl Canvas {
-    fn put_px(&mut self, p: (i64, i64), c: Rgb<u8>) {
-        self.put(p.0, p.1, c);
+    /// Fills a triangle (pixel centres inside, either winding).
+    fn triangle(&mut self, a: (i64, i64), b: (i64, i64), d: (i64, i64), c: Rgb<u8>) {
+        let edge = |p: (i64, i64), q: (i64, i64), x: i64, y: i64| {
+            (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0)
+        };
+        let area = edge(a, b, d.0, d.1);
+        if area == 0 {
+            self.line(a, b, c, 1);
+            self.line(b, d, c, 1);
+            return;
+        }
+        let (x0, x1) = (a.0.min(b.0).min(d.0), a.0.max(b.0).max(d.0));
+        let (y0, y1) = (a.1.min(b.1).min(d.1), a.1.max(b.1).max(d.1));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (w0, w1, w2) = (edge(b, d, x, y), edge(d, a, x, y), edge(a, b, x, y));
+                let inside = if area > 0 {
+                    w0 >= 0 && w1 >= 0 && w2 >= 0
+                } else {
+                    w0 <= 0 && w1 <= 0 && w2 <= 0
+                };
+                if inside {
+                    self.put(x, y, c);
+                }
+            }
+        }
     }
 }
 

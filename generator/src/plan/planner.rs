@@ -33,8 +33,8 @@ pub struct ObjectGeometry {
     pub sphere_radius: f64,
     /// The parts' boxes, in the catalog's part order (object frame).
     pub boxes: Vec<Obb>,
-    /// Up to 4000 mesh vertices, for drawing the object's silhouette.
-    pub outline: Vec<Vector3<f64>>,
+    /// Up to 6000 mesh triangles, for drawing the object's silhouette.
+    pub outline: Vec<[Vector3<f64>; 3]>,
 }
 
 impl ObjectGeometry {
@@ -70,10 +70,11 @@ impl ObjectGeometry {
             sphere_radius: radius,
             boxes,
             outline: mesh
-                .vertices
+                .faces
                 .iter()
-                .step_by(mesh.vertices.len().div_ceil(4000).max(1))
-                .map(|v| Vector3::from(*v))
+                .step_by(mesh.faces.len().div_ceil(6000).max(1))
+                .filter(|f| f.iter().all(|&i| (i as usize) < mesh.vertices.len()))
+                .map(|f| f.map(|i| Vector3::from(mesh.vertices[i as usize])))
                 .collect(),
         })
     }
