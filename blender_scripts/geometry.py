@@ -8,6 +8,7 @@ installed and falls back to its rtree-based intersector otherwise.
 
 import numpy as np
 import trimesh
+from trimesh.ray import ray_triangle
 
 
 def _array(data: bytes, dtype: str, columns: int) -> np.ndarray:
@@ -17,12 +18,14 @@ def _array(data: bytes, dtype: str, columns: int) -> np.ndarray:
 class MeshQuery:
     """A mesh and its ray intersector, built once and queried in batches."""
 
-    def __init__(self, vertices: bytes, faces: bytes):
+    def __init__(self, vertices: bytes, faces: bytes, embree: bool = True):
         self.mesh = trimesh.Trimesh(
             vertices=_array(vertices, "<f8", 3).copy(),
             faces=_array(faces, "<u4", 3).astype(np.int64),
             process=False,
         )
+        # mesh.ray is Embree's intersector when embreex imports.
+        self.ray = self.mesh.ray if embree else ray_triangle.RayMeshIntersector(self.mesh)
 
     @property
     def is_watertight(self) -> bool:
@@ -30,7 +33,7 @@ class MeshQuery:
 
     @property
     def backend(self) -> str:
-        return type(self.mesh.ray).__module__.rsplit(".", 1)[-1]
+        return type(self.ray).__module__.rsplit(".", 1)[-1]
 
     def first_hits(self, origins: bytes, directions: bytes) -> bytes:
         """Distance to the first hit per ray (float64 bytes, NaN for a miss)."""
@@ -39,7 +42,7 @@ class MeshQuery:
         out = np.full(len(o), np.nan)
         if len(o) == 0:
             return out.astype("<f8").tobytes()
-        _, index_ray, locations = self.mesh.ray.intersects_id(
+        _, index_ray, locations = self.ray.intersects_id(
             o, d, multiple_hits=False, return_locations=True
         )
         if len(index_ray):
@@ -51,7 +54,13 @@ class MeshQuery:
         p = _array(points, "<f8", 3)
         if len(p) == 0:
             return b""
-        return self.mesh.contains(p).astype(np.uint8).tobytes()
+        return self.ray.contains_points(p).astype(np.uint8).tobytes()
+
+    def closest_points_trimesh(self, points: bytes) -> bytes:
+        """trimesh's own closest-point query (distances), for benchmarks."""
+        p = _array(points, "<f8", 3)
+        _, distance, _ = trimesh.proximity.closest_point(self.mesh, p)
+        return np.asarray(distance, dtype="<f8").tobytes()
 
 
 def convex_hull(vertices: bytes) -> tuple[bytes, bytes]:

@@ -36,8 +36,21 @@ impl std::fmt::Debug for MeshQuery {
     }
 }
 
+/// Which ray intersector trimesh uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RayBackend {
+    /// Embree when `embreex` is installed, else trimesh's rtree intersector.
+    Auto,
+    /// trimesh's rtree-based intersector (`ray_triangle`), always.
+    Triangle,
+}
+
 impl MeshQuery {
     pub fn new(mesh: &TriMesh) -> Result<MeshQuery> {
+        MeshQuery::with_backend(mesh, RayBackend::Auto)
+    }
+
+    pub fn with_backend(mesh: &TriMesh, backend: RayBackend) -> Result<MeshQuery> {
         check_mesh(mesh)?;
         crate::python::init(&["numpy", "trimesh", PY_MODULE])?;
         let vertices = points_to_bytes(&mesh.vertices);
@@ -48,7 +61,11 @@ impl MeshQuery {
             .collect();
         let (py, watertight, backend) = Python::attach(|py| -> PyResult<_> {
             let class = py.import(PY_MODULE)?.getattr("MeshQuery")?;
-            let obj = class.call1((PyBytes::new(py, &vertices), PyBytes::new(py, &faces)))?;
+            let obj = class.call1((
+                PyBytes::new(py, &vertices),
+                PyBytes::new(py, &faces),
+                backend == RayBackend::Auto,
+            ))?;
             let watertight: bool = obj.getattr("is_watertight")?.extract()?;
             let backend: String = obj.getattr("backend")?.extract()?;
             Ok((obj.unbind(), watertight, backend))
@@ -107,6 +124,16 @@ impl MeshQuery {
                     .context("closest_points on a mesh without triangles")
             })
             .collect()
+    }
+
+    /// Distances to the surface by trimesh's own `closest_point` (slow; for
+    /// benchmarks against `closest_points`).
+    pub fn trimesh_closest_distances(&self, points: &[[f64; 3]]) -> Result<Vec<f64>> {
+        let bytes = self.call("closest_points_trimesh", &[points_to_bytes(points)])?;
+        Ok(bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().expect("chunk of 8")))
+            .collect())
     }
 
     pub fn is_watertight(&self) -> bool {

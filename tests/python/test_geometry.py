@@ -1,21 +1,26 @@
 """blender_scripts.geometry against analytic answers on a unit cube."""
 
 import numpy as np
+import pytest
 import trimesh
 
 from blender_scripts import geometry
 
 
-def _cube_query(half: float = 0.5) -> geometry.MeshQuery:
+def _cube_query(half: float = 0.5, embree: bool = True) -> geometry.MeshQuery:
     box = trimesh.creation.box(extents=[2 * half] * 3)
     return geometry.MeshQuery(
         np.asarray(box.vertices, dtype="<f8").tobytes(),
         np.asarray(box.faces, dtype="<u4").tobytes(),
+        embree,
     )
 
 
-def test_first_hits_distances_and_misses():
-    q = _cube_query()
+@pytest.mark.parametrize("embree", [True, False])
+def test_first_hits_distances_and_misses(embree):
+    q = _cube_query(embree=embree)
+    if not embree:
+        assert q.backend == "ray_triangle"
     origins = np.array([[0, 0, 2.0], [0, 0, 0.0], [3, 3, 3.0]])
     dirs = np.array([[0, 0, -1.0], [1, 0, 0.0], [0, 0, 1.0]])
     out = np.frombuffer(q.first_hits(origins.tobytes(), dirs.tobytes()), dtype="<f8")
@@ -23,8 +28,9 @@ def test_first_hits_distances_and_misses():
     assert np.isnan(out[2])
 
 
-def test_contains_and_watertight():
-    q = _cube_query()
+@pytest.mark.parametrize("embree", [True, False])
+def test_contains_and_watertight(embree):
+    q = _cube_query(embree=embree)
     assert q.is_watertight
     pts = np.array([[0, 0, 0.0], [0.4, -0.4, 0.4], [0.6, 0, 0.0], [0, 0, -2.0]])
     inside = np.frombuffer(q.contains(pts.tobytes()), dtype=np.uint8)

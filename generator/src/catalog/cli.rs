@@ -16,6 +16,21 @@ pub enum ObjectsCommand {
     Show(ShowArgs),
     /// Build a catalog variant from YCB meshes and an annotations.json.
     ImportYcb(ImportArgs),
+    /// Time the mesh queries (rays, inside tests, closest points) per
+    /// object, for each ray backend, against trimesh's closest points.
+    BenchQueries(BenchArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub catalog: CatalogArg,
+    /// Rays (and inside-test points) per object.
+    #[arg(long, default_value_t = 20_000)]
+    pub rays: usize,
+    /// Closest-point queries per object (trimesh's version is slow).
+    #[arg(long, default_value_t = 200)]
+    pub points: usize,
 }
 
 #[derive(Args, Debug)]
@@ -73,6 +88,9 @@ pub fn run(cmd: &ObjectsCommand) -> Result<()> {
         }
         ObjectsCommand::Check(a) => check(a),
         ObjectsCommand::Show(a) => show(a),
+        ObjectsCommand::BenchQueries(a) => {
+            super::bench::run(&load_unchecked(&a.catalog)?, a.rays, a.points)
+        }
         ObjectsCommand::ImportYcb(a) => {
             let files = ycb::import(&a.ycb, &a.out)?;
             let catalog = Catalog::load_dir(&a.out)
