@@ -105,7 +105,7 @@ impl DatasetDir {
         let dir = self
             .work_dir()
             .join("partial")
-            .join(format!("{position:08}-{attempt}"));
+            .join(format!("{position:08}-{attempt}-{}", std::process::id()));
         if dir.exists() {
             std::fs::remove_dir_all(&dir)
                 .with_context(|| format!("cannot clear {}", dir.display()))?;

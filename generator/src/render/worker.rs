@@ -72,6 +72,12 @@ pub fn run() -> Result<()> {
 /// prints never corrupt the JSON lines.
 fn protocol_channel() -> Result<File> {
     let fd: i32 = Python::attach(|py| -> PyResult<i32> {
+        // Die with the parent (Linux), so a killed `render` leaves no
+        // orphan writing into the dataset: prctl(PR_SET_PDEATHSIG, SIGKILL).
+        if cfg!(target_os = "linux") {
+            let libc = py.import("ctypes")?.call_method1("CDLL", (py.None(),))?;
+            libc.call_method1("prctl", (1, 9))?;
+        }
         let os = py.import("os")?;
         let fd: i32 = os.call_method1("dup", (1,))?.extract()?;
         os.call_method1("dup2", (2, 1))?;

@@ -1,0 +1,104 @@
+"""The Blender side on its own: every texture family builds, the worker
+renders a tiny Workbench sequence, and bad meshes are refused."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scripts import materials  # noqa: E402
+from blender_scripts.worker import Worker  # noqa: E402
+
+GEOMETRY = {
+    "room": {"min_xy": [-2.0, -2.0], "max_xy": [2.0, 2.0], "height": 2.7},
+    "table": {"min_xy": [-0.4, -0.4], "max_xy": [0.4, 0.4], "height": 0.75, "thickness": 0.04},
+}
+SETTINGS = {
+    "engine": "workbench",
+    "samples": 1,
+    "passes": ["rgb"],
+    "bounces": {"total": 1, "diffuse": 1, "glossy": 1, "transmission": 1, "transparent": 1},
+}
+
+
+def surface(family):
+    return {
+        "family": family,
+        "color_a": [0.8, 0.2, 0.1],
+        "color_b": [0.1, 0.2, 0.8],
+        "scale": 3.0,
+        "roughness": 0.5,
+        "detail": 0.5,
+    }
+
+
+def cube_bytes():
+    v = np.array([[x, y, z] for z in (0, 0.1) for y in (-0.05, 0.05) for x in (-0.05, 0.05)], "<f8")
+    f = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                  [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]], "<u4")  # fmt: skip
+    return v.tobytes(), f.tobytes()
+
+
+def plan(frames=2):
+    s = 0.5**0.5
+    # The camera 0.6 m in front of the object (-Y), looking along +Y.
+    pose = {"position": [0.0, -0.6, 0.85], "rotation_wxyz": [s, s, 0.0, 0.0]}
+    appearance = {
+        "wall": surface("brick"),
+        "floor": surface("marble"),
+        "table": surface(materials.HELD_OUT_FAMILY),
+        "object": {"randomized": True, "color": [0.9, 0.1, 0.1], "roughness": 0.4},
+        "lights": [{"kind": "area", "position": [0, -1, 2], "power_w": 200, "tint": [1, 1, 1]}],
+        "exposure": 0.0,
+        "hand_visible": True,
+    }
+    k = {"width": 32, "height": 24, "fx": 30.0, "fy": 30.0, "cx": 16.0, "cy": 12.0}
+    k.update(clip_near=0.01, clip_far=20.0)
+    return {
+        "key": {"object": "cube"},
+        "object": {"pose": {"position": [0, 0, 0.75], "rotation_wxyz": [1, 0, 0, 0]}},
+        "intrinsics": k,
+        "frames": [{"index": i, "camera": pose} for i in range(frames)],
+        "appearance": appearance,
+    }
+
+
+@pytest.mark.parametrize("family", [f for f in materials.FAMILIES if f != "image"])
+def test_every_family_builds(family):
+    mat = bpy.data.materials.new(f"test_{family}")
+    materials.apply_surface(mat, surface(family))
+    assert len(mat.node_tree.nodes) > 3
+
+
+def test_unknown_family_is_refused():
+    mat = bpy.data.materials.new("test_unknown")
+    with pytest.raises(ValueError, match="unknown texture family 'plaid'"):
+        materials.apply_surface(mat, surface("plaid"))
+
+
+def test_worker_renders_a_sequence(tmp_path):
+    worker = Worker(GEOMETRY, SETTINGS)
+    worker.add_mesh("cube", *cube_bytes())
+    assert worker.has_mesh("cube")
+    names = ["00000.png", "00001.png"]
+    worker.render(plan(), str(tmp_path), names, [0.5, 0.5, 0.5])
+    for name in names:
+        image = bpy.data.images.load(str(tmp_path / name))
+        assert tuple(image.size) == (32, 24)
+        pixels = np.array(image.pixels[:]).reshape(24, 32, 4)[:, :, :3]
+        assert pixels.std() > 0.01, "a uniform frame"
+    # Only the named frames are written.
+    assert sorted(os.listdir(tmp_path)) == names
+    json.dumps(plan())  # the plan stays plain JSON
+
+
+def test_bad_meshes_are_refused():
+    worker = Worker(GEOMETRY, SETTINGS)
+    v, _ = cube_bytes()
+    with pytest.raises(ValueError, match="out of range"):
+        worker.add_mesh("bad", v, np.array([[0, 1, 99]], "<u4").tobytes())
+    with pytest.raises(ValueError, match="whole triangles"):
+        worker.add_mesh("bad", v[:-8], np.array([[0, 1, 2]], "<u4").tobytes())
