@@ -174,8 +174,16 @@ fn depthwise_rejects_bad_arguments() {
 
 #[test]
 fn pointwise_matches_conv2d() {
-    // sizes above and below the kernel's 256-pixel tile, with a ragged last tile
-    for &(n, cin, cout, h, w) in &[(1, 3, 5, 1, 1), (3, 16, 24, 17, 19), (2, 7, 9, 16, 16)] {
+    // one pixel; column tiles; row blocks with a ragged last block (tiny
+    // image, many channels); more than the largest column tile, ragged
+    let cases = [
+        (1, 3, 5, 1, 1),
+        (3, 16, 24, 17, 19),
+        (2, 7, 9, 16, 16),
+        (1, 8, 70, 3, 3),
+        (1, 4, 8, 70, 70),
+    ];
+    for &(n, cin, cout, h, w) in &cases {
         let x = randn(&[n, cin, h, w]);
         let k = randn(&[cout, cin, 1, 1]);
         let b = randn(&[cout]);

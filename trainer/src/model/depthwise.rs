@@ -115,17 +115,18 @@ fn pad_plane(g: &Geom, src: &[f32], pad: &mut [f32]) {
             dst[1..=g.w].copy_from_slice(row);
             dst[g.w + 1] = 0.0;
         } else {
-            // padded column j holds row[j - 1]; even j -> dst[j / 2], odd j -> dst[half + j / 2]
+            // padded column j holds row[j - 1]; even j -> even[j / 2], odd j -> odd[j / 2].
+            // So row[2t] -> odd[t] and row[2t + 1] -> even[t + 1].
             let half = pw / 2;
             dst.fill(0.0);
             let (even, odd) = dst.split_at_mut(half);
-            for (i, &v) in row.iter().enumerate() {
-                let j = i + 1;
-                if j % 2 == 0 {
-                    even[j / 2] = v;
-                } else {
-                    odd[j / 2] = v;
-                }
+            let pairs = row.chunks_exact(2);
+            if let [last] = pairs.remainder() {
+                odd[g.w / 2] = *last;
+            }
+            for ((pair, o), e) in pairs.zip(odd.iter_mut()).zip(even[1..].iter_mut()) {
+                *o = pair[0];
+                *e = pair[1];
             }
         }
     }

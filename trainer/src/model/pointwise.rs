@@ -10,8 +10,68 @@
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
-/// Columns (pixels) per tile: keeps a `cout x TILE` output tile in L2.
-const TILE: usize = 256;
+/// Most columns (pixels) per tile: keeps a `cout x TILE` output tile in L2.
+const MAX_TILE: usize = 1024;
+/// Fewest jobs per call, so that a single image still uses every thread.
+const MIN_JOBS: usize = 4;
+
+/// Splits each image's `cout x hw` output into column tiles and, when the
+/// image is too small for enough column tiles, into row blocks. Large tiles
+/// matter: `gemm` packs the weights once per call.
+struct Tiling {
+    cout: usize,
+    hw: usize,
+    tile: usize,
+    col_tiles: usize,
+    row_block: usize,
+    row_blocks: usize,
+    jobs_per_image: usize,
+    n: usize,
+}
+
+impl Tiling {
+    fn new(n: usize, cout: usize, hw: usize) -> Self {
+        let tile = hw
+            .div_ceil(MIN_JOBS)
+            .next_multiple_of(16)
+            .clamp(16, MAX_TILE);
+        let col_tiles = hw.div_ceil(tile);
+        let want_rows = MIN_JOBS.div_ceil(col_tiles).max(1);
+        let row_block = cout
+            .div_ceil(want_rows)
+            .next_multiple_of(16)
+            .min(cout)
+            .max(1);
+        let row_blocks = cout.div_ceil(row_block);
+        Self {
+            cout,
+            hw,
+            tile,
+            col_tiles,
+            row_block,
+            row_blocks,
+            jobs_per_image: col_tiles * row_blocks,
+            n,
+        }
+    }
+
+    fn jobs(&self) -> usize {
+        self.n * self.jobs_per_image
+    }
+
+    /// (image, first column, columns, first row, rows) of a job.
+    fn job(&self, job: usize) -> (usize, usize, usize, usize, usize) {
+        let img = job / self.jobs_per_image;
+        let rest = job % self.jobs_per_image;
+        let (ct, rb) = (rest % self.col_tiles, rest / self.col_tiles);
+        let c0 = ct * self.tile;
+        let r0 = rb * self.row_block;
+        let cols = self.tile.min(self.hw - c0);
+        let rows = self.row_block.min(self.cout - r0);
+        debug_assert!(rb < self.row_blocks);
+        (img, c0, cols, r0, rows)
+    }
+}
 
 /// Differentiable 1x1 convolution of `x` (N, Cin, H, W) with `weight`
 /// (Cout, Cin, 1, 1) or (Cout, Cin).
@@ -120,24 +180,22 @@ impl CustomOp3 for PointwiseBiasAct {
         let hw = h * w;
         // every element is written by run_tile
         let mut out = alloc_uninit(n * cout * hw);
-        let tiles = hw.div_ceil(TILE);
+        let plan = Tiling::new(n, cout, hw);
         let ptr = SendPtr(out.as_mut_ptr());
-        (0..n * tiles).into_par_iter().for_each(|job| {
-            let (img, tile) = (job / tiles, job % tiles);
-            let c0 = tile * TILE;
-            let cols = TILE.min(hw - c0);
+        (0..plan.jobs()).into_par_iter().for_each(|job| {
+            let (img, c0, cols, r0, rows) = plan.job(job);
             let ptr = ptr;
-            // SAFETY: each (image, tile) job owns columns c0..c0+cols of its image.
+            // SAFETY: each job owns rows r0..r0+rows, columns c0..c0+cols of its image.
             unsafe {
-                let dst = ptr.0.add(img * cout * hw + c0);
+                let dst = ptr.0.add(img * cout * hw + r0 * hw + c0);
                 run_tile(
                     TileArgs {
                         x: &x[img * cin * hw + c0..],
-                        wt,
-                        bias,
-                        residual: residual.map(|r| &r[img * cout * hw + c0..]),
+                        wt: &wt[r0 * cin..(r0 + rows) * cin],
+                        bias: &bias[r0..r0 + rows],
+                        residual: residual.map(|r| &r[img * cout * hw + r0 * hw + c0..]),
                         cin,
-                        cout,
+                        cout: rows,
                         hw,
                         cols,
                         relu6: self.relu6,
