@@ -175,6 +175,43 @@ pub fn approaches(
     })
 }
 
+/// A checkpoint with the paper's architecture (MobileNetV2 width 1.0, FC
+/// head, `size` x `size` input) for timing when no trained one is given.
+/// Latency depends on the architecture, not on the weights' values, so the
+/// backbone is random (batch-norm adapted, as the trainer's tests do) and the
+/// head is trained for one epoch on a small synthetic set.
+pub fn stand_in_checkpoint(dir: &std::path::Path, size: u32) -> Result<std::path::PathBuf> {
+    use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 2;
+    spec.size = size;
+    write_synthetic(&dir.join("data"), &spec)?;
+    let mut rng = trainer::rng::stream(9, "calibration");
+    let calibration: Vec<RgbImage> = grasp_schema::taxonomy::Class::ALL
+        .iter()
+        .cycle()
+        .take(10)
+        .map(|c| class_image(*c, size, spec.noise, &mut rng))
+        .collect();
+    let weights = dir.join("backbone.safetensors");
+    trainer::init::write_random_backbone(&weights, 1.0, size, &calibration, 1)?;
+    let mut cfg = trainer::config::TrainConfig {
+        data: dir.join("data"),
+        out: dir.join("run"),
+        mode: trainer::checkpoint::TrainMode::FrozenPretrained,
+        head: trainer::heads::HeadKind::Fc,
+        weights: Some(weights),
+        width_mult: 1.0,
+        input_size: size,
+        max_epochs: 1,
+        cache_dir: dir.join("cache"),
+        ..Default::default()
+    };
+    cfg.split.test_fraction = 0.0;
+    let outcome = trainer::experiment::run(&cfg, 1)?;
+    Ok(outcome.runs[0].checkpoint.clone())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -137,9 +137,11 @@ struct SimArgs {
 
 #[derive(Args)]
 struct BenchArgs {
-    /// Trained checkpoint (from grasp-train).
+    /// Trained checkpoint (from grasp-train). Without it, a stand-in with
+    /// the paper's architecture (random MobileNetV2 1.0 + FC head) is built
+    /// in a temporary directory: latency does not depend on weight values.
     #[arg(long)]
-    checkpoint: PathBuf,
+    checkpoint: Option<PathBuf>,
     /// Timed inference frames (224x224).
     #[arg(long, default_value_t = 200)]
     frames: usize,
@@ -482,7 +484,15 @@ fn print_event(started: Instant, e: &HandEvent) {
 
 fn bench(a: BenchArgs) -> Result<()> {
     use runtime::bench;
-    let mut classifier = runtime::model::load(&a.checkpoint)?;
+    let scratch = tempfile::tempdir()?;
+    let checkpoint = match &a.checkpoint {
+        Some(c) => c.clone(),
+        None => {
+            eprintln!("no --checkpoint: building a stand-in (MobileNetV2 1.0, FC head)");
+            bench::stand_in_checkpoint(scratch.path(), a.size)?
+        }
+    };
+    let mut classifier = runtime::model::load(&checkpoint)?;
     let frames = bench::synthetic_frames(a.frames.max(1), a.size);
     let inference = bench::inference(&mut classifier, &frames, a.warmup)?;
     println!(
