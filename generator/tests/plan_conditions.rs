@@ -289,3 +289,27 @@ fn human_wrist_timing_starts_rotating_at_onset() {
         );
     }
 }
+
+#[test]
+fn full_roll_aligns_the_camera_x_with_the_box_x() {
+    let mut c = GeneratorConfig::default();
+    c.plan.trajectory.ps_fraction = [1.0, 1.0];
+    c.plan.trajectory.fe_rate_per_frame = 0.0;
+    let planner = carton_planner(&c, 1.0);
+    let geo = planner.object("test_carton").unwrap();
+    for part in ["side", "top"] {
+        for i in 0..10 {
+            let p = planner.plan(&key(part, i, Condition::Default)).unwrap();
+            let last = p.frames.last().unwrap();
+            let q = generator::plan::wrist::from_wxyz(last.camera.rotation_wxyz);
+            let obj = generator::plan::wrist::from_wxyz(p.object.pose.rotation_wxyz);
+            let box_x = obj * (geo.boxes[p.part_index].rotation * Vector3::x());
+            let view = q * -Vector3::z();
+            let proj = (box_x - view * view.dot(&box_x)).normalize();
+            let right = q * Vector3::x();
+            assert!(right.dot(&proj).abs() > 1.0 - 1e-9, "{part} {i}");
+            // The shortest rule never rolls by more than 90 degrees.
+            assert!(p.sampled["ps_angle_deg"].as_f64().unwrap().abs() <= 90.0);
+        }
+    }
+}
