@@ -401,8 +401,9 @@ mod tests {
     fn blackbody_is_warm_to_cold_and_white_near_6500k() {
         let warm = blackbody_tint(2000.0);
         assert!(warm[0] == 1.0 && warm[2] < 0.2, "{warm:?}");
+        // The Planckian locus passes just below D65 (slightly magenta).
         let white = blackbody_tint(6504.0);
-        assert!(white.iter().all(|c| *c > 0.95), "{white:?}");
+        assert!(white.iter().all(|c| *c > 0.9), "{white:?}");
         let cold = blackbody_tint(25000.0);
         assert!(cold[2] == 1.0 && cold[0] < 0.8, "{cold:?}");
         // Extremes are clamped, never NaN.
