@@ -99,11 +99,13 @@ def write_frame(png_path, exr_path=None):
     image.save_render(png_path, scene=scene)
     if exr_path:
         fmt = scene.render.image_settings
+        fmt.media_type = "MULTI_LAYER_IMAGE"  # Blender 5: selects multilayer EXR
         fmt.file_format = "OPEN_EXR_MULTILAYER"
         fmt.color_depth = "32"
         try:
             image.save_render(exr_path, scene=scene)
         finally:
+            fmt.media_type = "IMAGE"
             fmt.file_format = "PNG"
             fmt.color_mode = "RGB"
             fmt.color_depth = "8"

@@ -102,3 +102,16 @@ def test_bad_meshes_are_refused():
         worker.add_mesh("bad", v, np.array([[0, 1, 99]], "<u4").tobytes())
     with pytest.raises(ValueError, match="whole triangles"):
         worker.add_mesh("bad", v[:-8], np.array([[0, 1, 2]], "<u4").tobytes())
+
+
+def test_depth_and_instance_passes_write_an_exr(tmp_path):
+    settings = dict(SETTINGS, engine="cycles", samples=1, denoiser="none")
+    settings["passes"] = ["rgb", "depth", "instance"]
+    worker = Worker(GEOMETRY, settings)
+    worker.add_mesh("cube", *cube_bytes())
+    worker.render(plan(frames=1), str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
+    assert sorted(os.listdir(tmp_path)) == ["00000.exr", "00000.png"]
+    header = (tmp_path / "00000.exr").read_bytes()[:4096]
+    assert header[:4] == b"\x76\x2f\x31\x01"  # the OpenEXR magic number
+    for channel in (b"ViewLayer.Depth.Z", b"ViewLayer.Object Index.X", b"ViewLayer.Combined.R"):
+        assert channel in header, channel
