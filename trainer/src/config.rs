@@ -108,7 +108,7 @@ impl TrainConfig {
                  without them use --mode from-scratch"
             );
         }
-        if !(self.width_mult > 0.0) || self.input_size < 32 {
+        if self.width_mult.is_nan() || self.width_mult <= 0.0 || self.input_size < 32 {
             anyhow::bail!(
                 "width_mult must be positive and input_size at least 32 (got {} and {})",
                 self.width_mult,

@@ -3,6 +3,7 @@
 //! paper's training protocol, and the evaluation report.
 
 pub mod backbone;
+pub mod bench;
 pub mod checkpoint;
 pub mod config;
 pub mod data;

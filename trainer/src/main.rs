@@ -31,6 +31,26 @@ enum Command {
     Train(TrainArgs),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
     Eval(EvalArgs),
+    /// Benchmark one training epoch of a head on generated cached features.
+    BenchHeads(BenchArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    #[arg(long, value_enum, default_value_t = HeadKind::Fc)]
+    head: HeadKind,
+    #[arg(long, default_value_t = 400)]
+    sequences: usize,
+    #[arg(long, default_value_t = 80)]
+    val_sequences: usize,
+    #[arg(long, default_value_t = 90)]
+    frames: usize,
+    #[arg(long, default_value_t = 1280)]
+    dim: usize,
+    #[arg(long, default_value_t = 256)]
+    batch: usize,
+    #[arg(long, default_value_t = 5)]
+    epochs: usize,
 }
 
 #[derive(Args)]
@@ -136,6 +156,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Train(a) => train(a),
         Command::Eval(a) => eval(a),
+        Command::BenchHeads(a) => bench(a),
     }
 }
 
@@ -210,6 +231,32 @@ fn eval(a: EvalArgs) -> Result<()> {
     trainer::eval::write_report(&report, &a.out)?;
     print_headline(&report);
     println!("report: {}", a.out.join("report.md").display());
+    Ok(())
+}
+
+fn bench(a: BenchArgs) -> Result<()> {
+    let w = trainer::bench::Workload {
+        head: a.head,
+        sequences: a.sequences,
+        val_sequences: a.val_sequences,
+        frames: a.frames,
+        dim: a.dim,
+        batch: a.batch,
+        epochs: a.epochs,
+    };
+    let mut secs = trainer::bench::heads_epoch_seconds(&w)?;
+    // The first epoch includes one-off allocation: report the median of the rest.
+    let all = secs.clone();
+    if secs.len() > 1 {
+        secs.remove(0);
+    }
+    secs.sort_by(f64::total_cmp);
+    println!(
+        "{{\"impl\": \"candle\", \"head\": \"{}\", \"median_epoch_s\": {:.4}, \"epochs_s\": {:?}}}",
+        a.head.name(),
+        secs[secs.len() / 2],
+        all
+    );
     Ok(())
 }
 

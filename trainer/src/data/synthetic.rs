@@ -27,11 +27,13 @@ pub enum Layout {
     Authors,
 }
 
+/// (category, object, [(part, pre-shape)]).
+pub type ObjectSpec = (String, String, Vec<(String, Preshape)>);
+
 #[derive(Debug, Clone)]
 pub struct SyntheticSpec {
     pub layout: Layout,
-    /// (category, object, [(part, pre-shape)]).
-    pub objects: Vec<(String, String, Vec<(String, Preshape)>)>,
+    pub objects: Vec<ObjectSpec>,
     pub sequences_per_part: usize,
     pub frames: usize,
     pub fps: f64,
@@ -101,7 +103,11 @@ pub fn class_image(class: Class, size: u32, noise: f32, rng: &mut impl Rng) -> R
     let period = 2 + class.index() as u32 * 2;
     let gain: f32 = rng.gen_range(0.8..1.2);
     RgbImage::from_fn(size, size, |x, y| {
-        let stripe = if (x + y) / period % 2 == 0 { 1.0 } else { 0.6 };
+        let stripe = if ((x + y) / period).is_multiple_of(2) {
+            1.0
+        } else {
+            0.6
+        };
         let mut px = |c: f32| {
             let n = if noise > 0.0 {
                 rng.gen_range(-noise..noise)
