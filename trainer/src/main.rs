@@ -28,7 +28,7 @@ enum Command {
     /// features are cached on disk and only the head is trained.
     /// From-scratch: --mode from-scratch trains the whole network, with
     /// augmentation; pick --width-mult and --input-size for the CPU budget.
-    Train(TrainArgs),
+    Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
     Eval(EvalArgs),
     /// Benchmark one training epoch of a head on generated cached features.
@@ -154,7 +154,7 @@ fn main() -> Result<()> {
         std::env::set_var("RAYON_NUM_THREADS", n.to_string());
     }
     match cli.command {
-        Command::Train(a) => train(a),
+        Command::Train(a) => train(*a),
         Command::Eval(a) => eval(a),
         Command::BenchHeads(a) => bench(a),
     }

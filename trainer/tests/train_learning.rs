@@ -24,8 +24,8 @@ fn split(sequences: usize, seed: u64, means: &[Vec<f32>]) -> SplitFrames {
             let label = if f >= FRAMES - 2 { 4 } else { class };
             rows.push(labels.len());
             labels.push(label);
-            for k in 0..DIM {
-                x.push(means[label as usize][k] + rng.gen_range(-1.5f32..1.5));
+            for m in &means[label as usize] {
+                x.push(m + rng.gen_range(-1.5f32..1.5));
             }
         }
         seq_rows.push(rows);
