@@ -135,6 +135,14 @@ struct SendPtr(*mut f32);
 unsafe impl Send for SendPtr {}
 unsafe impl Sync for SendPtr {}
 
+impl SendPtr {
+    /// # Safety
+    /// `offset` must stay inside the buffer.
+    unsafe fn at(self, offset: usize) -> *mut f32 {
+        self.0.add(offset)
+    }
+}
+
 impl CustomOp3 for PointwiseBiasAct {
     fn name(&self) -> &'static str {
         "pointwise-bias-act"
@@ -184,10 +192,9 @@ impl CustomOp3 for PointwiseBiasAct {
         let ptr = SendPtr(out.as_mut_ptr());
         (0..plan.jobs()).into_par_iter().for_each(|job| {
             let (img, c0, cols, r0, rows) = plan.job(job);
-            let ptr = ptr;
             // SAFETY: each job owns rows r0..r0+rows, columns c0..c0+cols of its image.
             unsafe {
-                let dst = ptr.0.add(img * cout * hw + r0 * hw + c0);
+                let dst = ptr.at(img * cout * hw + r0 * hw + c0);
                 run_tile(
                     TileArgs {
                         x: &x[img * cin * hw + c0..],
