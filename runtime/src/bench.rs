@@ -183,7 +183,9 @@ pub fn approaches(
 pub fn stand_in_checkpoint(dir: &std::path::Path, size: u32) -> Result<std::path::PathBuf> {
     use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
     let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 2;
+    spec.sequences_per_part = 3;
+    spec.frames = 5;
+    spec.no_grasp_frames = 1;
     spec.size = size;
     write_synthetic(&dir.join("data"), &spec)?;
     let mut rng = trainer::rng::stream(9, "calibration");
@@ -207,6 +209,7 @@ pub fn stand_in_checkpoint(dir: &std::path::Path, size: u32) -> Result<std::path
         cache_dir: dir.join("cache"),
         ..Default::default()
     };
+    cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;
     let outcome = trainer::experiment::run(&cfg, 1)?;
     Ok(outcome.runs[0].checkpoint.clone())
