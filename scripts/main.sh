@@ -40,7 +40,7 @@ $BIN/grasp-gen plan --config "$OUT/train.toml" --show "$OUT/paths.png"
 
 echo "== train (from scratch) and evaluate"
 $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" \
-  --mode from-scratch --head fc --width-mult 0.35 --input-size 96 --max-epochs 15 \
+  --mode from-scratch --head fc --width-mult 0.35 --input-size 96 --max-epochs 10 \
   --out "$OUT/model"
 for condition in default fast from_ground seated background; do
   $BIN/grasp-train eval -c "$OUT/model/seed-0" --data "$OUT/data/test-$condition" \
