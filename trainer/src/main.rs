@@ -82,7 +82,7 @@ struct TrainArgs {
     /// Input side in pixels (224 in the paper).
     #[arg(long)]
     input_size: Option<u32>,
-    /// Default 256 on synthetic data, 32 on real data.
+    /// Default: 256 on synthetic data, 32 on real data (frozen backbone); 32 frames or 4 sequences from scratch.
     #[arg(long)]
     batch_size: Option<usize>,
     #[arg(long)]
