@@ -2,6 +2,7 @@
 //! classifier: how it was made (pretrained file or from scratch), its
 //! preprocessing, and feature extraction.
 
+use crate::checkpoint::{CheckpointMeta, TrainMode, WEIGHTS_FILE};
 use crate::features::FeatureExtractor;
 use crate::model::{MobileNetV2, MobileNetV2Config};
 use anyhow::{Context, Result};
@@ -43,6 +44,13 @@ pub struct BackboneInfo {
     pub width_mult: f64,
     /// Size of the backbone's own classifier (1000 for ImageNet files).
     pub num_classes: usize,
+    /// Prefix of the backbone's tensors in the weights file (`backbone` when
+    /// the file is another model's checkpoint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights_prefix: Option<String>,
+    /// The checkpoint whose trained backbone this is, when it is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_checkpoint: Option<PathBuf>,
 }
 
 impl BackboneInfo {
@@ -54,7 +62,46 @@ impl BackboneInfo {
             weights_sha256: Some(crate::features::file_sha256(path)?),
             width_mult,
             num_classes: 1000,
+            weights_prefix: None,
+            source_checkpoint: None,
         })
+    }
+
+    /// A checkpoint's backbone, to be used frozen: the `backbone.*` tensors
+    /// of a from-scratch checkpoint, or the pretrained file a frozen one was
+    /// trained on. Also returns the checkpoint's preprocessing, which the
+    /// backbone was trained with and must keep.
+    pub fn from_checkpoint(dir_or_json: &Path) -> Result<(BackboneInfo, Preprocess)> {
+        let (meta, dir) = CheckpointMeta::load(dir_or_json)?;
+        let info = match meta.mode {
+            TrainMode::FromScratch => {
+                let weights = dir.join(WEIGHTS_FILE);
+                BackboneInfo {
+                    id: meta.backbone.id.clone(),
+                    weights_sha256: Some(crate::features::file_sha256(&weights)?),
+                    weights_path: Some(weights),
+                    width_mult: meta.backbone.width_mult,
+                    num_classes: meta.backbone.num_classes,
+                    weights_prefix: Some("backbone".to_string()),
+                    source_checkpoint: Some(dir),
+                }
+            }
+            TrainMode::FrozenPretrained => {
+                let mut info = meta.backbone.clone();
+                info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
+                info
+            }
+        };
+        Ok((info, meta.preprocessing))
+    }
+
+    /// How a report names this backbone.
+    pub fn describe(&self) -> String {
+        match (&self.source_checkpoint, &self.weights_path) {
+            (Some(c), _) => format!("frozen backbone from {}", c.display()),
+            (None, Some(w)) => format!("frozen backbone {}", w.display()),
+            (None, None) => "backbone trained from scratch".to_string(),
+        }
     }
 
     pub fn config(&self) -> MobileNetV2Config {
@@ -92,6 +139,10 @@ impl Backbone {
         }
         let vb = crate::model::weights::var_builder(path, device)
             .with_context(|| format!("cannot load backbone weights {}", path.display()))?;
+        let vb = match &info.weights_prefix {
+            Some(prefix) => vb.pp(prefix),
+            None => vb,
+        };
         Self::from_vb(info.clone(), pre, vb, device)
     }
 
@@ -121,13 +172,17 @@ impl Backbone {
 
 impl FeatureExtractor for Backbone {
     fn id(&self) -> String {
-        serde_json::json!({
+        let mut id = serde_json::json!({
             "backbone": self.info.id,
             "weights_sha256": self.info.weights_sha256,
             "width_mult": self.info.width_mult,
             "preprocess": self.preprocess,
-        })
-        .to_string()
+        });
+        // Only when set, so that pretrained files keep their cache entries.
+        if let Some(prefix) = &self.info.weights_prefix {
+            id["weights_prefix"] = prefix.clone().into();
+        }
+        id.to_string()
     }
 
     fn feature_dim(&self) -> usize {
@@ -137,5 +192,24 @@ impl FeatureExtractor for Backbone {
     fn extract(&self, images: &[RgbImage]) -> Result<Tensor> {
         let x = self.input(images)?;
         Ok(self.net.features(&x, false)?)
+    }
+}
+
+/// Whether `--weights` names a checkpoint (its directory or `best.json`)
+/// rather than a weights file.
+pub fn is_checkpoint(path: &Path) -> bool {
+    path.is_dir()
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
+
+/// A path recorded in a checkpoint: as given when it exists from the current
+/// directory (or is absolute), otherwise relative to the checkpoint.
+pub fn resolve(p: &Path, dir: &Path) -> PathBuf {
+    if p.is_absolute() || p.exists() {
+        p.to_path_buf()
+    } else {
+        dir.join(p)
     }
 }

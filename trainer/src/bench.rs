@@ -55,8 +55,11 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
             weights_sha256: None,
             width_mult: 1.0,
             num_classes: 1000,
+            weights_prefix: None,
+            source_checkpoint: None,
         }),
         feature_dim: w.dim,
+        preprocess: crate::backbone::Preprocess::imagenet(224),
     };
     let dir = std::env::temp_dir().join(format!("grasp-bench-{}", std::process::id()));
     let cfg = TrainConfig {

@@ -145,7 +145,9 @@ impl Classifier {
             .with_context(|| format!("{}: backbone tensors", weights.display()))?,
             TrainMode::FrozenPretrained => {
                 let mut info = meta.backbone.clone();
-                info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
+                info.weights_path = info
+                    .weights_path
+                    .map(|p| crate::backbone::resolve(&p, &dir));
                 Backbone::load_pretrained(&info, meta.preprocessing.clone(), device)?
             }
         };
@@ -201,12 +203,4 @@ pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; 5]>> {
                 .map_err(|r: Vec<f32>| anyhow::anyhow!("expected 5 classes, got {}", r.len()))
         })
         .collect()
-}
-
-fn resolve(p: &Path, dir: &Path) -> PathBuf {
-    if p.is_absolute() || p.exists() {
-        p.to_path_buf()
-    } else {
-        dir.join(p)
-    }
 }

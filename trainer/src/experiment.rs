@@ -2,7 +2,7 @@
 //! each on the test split and write the aggregated report (mean ± std over
 //! seeds).
 
-use crate::checkpoint::{CheckpointMeta, Classifier};
+use crate::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
 use crate::eval::report::RunReport;
@@ -26,6 +26,7 @@ pub struct ExperimentOutcome {
 /// `cfg.out/report/` when there is one.
 pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     cfg.validate()?;
+    let cfg = &resolve_backbone(cfg)?;
     let dev = Device::Cpu;
     let bad = BadData::new(cfg.on_bad_data);
     let splits = train::load_splits(cfg, &bad)?;
@@ -81,7 +82,7 @@ pub fn evaluate(
     let dev = Device::Cpu;
     let cache = FeatureCache::new(cache_dir, batch);
     let mut runs = Vec::new();
-    let (mut mode, mut head) = (String::new(), String::new());
+    let (mut mode, mut head, mut backbone) = (String::new(), String::new(), String::new());
     for ckpt in checkpoints {
         let clf = Classifier::load(ckpt, &dev)?;
         let this_mode = clf.meta.mode.name().to_string();
@@ -93,6 +94,14 @@ pub fn evaluate(
             );
         }
         mode = this_mode;
+        let this_backbone = clf.meta.backbone.describe();
+        if !backbone.is_empty() && backbone != this_backbone {
+            anyhow::bail!(
+                "cannot aggregate checkpoints with different backbones: {backbone} and {this_backbone} ({})",
+                ckpt.display()
+            );
+        }
+        backbone = this_backbone;
         head = clf.meta.head.kind.name().to_string();
         let preds = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
         runs.push(RunReport {
@@ -101,7 +110,32 @@ pub fn evaluate(
             metrics: compute_metrics(&preds, TIME_BIN_S),
         });
     }
-    Ok(Report::new(&mode, &head, &data.root, runs))
+    let mut report = Report::new(&mode, &head, &data.root, runs);
+    report.backbone = backbone;
+    Ok(report)
+}
+
+/// With a checkpoint as the frozen backbone, its width multiplier and input
+/// size replace the configured ones (the backbone only works with those),
+/// so that the saved `config.toml` says what was run.
+fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
+    let mut cfg = cfg.clone();
+    let from_checkpoint = cfg
+        .weights
+        .as_deref()
+        .is_some_and(crate::backbone::is_checkpoint);
+    if cfg.mode == TrainMode::FrozenPretrained && from_checkpoint {
+        let (info, pre) = train::frozen_backbone(&cfg)?;
+        tracing::info!(
+            "{}: width multiplier {}, input {} px",
+            info.describe(),
+            info.width_mult,
+            pre.size
+        );
+        cfg.width_mult = info.width_mult;
+        cfg.input_size = pre.size;
+    }
+    Ok(cfg)
 }
 
 /// The test split of the run a checkpoint belongs to: its training config's

@@ -25,7 +25,8 @@ enum Command {
     /// Train with the paper's protocol; with a test split, evaluate too.
     ///
     /// Frozen-pretrained (the paper's): --weights mobilenet_v2-b0353104.pth;
-    /// features are cached on disk and only the head is trained.
+    /// features are cached on disk and only the head is trained. --weights
+    /// RUN/seed-0 freezes the backbone of a from-scratch checkpoint instead.
     /// From-scratch: --mode from-scratch trains the whole network, with
     /// augmentation; pick --width-mult and --input-size for the CPU budget.
     Train(Box<TrainArgs>),
@@ -74,7 +75,9 @@ struct TrainArgs {
     mode: Option<TrainMode>,
     #[arg(long, value_enum)]
     head: Option<HeadKind>,
-    /// Pretrained backbone weights (.pth or .safetensors).
+    /// Frozen backbone: pretrained weights (.pth or .safetensors), or a
+    /// checkpoint (RUN/seed-N or its best.json) whose backbone, width
+    /// multiplier and input size are reused as they are.
     #[arg(long)]
     weights: Option<PathBuf>,
     #[arg(long)]
@@ -263,8 +266,13 @@ fn bench(a: BenchArgs) -> Result<()> {
 fn print_headline(r: &trainer::eval::Report) {
     if let Some(v) = r.aggregate.get("video_accuracy") {
         println!(
-            "[{}] per-video accuracy {:.1} ± {:.1} % over {} run(s)",
+            "[{}{}] per-video accuracy {:.1} ± {:.1} % over {} run(s)",
             r.mode,
+            if r.backbone.is_empty() {
+                String::new()
+            } else {
+                format!(", {}", r.backbone)
+            },
             v.mean * 100.0,
             v.std * 100.0,
             v.n

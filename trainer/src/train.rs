@@ -494,6 +494,27 @@ pub struct Prepared {
     /// Frozen mode: the pretrained backbone's description.
     pub backbone: Option<BackboneInfo>,
     pub feature_dim: usize,
+    /// The input preprocessing the checkpoints record.
+    pub preprocess: Preprocess,
+}
+
+/// The frozen backbone named by `cfg.weights`: a pretrained weights file
+/// (preprocessed at `cfg.input_size` with ImageNet statistics), or a
+/// checkpoint whose backbone and preprocessing are reused as they are.
+pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
+    let path = cfg
+        .weights
+        .as_ref()
+        .context("frozen-pretrained mode needs --weights")?;
+    if crate::backbone::is_checkpoint(path) {
+        BackboneInfo::from_checkpoint(path)
+            .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()))
+    } else {
+        Ok((
+            BackboneInfo::pretrained(path, cfg.width_mult)?,
+            Preprocess::imagenet(cfg.input_size),
+        ))
+    }
 }
 
 /// Loads the backbone and computes (or reads cached) features in frozen
@@ -507,12 +528,8 @@ pub fn prepare(
     let real_data = splits.train.is_real();
     match cfg.mode {
         TrainMode::FrozenPretrained => {
-            let path = cfg
-                .weights
-                .as_ref()
-                .context("frozen-pretrained mode needs --weights")?;
-            let info = BackboneInfo::pretrained(path, cfg.width_mult)?;
-            let bb = Backbone::load_pretrained(&info, Preprocess::imagenet(cfg.input_size), dev)?;
+            let (info, pre) = frozen_backbone(cfg)?;
+            let bb = Backbone::load_pretrained(&info, pre, dev)?;
             let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
             let tf = cache.dataset(&bb, &splits.train, bad)?;
             let vf = cache.dataset(&bb, &splits.val, bad)?;
@@ -521,6 +538,7 @@ pub fn prepare(
                 val: SplitFrames::from_features(&splits.val, &vf, dev)?,
                 real_data,
                 feature_dim: crate::features::FeatureExtractor::feature_dim(&bb),
+                preprocess: bb.preprocess,
                 backbone: Some(bb.info),
             })
         }
@@ -536,6 +554,7 @@ pub fn prepare(
                 real_data,
                 backbone: None,
                 feature_dim: 0,
+                preprocess: Preprocess::imagenet(cfg.input_size),
             })
         }
     }
@@ -556,11 +575,12 @@ fn build_net(
                 weights_sha256: None,
                 width_mult: cfg.width_mult,
                 num_classes: Class::COUNT,
+                weights_prefix: None,
+                source_checkpoint: None,
             };
             let vm = VarMap::new();
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
-            let bb =
-                Backbone::from_vb(info.clone(), Preprocess::imagenet(cfg.input_size), vb, dev)?;
+            let bb = Backbone::from_vb(info.clone(), prep.preprocess.clone(), vb, dev)?;
             crate::init::reinit_backbone(&vm, seed)?;
             let dim = crate::features::FeatureExtractor::feature_dim(&bb);
             (Some((bb, vm)), info, dim)
@@ -642,7 +662,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 classes: Class::ALL.to_vec(),
                 mode: cfg.mode,
                 head: net.head.cfg,
-                preprocessing: Preprocess::imagenet(cfg.input_size),
+                preprocessing: prep.preprocess.clone(),
                 backbone: backbone_info.clone(),
                 seed,
                 epoch,

@@ -57,8 +57,11 @@ fn learn(head: HeadKind) -> f64 {
             weights_sha256: None,
             width_mult: 1.0,
             num_classes: 1000,
+            weights_prefix: None,
+            source_checkpoint: None,
         }),
         feature_dim: DIM,
+        preprocess: trainer::backbone::Preprocess::imagenet(224),
     };
     let dir = tempfile::tempdir().unwrap();
     let cfg = TrainConfig {

@@ -91,8 +91,11 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
             weights_sha256: None,
             width_mult: 1.0,
             num_classes: 1000,
+            weights_prefix: None,
+            source_checkpoint: None,
         }),
         feature_dim: dim,
+        preprocess: trainer::backbone::Preprocess::imagenet(224),
     }
 }
 

@@ -20,6 +20,11 @@ pub struct RunReport {
 pub struct Report {
     /// `frozen-pretrained` or `from-scratch` (every run of a report shares it).
     pub mode: String,
+    /// Which backbone produced the report: "frozen backbone from
+    /// runs/scratch/seed-0", "frozen backbone mobilenet_v2-b0353104.pth" or
+    /// "backbone trained from scratch".
+    #[serde(default)]
+    pub backbone: String,
     pub head: String,
     pub dataset: PathBuf,
     pub runs: Vec<RunReport>,
@@ -58,6 +63,7 @@ impl Report {
         }
         Report {
             mode: mode.to_string(),
+            backbone: String::new(),
             head: head.to_string(),
             dataset: dataset.to_path_buf(),
             time_bin_s: runs.first().map(|r| r.metrics.time.bin_s).unwrap_or(0.1),
@@ -117,9 +123,14 @@ pub fn markdown(r: &Report) -> String {
     let _ = writeln!(s, "# Evaluation report\n");
     let _ = writeln!(
         s,
-        "- **Mode: {}** (head: {})\n- Dataset: `{}`\n- Videos: {} per run; runs (seeds): {}\n",
+        "- **Mode: {}** (head: {}{})\n- Dataset: `{}`\n- Videos: {} per run; runs (seeds): {}\n",
         r.mode,
         r.head,
+        if r.backbone.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", r.backbone)
+        },
         r.dataset.display(),
         r.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
         r.runs.len()

@@ -1,0 +1,169 @@
+//! A from-scratch checkpoint used as the frozen backbone of a new run
+//! (`--mode frozen-pretrained --weights RUN/seed-0`): its `backbone.*`
+//! tensors, width multiplier and preprocessing are reused, its features are
+//! cached under a key that includes its weights, only the head is trained,
+//! and the report names the checkpoint.
+
+use std::path::{Path, PathBuf};
+use trainer::checkpoint::{Classifier, TrainMode};
+use trainer::config::TrainConfig;
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::features::FeatureExtractor;
+use trainer::heads::HeadKind;
+
+fn scratch_cfg(root: &Path) -> TrainConfig {
+    TrainConfig {
+        data: root.join("data"),
+        out: root.join("scratch"),
+        mode: TrainMode::FromScratch,
+        width_mult: 0.25,
+        input_size: 32,
+        max_epochs: 2,
+        ..Default::default()
+    }
+}
+
+fn frozen_cfg(root: &Path, backbone: &Path, head: HeadKind, out: &str) -> TrainConfig {
+    TrainConfig {
+        data: root.join("data"),
+        out: root.join(out),
+        mode: TrainMode::FrozenPretrained,
+        head,
+        weights: Some(backbone.to_path_buf()),
+        cache_dir: root.join("cache"),
+        batch_size: Some(16),
+        max_epochs: 3,
+        ..Default::default()
+    }
+}
+
+fn cache_keys(root: &Path) -> Vec<PathBuf> {
+    let mut keys: Vec<PathBuf> = std::fs::read_dir(root.join("cache"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    keys.sort();
+    keys
+}
+
+#[test]
+fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 3;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let scratch = trainer::experiment::run(&scratch_cfg(root), 2).unwrap();
+    let (seed0, seed1) = (&scratch.runs[0].checkpoint, &scratch.runs[1].checkpoint);
+
+    // The directory and its best.json are both accepted.
+    let cfg = frozen_cfg(root, seed0, HeadKind::Fc, "fc");
+    let fc = trainer::experiment::run(&cfg, 1).unwrap();
+    let clf = Classifier::load(&fc.runs[0].checkpoint, &candle_core::Device::Cpu).unwrap();
+    assert_eq!(clf.meta.mode, TrainMode::FrozenPretrained);
+    assert_eq!(clf.meta.backbone.width_mult, 0.25);
+    assert_eq!(clf.meta.preprocessing.size, 32);
+    assert_eq!(
+        clf.meta.backbone.source_checkpoint.as_deref(),
+        Some(seed0.as_path())
+    );
+    // The run's config says what was run: the backbone's size, not 224.
+    let saved = TrainConfig::from_toml_file(&cfg.out.join("config.toml")).unwrap();
+    assert_eq!((saved.input_size, saved.width_mult), (32, 0.25));
+    // Only the head was saved: the backbone stays in its own checkpoint.
+    let tensors = candle_core::safetensors::load(
+        fc.runs[0].checkpoint.join("best.safetensors"),
+        &candle_core::Device::Cpu,
+    )
+    .unwrap();
+    assert!(
+        tensors.keys().all(|k| k.starts_with("head.")),
+        "{tensors:?}"
+    );
+
+    // The frozen backbone computes exactly the source checkpoint's features.
+    let source = Classifier::load(seed0, &candle_core::Device::Cpu).unwrap();
+    let frames: Vec<_> = (0..3)
+        .map(|i| {
+            trainer::data::synthetic::class_image(
+                grasp_schema::taxonomy::Class::ALL[i],
+                40,
+                5.0,
+                &mut trainer::rng::stream(i as u64, "frames"),
+            )
+        })
+        .collect();
+    let a: Vec<f32> = source
+        .backbone()
+        .extract(&frames)
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1()
+        .unwrap();
+    let b: Vec<f32> = clf
+        .backbone()
+        .extract(&frames)
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1()
+        .unwrap();
+    assert_eq!(a, b);
+
+    // The report names the backbone.
+    let report = fc.report.unwrap();
+    assert_eq!(report.mode, "frozen-pretrained");
+    assert_eq!(
+        report.backbone,
+        format!("frozen backbone from {}", seed0.display())
+    );
+    let md = std::fs::read_to_string(cfg.out.join("report/report.md")).unwrap();
+    assert!(
+        md.contains(&format!("frozen backbone from {}", seed0.display())),
+        "{md}"
+    );
+    assert_eq!(cache_keys(root).len(), 1);
+
+    // An LSTM head on the same backbone reuses the cache (no new key, the
+    // entries untouched); another checkpoint's weights get their own key.
+    let entries = |key: &Path| -> Vec<(PathBuf, std::time::SystemTime)> {
+        let mut v: Vec<_> = std::fs::read_dir(key)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                (e.path(), e.metadata().unwrap().modified().unwrap())
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let before = entries(&cache_keys(root)[0]);
+    let json = seed0.join("best.json");
+    trainer::experiment::run(&frozen_cfg(root, &json, HeadKind::Lstm, "lstm"), 1).unwrap();
+    assert_eq!(cache_keys(root).len(), 1);
+    assert_eq!(entries(&cache_keys(root)[0]), before);
+    trainer::experiment::run(&frozen_cfg(root, seed1, HeadKind::Fc, "fc1"), 1).unwrap();
+    assert_eq!(cache_keys(root).len(), 2);
+
+    // Aggregating heads on different backbones is refused.
+    let data = trainer::data::read_dataset(
+        &root.join("data"),
+        &Default::default(),
+        &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
+    )
+    .unwrap();
+    let err = trainer::experiment::evaluate(
+        &[fc.runs[0].checkpoint.clone(), root.join("fc1/seed-0")],
+        &data,
+        &root.join("cache"),
+        8,
+        &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
+    )
+    .err()
+    .unwrap();
+    assert!(
+        format!("{err:#}").contains("different backbones"),
+        "{err:#}"
+    );
+}
