@@ -53,11 +53,22 @@ pub struct CheckpointMeta {
     pub epoch: usize,
     pub val_loss: f64,
     pub val_accuracy: f64,
+    /// Sequences in the training split.
+    #[serde(default)]
+    pub train_sequences: Option<usize>,
     /// The full training configuration of the run.
     pub train_config: serde_json::Value,
 }
 
 impl CheckpointMeta {
+    /// The run's `sequences_per_pair` cap, if it had one.
+    pub fn sequences_per_pair(&self) -> Option<usize> {
+        self.train_config
+            .get("sequences_per_pair")
+            .and_then(serde_json::Value::as_u64)
+            .map(|n| n as usize)
+    }
+
     pub fn load(dir_or_json: &Path) -> Result<(CheckpointMeta, PathBuf)> {
         let json = if dir_or_json.is_dir() {
             dir_or_json.join(META_FILE)

@@ -47,6 +47,10 @@ pub struct TrainConfig {
     /// (0: whole sequences).
     pub tbptt: usize,
     pub split: SplitConfig,
+    /// Keep at most this many training sequences per object-part pair
+    /// (chosen by `split.seed`, nested as it grows; validation and test
+    /// untouched), for error-against-training-set-size studies.
+    pub sequences_per_pair: Option<usize>,
     pub reader: ReaderOptions,
     pub augment: AugmentConfig,
     pub cache_dir: PathBuf,
@@ -78,6 +82,7 @@ impl Default for TrainConfig {
             lstm_hidden: 256,
             tbptt: 0,
             split: SplitConfig::default(),
+            sequences_per_pair: None,
             reader: ReaderOptions::default(),
             augment: AugmentConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
@@ -119,6 +124,9 @@ impl TrainConfig {
                 "frozen-pretrained mode needs backbone weights (--weights mobilenet_v2-b0353104.pth); \
                  without them use --mode from-scratch"
             );
+        }
+        if self.sequences_per_pair == Some(0) {
+            anyhow::bail!("sequences_per_pair must be at least 1");
         }
         if self.width_mult.is_nan() || self.width_mult <= 0.0 || self.input_size < 32 {
             anyhow::bail!(

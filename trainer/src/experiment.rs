@@ -72,6 +72,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
 }
 
 /// Evaluates checkpoints on `data` and aggregates them into one report.
+/// The checkpoints must share their mode, backbone and training-set cap.
 pub fn evaluate(
     checkpoints: &[PathBuf],
     data: &Dataset,
@@ -82,37 +83,49 @@ pub fn evaluate(
     let dev = Device::Cpu;
     let cache = FeatureCache::new(cache_dir, batch);
     let mut runs = Vec::new();
-    let (mut mode, mut head, mut backbone) = (String::new(), String::new(), String::new());
+    let (mut mode, mut backbone, mut cap) = (None, None, None);
+    let (mut head, mut train_sequences) = (String::new(), None);
     for ckpt in checkpoints {
         let clf = Classifier::load(ckpt, &dev)?;
-        let this_mode = clf.meta.mode.name().to_string();
-        if !mode.is_empty() && mode != this_mode {
-            anyhow::bail!(
-                "cannot aggregate {} with {mode} checkpoints ({})",
-                this_mode,
-                ckpt.display()
-            );
-        }
-        mode = this_mode;
-        let this_backbone = clf.meta.backbone.describe();
-        if !backbone.is_empty() && backbone != this_backbone {
-            anyhow::bail!(
-                "cannot aggregate checkpoints with different backbones: {backbone} and {this_backbone} ({})",
-                ckpt.display()
-            );
-        }
-        backbone = this_backbone;
-        head = clf.meta.head.kind.name().to_string();
+        let m = &clf.meta;
+        same("modes", &mut mode, m.mode.name().to_string(), ckpt)?;
+        same("backbones", &mut backbone, m.backbone.describe(), ckpt)?;
+        same("sequences_per_pair", &mut cap, m.sequences_per_pair(), ckpt)?;
+        head = m.head.kind.name().to_string();
+        train_sequences = train_sequences.or(m.train_sequences);
         let preds = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
-            seed: clf.meta.seed,
+            seed: m.seed,
             metrics: compute_metrics(&preds, TIME_BIN_S),
         });
     }
-    let mut report = Report::new(&mode, &head, &data.root, runs);
-    report.backbone = backbone;
+    let mut report = Report::new(&mode.unwrap_or_default(), &head, &data.root, runs);
+    report.backbone = backbone.unwrap_or_default();
+    report.sequences_per_pair = cap.flatten();
+    report.train_sequences = train_sequences;
     Ok(report)
+}
+
+/// Records the first checkpoint's `value` in `seen`; a later one differing
+/// from it is an error (its numbers would not be comparable).
+fn same<T: PartialEq + std::fmt::Debug>(
+    what: &str,
+    seen: &mut Option<T>,
+    value: T,
+    ckpt: &Path,
+) -> Result<()> {
+    match seen {
+        Some(first) if *first != value => anyhow::bail!(
+            "cannot aggregate checkpoints with different {what}: {first:?} and {value:?} ({})",
+            ckpt.display()
+        ),
+        Some(_) => Ok(()),
+        None => {
+            *seen = Some(value);
+            Ok(())
+        }
+    }
 }
 
 /// With a checkpoint as the frozen backbone, its width multiplier and input

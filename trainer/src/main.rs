@@ -97,6 +97,10 @@ struct TrainArgs {
     /// First seed; runs use seed, seed+1, ...
     #[arg(long)]
     seed: Option<u64>,
+    /// Keep at most N training sequences per object-part pair (chosen by
+    /// the split seed, nested as N grows; validation and test untouched).
+    #[arg(long, value_name = "N")]
+    sequences_per_pair: Option<usize>,
     /// Number of seeds to train (the report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
@@ -180,6 +184,7 @@ fn train(a: TrainArgs) -> Result<()> {
     cfg.test_data = a.test_data.or(cfg.test_data);
     cfg.weights = a.weights.or(cfg.weights);
     cfg.batch_size = a.batch_size.or(cfg.batch_size);
+    cfg.sequences_per_pair = a.sequences_per_pair.or(cfg.sequences_per_pair);
     set!(cfg.out, a.out);
     set!(cfg.mode, a.mode);
     set!(cfg.head, a.head);

@@ -69,6 +69,18 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
             )
         }
     };
+    let train = match cfg.sequences_per_pair {
+        Some(n) => {
+            let capped = split::cap_per_pair(&train, n, cfg.split.seed);
+            tracing::info!(
+                "at most {n} training sequence(s) per object-part pair: {} of {} kept",
+                capped.sequences.len(),
+                train.sequences.len()
+            );
+            capped
+        }
+        None => train,
+    };
     if val.sequences.is_empty() {
         anyhow::bail!(
             "the validation split is empty: add sequences, raise split.val_fraction or pass --val-data"
@@ -668,6 +680,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 epoch,
                 val_loss,
                 val_accuracy: val_acc,
+                train_sequences: Some(prep.train.seq_rows.len()),
                 train_config: serde_json::to_value(cfg)?,
             };
             checkpoint::save(out, &meta, &net.tensors())?;

@@ -95,6 +95,28 @@ fn shares(n: usize, cfg: &SplitConfig) -> (usize, usize) {
     (n_val, n_test)
 }
 
+/// At most `n` sequences of every object-part pair of `data`, the rest
+/// dropped (training-set size studies). Each pair's sequences are shuffled
+/// by a stream of `seed` and that pair alone, and the first `n` kept: the
+/// choice is deterministic, and the subsets for growing `n` are nested, so
+/// error against `n` varies with the amount of data only.
+pub fn cap_per_pair(data: &Dataset, n: usize, seed: u64) -> Dataset {
+    let mut strata: BTreeMap<String, Vec<&str>> = BTreeMap::new();
+    for s in &data.sequences {
+        strata.entry(s.stratum()).or_default().push(&s.id);
+    }
+    let mut keep = Vec::new();
+    for (stratum, ids) in strata.iter_mut() {
+        ids.sort_unstable();
+        ids.shuffle(&mut crate::rng::stream(
+            seed,
+            &format!("per-pair/{stratum}"),
+        ));
+        keep.extend(ids.iter().take(n).map(|s| s.to_string()));
+    }
+    select(data, &keep)
+}
+
 /// The sequences of `data` named in `ids`, in dataset order.
 pub fn select(data: &Dataset, ids: &[String]) -> Dataset {
     let wanted: std::collections::HashSet<&str> = ids.iter().map(String::as_str).collect();
@@ -112,6 +134,63 @@ pub fn select(data: &Dataset, ids: &[String]) -> Dataset {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::{LabelSource, Sequence};
+    use grasp_schema::taxonomy::Preshape;
+
+    fn dataset(pairs: &[(&str, usize)]) -> Dataset {
+        let mut sequences = Vec::new();
+        for (object, n) in pairs {
+            for i in 0..*n {
+                sequences.push(Sequence {
+                    id: format!("{object}/{i:03}"),
+                    dir: Default::default(),
+                    category: "c".into(),
+                    object: object.to_string(),
+                    part: "p".into(),
+                    preshape: Preshape::Power,
+                    condition: "default".into(),
+                    fps: 30.0,
+                    frames: Vec::new(),
+                    labels: Vec::new(),
+                    label_source: LabelSource::SequenceJson,
+                });
+            }
+        }
+        Dataset {
+            root: Default::default(),
+            sequences,
+        }
+    }
+
+    fn ids(d: &Dataset) -> Vec<&str> {
+        d.sequences.iter().map(|s| s.id.as_str()).collect()
+    }
+
+    #[test]
+    fn cap_per_pair_is_deterministic_nested_and_per_pair() {
+        let data = dataset(&[("a", 10), ("b", 3), ("c", 0)]);
+        let two = cap_per_pair(&data, 2, 7);
+        let five = cap_per_pair(&data, 5, 7);
+        let count = |d: &Dataset, o: &str| d.sequences.iter().filter(|s| s.object == o).count();
+        assert_eq!((count(&two, "a"), count(&two, "b")), (2, 2));
+        // A pair with fewer sequences than the cap keeps them all.
+        assert_eq!((count(&five, "a"), count(&five, "b")), (5, 3));
+        assert_eq!(ids(&two), ids(&cap_per_pair(&data, 2, 7)));
+        // Nested: the sequences kept at 2 are among those kept at 5.
+        assert!(ids(&two).iter().all(|i| ids(&five).contains(i)));
+        // Not simply the first ones, and another seed picks others.
+        let other: Vec<Dataset> = (0..8).map(|s| cap_per_pair(&data, 2, s)).collect();
+        assert!(other.iter().any(|d| ids(d) != ids(&two)));
+        assert!(other.iter().any(|d| !ids(d).contains(&"a/000")));
+        // A pair's choice does not depend on the other pairs.
+        let alone = cap_per_pair(&dataset(&[("a", 10)]), 2, 7);
+        let a_of_two: Vec<&str> = ids(&two)
+            .into_iter()
+            .filter(|i| i.starts_with('a'))
+            .collect();
+        assert_eq!(ids(&alone), a_of_two);
+        assert_eq!(cap_per_pair(&data, 0, 7).sequences.len(), 0);
+    }
 
     #[test]
     fn shares_keep_training_data() {

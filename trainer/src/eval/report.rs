@@ -26,6 +26,11 @@ pub struct Report {
     #[serde(default)]
     pub backbone: String,
     pub head: String,
+    /// The training set: its `sequences_per_pair` cap and size (first run).
+    #[serde(default)]
+    pub sequences_per_pair: Option<usize>,
+    #[serde(default)]
+    pub train_sequences: Option<usize>,
     pub dataset: PathBuf,
     pub runs: Vec<RunReport>,
     /// Mean ± std over runs of each headline scalar.
@@ -65,6 +70,8 @@ impl Report {
             mode: mode.to_string(),
             backbone: String::new(),
             head: head.to_string(),
+            sequences_per_pair: None,
+            train_sequences: None,
             dataset: dataset.to_path_buf(),
             time_bin_s: runs.first().map(|r| r.metrics.time.bin_s).unwrap_or(0.1),
             runs,
@@ -135,6 +142,13 @@ pub fn markdown(r: &Report) -> String {
         r.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
         r.runs.len()
     );
+    if let Some(n) = r.train_sequences {
+        let cap = r
+            .sequences_per_pair
+            .map(|k| format!(" (at most {k} per object-part pair)"))
+            .unwrap_or_default();
+        let _ = writeln!(s, "- Training set: {n} sequences{cap}\n");
+    }
     let _ = writeln!(
         s,
         "## Accuracy (%), mean ± std over {} run(s)\n",
