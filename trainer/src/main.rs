@@ -32,6 +32,29 @@ enum Command {
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
     Eval(EvalArgs),
+    /// Tabulate several evaluation reports; plot per-video error against x.
+    ///
+    /// Each --report is LABEL[=X]:PATH, PATH being a report.json written by
+    /// `grasp-train eval` or its directory. Writes OUT/summary.md (per-video
+    /// accuracy and error, per-frame accuracy, baseline: mean ± std over the
+    /// report's seeds), OUT/summary.json and, when entries carry an X,
+    /// OUT/error.png (per-video error against X, error bars ± std; labels
+    /// GROUP/NAME draw one line per GROUP).
+    ///
+    ///   grasp-train summarize --x-label "Cycles samples" --log-x \
+    ///     --report cycles-1=1:runs/q1/report --report cycles-4=4:runs/q4/report
+    ///
+    /// --by-condition: labels are MODEL/CONDITION, tabulated with one row
+    /// per model and the test conditions as columns (the paper's Table 3):
+    ///
+    ///   grasp-train summarize --by-condition --report fc/default:runs/fc/eval/default \
+    ///     --report fc/fast:runs/fc/eval/fast --report fc/seated:runs/fc/eval/seated
+    ///
+    /// --list FILE.toml gives the same as a file: top-level title, x_label,
+    /// log_x, by_condition, then [[report]] tables with label, x (optional)
+    /// and path (relative to the current directory, else to the file).
+    /// Flags add to the file's entries and override its settings.
+    Summarize(SummarizeArgs),
     /// Benchmark one training epoch of a head on generated cached features.
     BenchHeads(BenchArgs),
 }
@@ -128,6 +151,30 @@ struct TrainArgs {
 }
 
 #[derive(Args)]
+struct SummarizeArgs {
+    /// A report: LABEL[=X]:PATH (repeatable, in table order).
+    #[arg(long = "report", short, value_name = "LABEL[=X]:PATH")]
+    reports: Vec<String>,
+    /// TOML list of reports and settings (see the command's --help).
+    #[arg(long, value_name = "FILE.toml")]
+    list: Option<PathBuf>,
+    /// Output directory.
+    #[arg(long, short, default_value = "summary")]
+    out: PathBuf,
+    /// Labels are MODEL/CONDITION: models as rows, conditions as columns.
+    #[arg(long)]
+    by_condition: bool,
+    /// Logarithmic x axis on the error plot.
+    #[arg(long)]
+    log_x: bool,
+    /// Name of the x values (table column, plot axis).
+    #[arg(long)]
+    x_label: Option<String>,
+    #[arg(long)]
+    title: Option<String>,
+}
+
+#[derive(Args)]
 struct EvalArgs {
     /// Checkpoint directories (or best.json files); several are aggregated
     /// as mean ± std.
@@ -163,6 +210,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Train(a) => train(*a),
         Command::Eval(a) => eval(a),
+        Command::Summarize(a) => summarize(a),
         Command::BenchHeads(a) => bench(a),
     }
 }
@@ -239,6 +287,28 @@ fn eval(a: EvalArgs) -> Result<()> {
     trainer::eval::write_report(&report, &a.out)?;
     print_headline(&report);
     println!("report: {}", a.out.join("report.md").display());
+    Ok(())
+}
+
+fn summarize(a: SummarizeArgs) -> Result<()> {
+    use trainer::eval::summary::{Entry, Summary, SummarySpec};
+    let mut spec = match &a.list {
+        Some(p) => SummarySpec::from_toml_file(p)?,
+        None => SummarySpec::default(),
+    };
+    for r in &a.reports {
+        spec.reports.push(Entry::parse(r)?);
+    }
+    spec.by_condition |= a.by_condition;
+    spec.log_x |= a.log_x;
+    spec.x_label = a.x_label.or(spec.x_label);
+    spec.title = a.title.or(spec.title);
+    let summary = Summary::load(spec)?;
+    summary.write(&a.out)?;
+    println!("summary: {}", a.out.join("summary.md").display());
+    if summary.has_x() {
+        println!("plot: {}", a.out.join("error.png").display());
+    }
     Ok(())
 }
 

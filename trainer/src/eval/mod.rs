@@ -5,6 +5,7 @@ pub mod metrics;
 pub mod plots;
 pub mod predict;
 pub mod report;
+pub mod summary;
 
 pub use metrics::{compute_metrics, Metrics, VideoPrediction};
 pub use report::{write_report, Report};

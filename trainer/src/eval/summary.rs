@@ -1,0 +1,399 @@
+//! `grasp-train summarize`: several evaluation reports side by side.
+//!
+//! Each entry is a label, an optional numeric x (render samples, seconds per
+//! frame, sequences per pair...) and a `report.json` written by
+//! `grasp-train eval`. Outputs: a Markdown table of the headline numbers
+//! (mean ± std over each report's seeds), the same as JSON, and, when
+//! entries have an x, per-video error against x as a PNG. With
+//! `by_condition`, labels are `MODEL/CONDITION` and the table has one row
+//! per model and one column per test condition (the paper's Table 3).
+
+use super::metrics::MeanStd;
+use super::report::Report;
+use anyhow::{bail, Context, Result};
+use grasp_schema::plan::Condition;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// What to summarize: the command line's flags, or a TOML file of the same
+/// fields with `[[report]]` tables.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SummarySpec {
+    pub title: Option<String>,
+    /// The x axis's name on the plot and in the table.
+    pub x_label: Option<String>,
+    pub log_x: bool,
+    /// Labels are `MODEL/CONDITION`: one row per model, conditions as columns.
+    pub by_condition: bool,
+    #[serde(rename = "report")]
+    pub reports: Vec<Entry>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Entry {
+    pub label: String,
+    #[serde(default)]
+    pub x: Option<f64>,
+    /// `report.json` or the directory holding it.
+    pub path: PathBuf,
+}
+
+impl Entry {
+    /// Parses `LABEL[=X]:PATH` (the label holds no `:`, the path may).
+    pub fn parse(spec: &str) -> Result<Entry> {
+        let form = "expected LABEL[=X]:PATH, e.g. cycles-4=4:runs/q4/report";
+        let (head, path) = spec
+            .split_once(':')
+            .with_context(|| format!("report `{spec}`: no `:` ({form})"))?;
+        let (label, x) = match head.split_once('=') {
+            Some((l, x)) => {
+                let v: f64 = x.trim().parse().with_context(|| {
+                    format!("report `{spec}`: x value `{x}` is not a number ({form})")
+                })?;
+                (l, Some(v))
+            }
+            None => (head, None),
+        };
+        let e = Entry {
+            label: label.trim().to_string(),
+            x,
+            path: PathBuf::from(path),
+        };
+        e.check().with_context(|| format!("report `{spec}`"))?;
+        Ok(e)
+    }
+
+    fn check(&self) -> Result<()> {
+        if self.label.is_empty() {
+            bail!("empty label");
+        }
+        if self.path.as_os_str().is_empty() {
+            bail!("empty path");
+        }
+        if let Some(x) = self.x.filter(|x| !x.is_finite()) {
+            bail!("x value {x} is not finite");
+        }
+        Ok(())
+    }
+}
+
+impl SummarySpec {
+    /// Reads a TOML list; relative paths are taken from the current
+    /// directory when they exist there, otherwise from the file's.
+    pub fn from_toml_file(path: &Path) -> Result<SummarySpec> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let mut spec: SummarySpec =
+            toml::from_str(&text).with_context(|| format!("invalid list {}", path.display()))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        for (i, e) in spec.reports.iter_mut().enumerate() {
+            e.check()
+                .with_context(|| format!("{}: report {} (`{}`)", path.display(), i + 1, e.label))?;
+            e.path = crate::backbone::resolve(&e.path, dir);
+        }
+        Ok(spec)
+    }
+}
+
+/// One report's headline numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    pub label: String,
+    pub x: Option<f64>,
+    pub source: PathBuf,
+    pub mode: String,
+    pub backbone: String,
+    pub head: String,
+    pub dataset: PathBuf,
+    pub sequences_per_pair: Option<usize>,
+    pub train_sequences: Option<usize>,
+    pub runs: usize,
+    pub video_accuracy: MeanStd,
+    /// `1 - video_accuracy`, with the same std.
+    pub video_error: MeanStd,
+    pub frame_accuracy: Option<MeanStd>,
+    pub frame_accuracy_without_no_grasp: Option<MeanStd>,
+    pub baseline_video_accuracy: Option<MeanStd>,
+}
+
+impl Row {
+    pub fn load(e: &Entry) -> Result<Row> {
+        let file = if e.path.is_dir() {
+            e.path.join("report.json")
+        } else {
+            e.path.clone()
+        };
+        let text = std::fs::read_to_string(&file)
+            .with_context(|| format!("report `{}`: cannot read {}", e.label, file.display()))?;
+        let r: Report = serde_json::from_str(&text).with_context(|| {
+            format!(
+                "report `{}`: {} is not a report.json",
+                e.label,
+                file.display()
+            )
+        })?;
+        let get = |k: &str| r.aggregate.get(k).copied();
+        let video = get("video_accuracy").with_context(|| {
+            format!(
+                "report `{}`: {} has no aggregate.video_accuracy (no runs?)",
+                e.label,
+                file.display()
+            )
+        })?;
+        Ok(Row {
+            label: e.label.clone(),
+            x: e.x,
+            source: file,
+            mode: r.mode,
+            backbone: r.backbone,
+            head: r.head,
+            dataset: r.dataset,
+            sequences_per_pair: r.sequences_per_pair,
+            train_sequences: r.train_sequences,
+            runs: video.n,
+            video_accuracy: video,
+            video_error: MeanStd {
+                mean: 1.0 - video.mean,
+                ..video
+            },
+            frame_accuracy: get("frame_accuracy"),
+            frame_accuracy_without_no_grasp: get("frame_accuracy_without_no_grasp"),
+            baseline_video_accuracy: get("baseline_video_accuracy"),
+        })
+    }
+
+    /// `(group, name)` of a `GROUP/NAME` label (the model and condition in
+    /// the by-condition table, the series on the plot).
+    pub fn group_name(&self) -> (&str, &str) {
+        self.label.rsplit_once('/').unwrap_or(("", &self.label))
+    }
+}
+
+/// The summary: rows in the order given, and the spec they came from.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub spec: SummarySpec,
+    pub rows: Vec<Row>,
+}
+
+impl Summary {
+    pub fn load(spec: SummarySpec) -> Result<Summary> {
+        if spec.reports.is_empty() {
+            bail!("nothing to summarize: give --report LABEL[=X]:PATH or --list FILE.toml");
+        }
+        let rows = spec.reports.iter().map(Row::load).collect::<Result<_>>()?;
+        let s = Summary { spec, rows };
+        if s.spec.by_condition {
+            s.check_by_condition()?;
+        }
+        Ok(s)
+    }
+
+    fn check_by_condition(&self) -> Result<()> {
+        let mut seen = std::collections::HashSet::new();
+        for r in &self.rows {
+            if !r.label.contains('/') {
+                bail!(
+                    "report `{}`: by-condition labels are MODEL/CONDITION (e.g. fc/seated)",
+                    r.label
+                );
+            }
+            if !seen.insert(r.group_name()) {
+                bail!("report `{}` is given twice", r.label);
+            }
+        }
+        Ok(())
+    }
+
+    pub fn has_x(&self) -> bool {
+        self.rows.iter().any(|r| r.x.is_some())
+    }
+
+    /// Writes `summary.md`, `summary.json` and, with x values, `error.png`.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        if self.has_x() {
+            let png = super::plots::error_against_x(self)?;
+            crate::checkpoint::write_atomic(&dir.join("error.png"), &png)?;
+        }
+        crate::checkpoint::write_atomic(
+            &dir.join("summary.json"),
+            serde_json::to_string_pretty(self)?.as_bytes(),
+        )?;
+        crate::checkpoint::write_atomic(&dir.join("summary.md"), self.markdown().as_bytes())
+    }
+
+    pub fn markdown(&self) -> String {
+        let mut s = String::new();
+        let title = self
+            .spec
+            .title
+            .as_deref()
+            .unwrap_or("Summary of evaluations");
+        let _ = writeln!(s, "# {title}\n");
+        let _ = writeln!(
+            s,
+            "Percentages, mean ± std (population) over each report's runs (seeds).\n"
+        );
+        if self.spec.by_condition {
+            self.condition_table(&mut s);
+            let _ = writeln!(s, "\n## Every report\n");
+        }
+        self.table(&mut s);
+        if self.has_x() {
+            let _ = writeln!(
+                s,
+                "\n![per-video error against {}](error.png)",
+                self.x_label()
+            );
+        }
+        self.sources(&mut s);
+        s
+    }
+
+    pub fn x_label(&self) -> &str {
+        self.spec.x_label.as_deref().unwrap_or("x")
+    }
+
+    fn table(&self, s: &mut String) {
+        let x = self.has_x();
+        let xh = if x {
+            format!(" {} |", self.x_label())
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            s,
+            "| label |{xh} runs | per-video accuracy | per-video error | per-frame accuracy | per-frame w/o no_grasp | baseline |"
+        );
+        let _ = writeln!(
+            s,
+            "|---|{}---|---|---|---|---|---|",
+            if x { "---|" } else { "" }
+        );
+        for r in &self.rows {
+            let xv = if x {
+                format!(" {} |", r.x.map(|v| v.to_string()).unwrap_or("–".into()))
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                s,
+                "| {} |{xv} {} | {} | {} | {} | {} | {} |",
+                r.label,
+                r.runs,
+                pct(Some(&r.video_accuracy)),
+                pct(Some(&r.video_error)),
+                pct(r.frame_accuracy.as_ref()),
+                pct(r.frame_accuracy_without_no_grasp.as_ref()),
+                pct(r.baseline_video_accuracy.as_ref()),
+            );
+        }
+    }
+
+    /// Conditions in the paper's order, then unknown ones as they come.
+    pub fn conditions(&self) -> Vec<String> {
+        let mut names: Vec<String> = Vec::new();
+        let given: Vec<&str> = self.rows.iter().map(|r| r.group_name().1).collect();
+        for c in Condition::ALL {
+            if given.contains(&c.name()) {
+                names.push(c.name().to_string());
+            }
+        }
+        for g in given {
+            if !names.iter().any(|n| n == g) {
+                names.push(g.to_string());
+            }
+        }
+        names
+    }
+
+    /// Models in the order given.
+    pub fn models(&self) -> Vec<String> {
+        let mut models: Vec<String> = Vec::new();
+        for r in &self.rows {
+            let m = r.group_name().0;
+            if !models.iter().any(|x| x == m) {
+                models.push(m.to_string());
+            }
+        }
+        models
+    }
+
+    fn condition_table(&self, s: &mut String) {
+        let conditions = self.conditions();
+        let _ = writeln!(
+            s,
+            "## Per-video accuracy by test condition\n\n| model | {} |",
+            conditions.join(" | ")
+        );
+        let _ = writeln!(s, "|---|{}", "---|".repeat(conditions.len()));
+        for m in self.models() {
+            let cells: Vec<String> = conditions
+                .iter()
+                .map(|c| {
+                    let row = self.rows.iter().find(|r| r.group_name() == (&m, c));
+                    pct(row.map(|r| &r.video_accuracy))
+                })
+                .collect();
+            let _ = writeln!(s, "| {m} | {} |", cells.join(" | "));
+        }
+    }
+
+    fn sources(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "\n## Sources\n\n| label | report | mode | head | backbone | training set | test data |\n|---|---|---|---|---|---|---|"
+        );
+        for r in &self.rows {
+            let training = match (r.train_sequences, r.sequences_per_pair) {
+                (Some(n), Some(k)) => format!("{n} sequences (≤ {k} per pair)"),
+                (Some(n), None) => format!("{n} sequences"),
+                _ => "–".into(),
+            };
+            let _ = writeln!(
+                s,
+                "| {} | `{}` | {} | {} | {} | {} | `{}` |",
+                r.label,
+                r.source.display(),
+                r.mode,
+                r.head,
+                if r.backbone.is_empty() {
+                    "–"
+                } else {
+                    &r.backbone
+                },
+                training,
+                r.dataset.display()
+            );
+        }
+    }
+}
+
+fn pct(m: Option<&MeanStd>) -> String {
+    m.map(|m| format!("{:.1} ± {:.1}", m.mean * 100.0, m.std * 100.0))
+        .unwrap_or_else(|| "–".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn entries_parse_and_name_their_mistakes() {
+        let e = Entry::parse("cycles-4=4.0:runs/q4/report/default").unwrap();
+        assert_eq!(e.label, "cycles-4");
+        assert_eq!(e.x, Some(4.0));
+        assert_eq!(e.path, PathBuf::from("runs/q4/report/default"));
+        let e = Entry::parse("fc/seated:C:\\runs\\seated").unwrap();
+        assert_eq!((e.label.as_str(), e.x), ("fc/seated", None));
+        assert_eq!(e.path, PathBuf::from("C:\\runs\\seated"));
+        for bad in ["no-colon", "=3:p", "a=four:p", "a:", "a=inf:p"] {
+            let err = format!("{:#}", Entry::parse(bad).unwrap_err());
+            assert!(err.contains(bad), "{err}");
+        }
+    }
+}

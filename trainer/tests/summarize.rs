@@ -1,0 +1,266 @@
+//! `grasp-train summarize` on hand-made report.json files whose numbers are
+//! worked out by hand below.
+
+use std::path::{Path, PathBuf};
+use trainer::eval::metrics::{Baseline, Metrics};
+use trainer::eval::report::RunReport;
+use trainer::eval::summary::{Entry, Summary, SummarySpec};
+use trainer::eval::Report;
+
+/// A report of one run per `(video, frame)` accuracy pair; the baseline is
+/// 0.75 in every run.
+fn write_report(dir: &Path, runs: &[(f64, f64)]) -> PathBuf {
+    let runs = runs
+        .iter()
+        .enumerate()
+        .map(|(seed, (video, frame))| RunReport {
+            checkpoint: PathBuf::from(format!("run/seed-{seed}")),
+            seed: seed as u64,
+            metrics: Metrics {
+                videos: 10,
+                video_accuracy: *video,
+                frame_accuracy: *frame,
+                frame_accuracy_without_no_grasp: frame - 0.1,
+                baseline: Baseline {
+                    video_accuracy: 0.75,
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        })
+        .collect();
+    let mut r = Report::new("frozen-pretrained", "fc", Path::new("data/test"), runs);
+    r.backbone = "frozen backbone from runs/scratch/seed-0".into();
+    r.train_sequences = Some(62);
+    r.sequences_per_pair = Some(2);
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(
+        dir.join("report.json"),
+        serde_json::to_string_pretty(&r).unwrap(),
+    )
+    .unwrap();
+    dir.to_path_buf()
+}
+
+fn entry(label: &str, x: Option<f64>, path: &Path) -> Entry {
+    Entry {
+        label: label.into(),
+        x,
+        path: path.to_path_buf(),
+    }
+}
+
+#[test]
+fn table_and_plot_of_error_against_x() {
+    let dir = tempfile::tempdir().unwrap();
+    // Video accuracies 0.9, 0.8, 1.0: mean 90.0, population std
+    // sqrt((0 + 0.01 + 0.01) / 3) = 8.165 -> "90.0 ± 8.2", error 10.0 ± 8.2.
+    // Frames 0.8 in every run: 80.0 ± 0.0, without no_grasp 70.0 ± 0.0.
+    let a = write_report(&dir.path().join("a"), &[(0.9, 0.8), (0.8, 0.8), (1.0, 0.8)]);
+    // 0.5 and 0.7: 60.0 ± 10.0, error 40.0 ± 10.0; frames 0.6 and 0.8: 70.0 ± 10.0.
+    let b = write_report(&dir.path().join("b"), &[(0.5, 0.6), (0.7, 0.8)]);
+    let spec = SummarySpec {
+        x_label: Some("samples".into()),
+        log_x: true,
+        reports: vec![
+            entry("cycles-16", Some(16.0), &b.join("report.json")),
+            entry("cycles-1", Some(1.0), &a),
+        ],
+        ..Default::default()
+    };
+    let s = Summary::load(spec).unwrap();
+    let out = dir.path().join("out");
+    s.write(&out).unwrap();
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(
+        md.contains("| label | samples | runs | per-video accuracy | per-video error |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| cycles-16 | 16 | 2 | 60.0 ± 10.0 | 40.0 ± 10.0 | 70.0 ± 10.0 | 60.0 ± 10.0 | 75.0 ± 0.0 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains(
+            "| cycles-1 | 1 | 3 | 90.0 ± 8.2 | 10.0 ± 8.2 | 80.0 ± 0.0 | 70.0 ± 0.0 | 75.0 ± 0.0 |"
+        ),
+        "{md}"
+    );
+    // Rows keep the order given.
+    assert!(md.find("| cycles-16 |").unwrap() < md.find("| cycles-1 |").unwrap());
+    assert!(md.contains("62 sequences (≤ 2 per pair)"), "{md}");
+    assert!(
+        md.contains("frozen backbone from runs/scratch/seed-0"),
+        "{md}"
+    );
+    assert!((s.rows[1].video_error.std - (0.02f64 / 3.0).sqrt()).abs() < 1e-12);
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!((json["rows"][0]["video_error"]["mean"].as_f64().unwrap() - 0.4).abs() < 1e-12);
+
+    // The plot is a PNG with the series drawn in its colour.
+    let png = image::open(out.join("error.png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (800, 500));
+    let blue = png.pixels().filter(|p| p.0 == [31, 119, 180]).count();
+    assert!(blue > 100, "{blue} series pixels");
+    // No temporary files left behind.
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
+}
+
+#[test]
+fn conditions_as_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = |name: &str, v: f64| write_report(&dir.path().join(name), &[(v, 0.5)]);
+    let spec = SummarySpec {
+        by_condition: true,
+        reports: vec![
+            entry("fc/seated", None, &r("fs", 0.25)),
+            entry("fc/night", None, &r("fn", 0.125)),
+            entry("fc/default", None, &r("fd", 1.0)),
+            entry("lstm/fast", None, &r("lf", 0.5)),
+            entry("lstm/default", None, &r("ld", 0.75)),
+        ],
+        ..Default::default()
+    };
+    let s = Summary::load(spec).unwrap();
+    assert!(!s.has_x());
+    let md = s.markdown();
+    // The paper's order first, unknown conditions after; models as given.
+    assert!(
+        md.contains("| model | default | fast | seated | night |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| fc | 100.0 ± 0.0 | – | 25.0 ± 0.0 | 12.5 ± 0.0 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| lstm | 75.0 ± 0.0 | 50.0 ± 0.0 | – | – |"),
+        "{md}"
+    );
+    assert!(md.find("| fc |").unwrap() < md.find("| lstm |").unwrap());
+    s.write(&dir.path().join("out")).unwrap();
+    assert!(!dir.path().join("out/error.png").exists());
+
+    let twice = SummarySpec {
+        by_condition: true,
+        reports: vec![
+            entry("fc/seated", None, &r("a", 0.5)),
+            entry("fc/seated", None, &r("b", 0.5)),
+        ],
+        ..Default::default()
+    };
+    assert!(format!("{:#}", Summary::load(twice).unwrap_err()).contains("twice"));
+    let flat = SummarySpec {
+        by_condition: true,
+        reports: vec![entry("seated", None, &r("c", 0.5))],
+        ..Default::default()
+    };
+    assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("MODEL/CONDITION"));
+}
+
+#[test]
+fn bad_reports_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nowhere");
+    let err = format!(
+        "{:#}",
+        Summary::load(SummarySpec {
+            reports: vec![entry("m", None, &missing)],
+            ..Default::default()
+        })
+        .unwrap_err()
+    );
+    assert!(err.contains("`m`") && err.contains("nowhere"), "{err}");
+
+    let empty = write_report(&dir.path().join("empty"), &[]);
+    let err = format!(
+        "{:#}",
+        Summary::load(SummarySpec {
+            reports: vec![entry("e", None, &empty)],
+            ..Default::default()
+        })
+        .unwrap_err()
+    );
+    assert!(
+        err.contains("video_accuracy") && err.contains("empty"),
+        "{err}"
+    );
+
+    std::fs::write(dir.path().join("junk.json"), "{\"mode\": 3}").unwrap();
+    let err = format!(
+        "{:#}",
+        Summary::load(SummarySpec {
+            reports: vec![entry("j", None, &dir.path().join("junk.json"))],
+            ..Default::default()
+        })
+        .unwrap_err()
+    );
+    assert!(err.contains("junk.json"), "{err}");
+
+    let ok = write_report(&dir.path().join("ok"), &[(0.5, 0.5)]);
+    let s = Summary::load(SummarySpec {
+        log_x: true,
+        reports: vec![entry("zero", Some(0.0), &ok)],
+        ..Default::default()
+    })
+    .unwrap();
+    let err = format!("{:#}", s.write(&dir.path().join("out")).unwrap_err());
+    assert!(err.contains("zero") && err.contains("log"), "{err}");
+}
+
+#[test]
+fn command_line_and_toml_list() {
+    let dir = tempfile::tempdir().unwrap();
+    write_report(&dir.path().join("runs/q1"), &[(0.5, 0.5)]);
+    write_report(&dir.path().join("runs/q4"), &[(0.75, 0.5)]);
+    // Paths relative to the list file's directory.
+    std::fs::write(
+        dir.path().join("list.toml"),
+        "title = \"Error against samples\"\nx_label = \"samples\"\n\
+         [[report]]\nlabel = \"q1\"\nx = 1\npath = \"runs/q1\"\n",
+    )
+    .unwrap();
+    let q4 = format!("q4=4:{}", dir.path().join("runs/q4").display());
+    let out = dir.path().join("out");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .arg("summarize")
+        .arg("--list")
+        .arg(dir.path().join("list.toml"))
+        .args(["--report", &q4, "--log-x", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(md.starts_with("# Error against samples"), "{md}");
+    assert!(
+        md.contains("| q1 | 1 | 1 | 50.0 ± 0.0 | 50.0 ± 0.0 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| q4 | 4 | 1 | 75.0 ± 0.0 | 25.0 ± 0.0 |"),
+        "{md}"
+    );
+    assert!(out.join("error.png").is_file());
+
+    std::fs::write(
+        dir.path().join("typo.toml"),
+        "[[report]]\nlabel = \"a\"\npth = \"x\"\n",
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .arg("summarize")
+        .arg("--list")
+        .arg(dir.path().join("typo.toml"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("typo.toml") && err.contains("pth"), "{err}");
+}
