@@ -171,6 +171,7 @@ class Arm:
         forearm = cylinder("forearm", 0.04, 0.30, material=sleeve)
         forearm.location = (ox, oy, oz + 0.02)
         self._attach(forearm)
+        self.forearm = forearm
         # Palm: a flat box ahead of the wrist, back of the hand facing the camera.
         palm = box("palm", (-0.042, -0.012, -0.10), (0.042, 0.022, 0.0), shell)
         palm.location = (ox, oy + 0.01, oz)
@@ -189,37 +190,67 @@ class Arm:
         obj.parent = self.hand_root
         self.parts.append(obj)
 
-    def set_hand_visible(self, visible):
+    def set_hand_visible(self, visible, forearm=True):
+        """Shows or hides the hand; `forearm=False` hides the forearm anyway
+        (it runs along the wrist camera's axis, which only the wrist view
+        can assume: seen from the head it would float in front of the eyes)."""
         for obj in self.parts:
             obj.hide_render = not visible
+        self.forearm.hide_render = not (visible and forearm)
 
     def set_intrinsics(self, k):
-        """Pinhole intrinsics (pixels) to Blender's sensor/shift model."""
-        cam = self.camera.data
-        w, h = k["width"], k["height"]
-        cam.sensor_fit = "HORIZONTAL" if w >= h else "VERTICAL"
-        cam.sensor_width = 36.0
-        cam.sensor_height = 36.0
-        if w >= h:
-            cam.lens = cam.sensor_width * k["fx"] / w
-        else:
-            cam.lens = cam.sensor_height * k["fy"] / h
-        big = max(w, h)
-        cam.shift_x = (w / 2 - k["cx"]) / big
-        cam.shift_y = (k["cy"] - h / 2) / big
+        """Pinhole intrinsics (pixels) of the wrist camera and the image size."""
+        apply_intrinsics(self.camera.data, k)
         # Finger tips (FINGER_TIP below the root, FINGER_REACH ahead) at 80 %
         # of the upper half-height of the image.
-        tan_half = (h / 2) / k["fy"]
+        tan_half = (k["height"] / 2) / k["fy"]
         self.hand_root.location = (0.0, 0.8 * tan_half * FINGER_REACH - FINGER_TIP, 0.0)
-        cam.clip_start = k["clip_near"]
-        cam.clip_end = k["clip_far"]
-        scene = bpy.context.scene
-        scene.render.resolution_x = w
-        scene.render.resolution_y = h
-        scene.render.resolution_percentage = 100
-        scene.render.pixel_aspect_x = 1.0
-        scene.render.pixel_aspect_y = k["fx"] / k["fy"] if k["fy"] else 1.0
 
     def set_pose(self, pose):
-        self.camera.location = pose["position"]
-        self.camera.rotation_quaternion = pose["rotation_wxyz"]
+        set_pose(self.camera, pose)
+
+
+class HeadCamera:
+    """The egocentric camera: a second camera with the wrist camera's
+    intrinsics, posed from the plan's `head_camera` poses."""
+
+    def __init__(self):
+        data = bpy.data.cameras.new("head_camera")
+        self.camera = bpy.data.objects.new("head_camera", data)
+        self.camera.rotation_mode = "QUATERNION"
+        bpy.context.scene.collection.objects.link(self.camera)
+
+    def set_intrinsics(self, k):
+        apply_intrinsics(self.camera.data, k)
+
+    def set_pose(self, pose):
+        set_pose(self.camera, pose)
+
+
+def set_pose(obj, pose):
+    obj.location = pose["position"]
+    obj.rotation_quaternion = pose["rotation_wxyz"]
+
+
+def apply_intrinsics(cam, k):
+    """Pinhole intrinsics (pixels) to Blender's sensor/shift model, and the
+    scene's image size."""
+    w, h = k["width"], k["height"]
+    cam.sensor_fit = "HORIZONTAL" if w >= h else "VERTICAL"
+    cam.sensor_width = 36.0
+    cam.sensor_height = 36.0
+    if w >= h:
+        cam.lens = cam.sensor_width * k["fx"] / w
+    else:
+        cam.lens = cam.sensor_height * k["fy"] / h
+    big = max(w, h)
+    cam.shift_x = (w / 2 - k["cx"]) / big
+    cam.shift_y = (k["cy"] - h / 2) / big
+    cam.clip_start = k["clip_near"]
+    cam.clip_end = k["clip_far"]
+    scene = bpy.context.scene
+    scene.render.resolution_x = w
+    scene.render.resolution_y = h
+    scene.render.resolution_percentage = 100
+    scene.render.pixel_aspect_x = 1.0
+    scene.render.pixel_aspect_y = k["fx"] / k["fy"] if k["fy"] else 1.0

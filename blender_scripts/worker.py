@@ -31,6 +31,7 @@ class Worker:
         self.object_mat = bpy.data.materials.new("object")
         self.meshes = {}
         self.target = None
+        self.head = None
         for obj in bpy.data.objects:
             if obj.name.startswith("table_"):
                 obj.pass_index = render.INDEX_TABLE
@@ -89,38 +90,82 @@ class Worker:
         bpy.context.scene.view_settings.exposure = float(a["exposure"])
         self.arm.set_hand_visible(bool(a["hand_visible"]))
 
-    def render(self, plan, out_dir, frame_files, object_color):
-        """Renders every frame of `plan` into `out_dir` under `frame_files`."""
-        if len(frame_files) != len(plan["frames"]):
-            raise ValueError("frame_files and plan frames differ in length")
+    def prepare(self, plan, object_color):
+        """Swaps in the sequence's object and applies its appearance."""
         self._place_object(plan)
         self._apply_appearance(plan, object_color)
         self.arm.set_intrinsics(plan["intrinsics"])
+
+    def render_camera(self, plan, camera, out_dir, frame_files):
+        """Renders every frame of a prepared `plan` from `camera` ("wrist" or
+        "head") into `out_dir` under `frame_files`."""
+        if len(frame_files) != len(plan["frames"]):
+            raise ValueError("frame_files and plan frames differ in length")
+        if camera == "wrist":
+            view = None
+        elif camera == "head":
+            view = self._head_view(plan)
+        else:
+            raise ValueError(f"unknown camera '{camera}' (expected wrist or head)")
+        bpy.context.scene.camera = self.arm.camera if view is None else view.camera
+        try:
+            self._render_frames(plan, view, out_dir, frame_files)
+        finally:
+            bpy.context.scene.camera = self.arm.camera
+            self.arm.set_hand_visible(bool(plan["appearance"]["hand_visible"]))
+
+    def render(self, plan, out_dir, frame_files, object_color, head_out_dir=None):
+        """Prepares `plan` and renders the wrist view, and the head view too
+        when `head_out_dir` is given."""
+        self.prepare(plan, object_color)
+        self.render_camera(plan, "wrist", out_dir, frame_files)
+        if head_out_dir is not None:
+            self.render_camera(plan, "head", head_out_dir, frame_files)
+
+    def _head_view(self, plan):
+        missing = [f["index"] for f in plan["frames"] if not f.get("head_camera")]
+        if missing:
+            raise ValueError(f"frames {missing[:5]} have no head_camera pose")
+        if self.head is None:
+            self.head = scene.HeadCamera()
+        self.head.set_intrinsics(plan["intrinsics"])
+        # A head camera sees the hand whatever the wrist view's setting.
+        self.arm.set_hand_visible(True, forearm=False)
+        return self.head
+
+    def _render_frames(self, plan, view, out_dir, frame_files):
         extra = render.extra_passes(self.settings)
         if self.settings.get("one_call", True) and not extra:
-            self._render_animation(plan, out_dir, frame_files)
-        else:
-            for frame, name in zip(plan["frames"], frame_files):
-                self.arm.set_pose(frame["camera"])
-                render.render_still()
-                png = os.path.join(out_dir, name)
-                exr = os.path.splitext(png)[0] + ".exr" if extra else None
-                render.write_frame(png, exr)
+            self._render_animation(plan, view, out_dir, frame_files)
+            return
+        for frame, name in zip(plan["frames"], frame_files):
+            self.arm.set_pose(frame["camera"])
+            if view is not None:
+                view.set_pose(frame["head_camera"])
+            render.render_still()
+            png = os.path.join(out_dir, name)
+            exr = os.path.splitext(png)[0] + ".exr" if extra else None
+            render.write_frame(png, exr)
 
-    def _render_animation(self, plan, out_dir, frame_files):
-        cam = self.arm.camera
-        cam.animation_data_clear()
+    def _render_animation(self, plan, view, out_dir, frame_files):
+        moving = [self.arm.camera] + ([] if view is None else [view.camera])
+        for obj in moving:
+            obj.animation_data_clear()
         frames = plan["frames"]
         for frame in frames:
             self.arm.set_pose(frame["camera"])
-            cam.keyframe_insert("location", frame=frame["index"])
-            cam.keyframe_insert("rotation_quaternion", frame=frame["index"])
+            if view is not None:
+                view.set_pose(frame["head_camera"])
+            for obj in moving:
+                obj.keyframe_insert("location", frame=frame["index"])
+                obj.keyframe_insert("rotation_quaternion", frame=frame["index"])
         first, last = frames[0]["index"], frames[-1]["index"]
         if [f["index"] for f in frames] != list(range(first, last + 1)):
             raise ValueError("frame indices are not consecutive")
         stem = os.path.splitext(frame_files[0])[0]
         render.render_animation(out_dir, first, last, padding=len(stem))
-        cam.animation_data_clear()
+        for obj in moving:
+            obj.animation_data_clear()
         # Blender names files by frame number; rename if the plan's names differ.
         for frame, name in zip(frames, frame_files):
             made = os.path.join(out_dir, f"{frame['index']:0{len(stem)}d}.png")

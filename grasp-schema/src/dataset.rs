@@ -5,7 +5,12 @@
 //! ROOT/manifest.jsonl
 //! ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/Wrist_d435/rgbNNNNN/NNNNN.png
 //! ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/Wrist_d435/rgbNNNNN/sequence.json
+//! ROOT/CATEGORY/OBJECT/PRESHAPE_FOLDER/Head_d435/rgbNNNNN/...   (optional)
 //! ```
+//!
+//! The optional egocentric camera's folder holds the same frame names and
+//! the same `sequence.json` as its wrist folder; the manifest lists the
+//! wrist folders only.
 //!
 //! `PRESHAPE_FOLDER` is the authors' folder name (`power_no3`, `lateral_no3`,
 //! `pinch_no3`, `pinch_3`).
@@ -72,6 +77,46 @@ pub struct SequenceRecord {
     pub generator_version: String,
 }
 
+/// Key of [`RenderCost`] inside [`SequenceRecord::render`].
+pub const RENDER_COST_KEY: &str = "cost";
+
+/// Wall-clock render cost of one sequence, measured in the worker. It is
+/// stored under `render.cost` of the record (the record's `render` value is
+/// free-form), so records written before it existed still read.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RenderCost {
+    /// Seconds spent swapping in the object and applying the appearance.
+    #[serde(default)]
+    pub setup_seconds: f64,
+    /// Seconds spent rendering and writing the frames, per camera folder
+    /// (`Wrist_d435`, `Head_d435`).
+    #[serde(default)]
+    pub camera_seconds: std::collections::BTreeMap<String, f64>,
+}
+
+impl SequenceRecord {
+    /// The sequence's render cost, when the record carries one.
+    pub fn render_cost(&self) -> Option<RenderCost> {
+        let v = self.render.get(RENDER_COST_KEY)?;
+        serde_json::from_value(v.clone()).ok()
+    }
+
+    /// Whether the plan has an egocentric view (a `Head_d435` folder).
+    pub fn has_head_camera(&self) -> bool {
+        self.plan.frames.iter().any(|f| f.head_camera.is_some())
+    }
+}
+
+/// The head camera's sequence folder next to a wrist camera's one: the same
+/// path with the `Wrist_d435` component replaced (`/`-separated paths).
+pub fn head_sequence_dir(wrist_dir: &str) -> Option<String> {
+    let parts: Vec<&str> = wrist_dir.split('/').collect();
+    let i = parts.iter().rposition(|p| *p == WRIST_CAMERA_FOLDER)?;
+    let mut out = parts;
+    out[i] = HEAD_CAMERA_FOLDER;
+    Some(out.join("/"))
+}
+
 /// One line of `ROOT/manifest.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ManifestEntry {
@@ -104,6 +149,15 @@ mod tests {
             "rgb123456"
         );
         assert_eq!(frame_file_name(89, 5), "00089.png");
+    }
+
+    #[test]
+    fn head_folder_sits_next_to_the_wrist_folder() {
+        assert_eq!(
+            head_sequence_dir("mug/025_mug/pinch_3/Wrist_d435/rgb00003").as_deref(),
+            Some("mug/025_mug/pinch_3/Head_d435/rgb00003")
+        );
+        assert_eq!(head_sequence_dir("mug/025_mug/pinch_3/rgb00003"), None);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 
 use super::writer::{find_sequences, DatasetDir};
 use anyhow::{bail, Context, Result};
+use grasp_schema::dataset::head_sequence_dir;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Default)]
@@ -31,6 +32,12 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
                 summary.already_present += 1;
                 continue;
             }
+            // The head folder first: the wrist folder marks the sequence done.
+            if record.has_head_camera() {
+                let head = head_sequence_dir(&rel)
+                    .with_context(|| format!("{rel}: head camera poses outside Wrist_d435"))?;
+                copy_sequence(&dataset, &shard.join(&head), &out.join(&head))?;
+            }
             copy_sequence(&dataset, &shard.join(&rel), &out.join(&rel))?;
             existing.insert(rel, record);
             summary.copied += 1;
@@ -56,6 +63,10 @@ fn copy_sequence(dataset: &DatasetDir, from: &Path, to: &Path) -> Result<()> {
     }
     if let Some(parent) = to.parent() {
         std::fs::create_dir_all(parent)?;
+    }
+    if to.exists() {
+        // A head folder left by an interrupted merge or run.
+        std::fs::remove_dir_all(to).with_context(|| format!("cannot replace {}", to.display()))?;
     }
     std::fs::rename(&tmp, to)
         .with_context(|| format!("cannot move {} to {}", tmp.display(), to.display()))

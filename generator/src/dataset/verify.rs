@@ -1,13 +1,14 @@
 //! `grasp-gen dataset verify`: checks a finished dataset. It counts sequences
 //! per (object, part) pair and condition, finds missing or corrupt frames,
-//! checks the manifest against the sequence folders, and, given the plan
-//! source, checks each record against a fresh re-plan and its folder.
+//! checks the manifest against the sequence folders, checks the head
+//! camera's folder of every sequence whose plan has head poses, and, given
+//! the plan source, checks each record against a fresh re-plan and its folder.
 
 use super::assign_folders;
-use super::writer::{find_sequences, manifest_entry, WORK_DIR};
+use super::writer::{find_head_sequences, find_sequences, manifest_entry, WORK_DIR};
 use crate::render::PlanSource;
 use anyhow::{Context, Result};
-use grasp_schema::dataset::{ManifestEntry, SequenceRecord, MANIFEST_FILE};
+use grasp_schema::dataset::{head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE};
 use grasp_schema::Condition;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -17,6 +18,9 @@ use std::path::Path;
 pub struct VerifyReport {
     pub sequences: usize,
     pub frames: usize,
+    /// Head camera (`Head_d435`) sequences and frames checked.
+    pub head_sequences: usize,
+    pub head_frames: usize,
     /// Sequences per `object/part` pair and condition.
     pub counts: BTreeMap<String, BTreeMap<Condition, usize>>,
     /// Everything wrong, one line each, naming the file.
@@ -54,6 +58,13 @@ impl VerifyReport {
             self.sequences,
             self.frames
         );
+        if self.head_sequences > 0 {
+            let _ = writeln!(
+                s,
+                "head camera: {} sequences, {} frames",
+                self.head_sequences, self.head_frames
+            );
+        }
         for p in &self.problems {
             let _ = writeln!(s, "PROBLEM: {p}");
         }
@@ -67,8 +78,11 @@ impl VerifyReport {
 pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Result<VerifyReport> {
     let records =
         find_sequences(root).with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    let heads = find_head_sequences(root)
+        .with_context(|| format!("cannot scan dataset {}", root.display()))?;
     let mut report = VerifyReport::default();
     check_manifest(root, &records, &mut report);
+    check_head_folders(root, &records, &heads, decode, &mut report);
     let expected_dirs = match source {
         Some(s) => Some(
             assign_folders(&s.keys()?)
@@ -162,6 +176,46 @@ fn check_manifest(
     for rel in listed.keys().filter(|r| !records.contains_key(*r)) {
         report.problems.push(format!(
             "{MANIFEST_FILE} lists {rel}, which has no sequence.json"
+        ));
+    }
+}
+
+/// Every sequence with head poses has a head folder with the same record and
+/// its frames; every head folder belongs to such a sequence.
+fn check_head_folders(
+    root: &Path,
+    records: &BTreeMap<String, SequenceRecord>,
+    heads: &BTreeMap<String, SequenceRecord>,
+    decode: bool,
+    report: &mut VerifyReport,
+) {
+    let mut expected = BTreeSet::new();
+    for (rel, record) in records.iter().filter(|(_, r)| r.has_head_camera()) {
+        let Some(head_rel) = head_sequence_dir(rel) else {
+            report.problems.push(format!(
+                "{rel}: has head camera poses but is not a Wrist_d435 folder"
+            ));
+            continue;
+        };
+        expected.insert(head_rel.clone());
+        let Some(head) = heads.get(&head_rel) else {
+            report.problems.push(format!(
+                "{head_rel}: missing (the plan of {rel} has head camera poses)"
+            ));
+            continue;
+        };
+        if head.plan != record.plan || head.frame_files != record.frame_files {
+            report.problems.push(format!(
+                "{head_rel}: sequence.json differs from the wrist camera's {rel}"
+            ));
+        }
+        report.head_sequences += 1;
+        report.head_frames += head.frame_files.len();
+        check_frames(root, &head_rel, head, decode, report);
+    }
+    for rel in heads.keys().filter(|r| !expected.contains(*r)) {
+        report.problems.push(format!(
+            "{rel}: head camera folder without a finished wrist sequence (resume the run)"
         ));
     }
 }

@@ -2,12 +2,16 @@
 //! temporary folder, completed with its `sequence.json`, then renamed into
 //! place: a killed run never leaves a half sequence, and a finished sequence
 //! is exactly a folder holding `sequence.json`.
+//!
+//! With the egocentric camera on, the head view is rendered into a sibling
+//! temporary folder and moved into `Head_d435` first; the wrist folder moves
+//! last, so a sequence is finished only when both cameras are complete.
 
 use crate::render::PlannedKey;
 use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{
-    camera_dir, frame_file_name, padding_for, sequence_dir_name, ManifestEntry, SequenceRecord,
-    MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER,
+    camera_dir, frame_file_name, head_sequence_dir, padding_for, sequence_dir_name, ManifestEntry,
+    SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER,
 };
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -95,9 +99,27 @@ impl DatasetDir {
         self.root.join(WORK_DIR)
     }
 
-    /// Whether the sequence's final folder is complete.
+    /// Whether the sequence's final folder is complete: its `sequence.json`
+    /// exists and, when its plan has a head camera, so does the head
+    /// folder's.
     pub fn is_finished(&self, rel_dir: &str) -> bool {
-        self.root.join(rel_dir).join(SEQUENCE_FILE).is_file()
+        let record = self.root.join(rel_dir).join(SEQUENCE_FILE);
+        if !record.is_file() {
+            return false;
+        }
+        let head = head_sequence_dir(rel_dir).map(|h| self.root.join(h).join(SEQUENCE_FILE));
+        if head.as_ref().is_some_and(|h| h.is_file()) {
+            return true;
+        }
+        // No head record: finished only if the plan has no head camera.
+        read_record(&record).is_ok_and(|r| !r.has_head_camera())
+    }
+
+    /// The head camera's temporary folder of a partial sequence folder.
+    pub fn partial_head_dir(partial: &Path) -> PathBuf {
+        let mut name = partial.file_name().unwrap_or_default().to_os_string();
+        name.push(".head");
+        partial.with_file_name(name)
     }
 
     /// A fresh temporary folder for one attempt at a sequence.
@@ -128,19 +150,25 @@ impl DatasetDir {
     /// Completes a rendered sequence: checks its frames, writes
     /// `sequence.json`, renames the folder into place and appends the
     /// manifest line.
+    /// With a head camera, its folder [`Self::partial_head_dir`] is
+    /// completed and moved first.
     pub fn finish(&self, partial: &Path, rel_dir: &str, record: &SequenceRecord) -> Result<()> {
-        for name in &record.frame_files {
-            let f = partial.join(name);
-            let len = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
-            if len == 0 {
-                bail!(
-                    "sequence {}: frame {} is missing or empty",
-                    record.plan.key.id(),
-                    f.display()
-                );
-            }
-        }
         let json = serde_json::to_vec_pretty(record)?;
+        if record.has_head_camera() {
+            let head_rel = head_sequence_dir(rel_dir).with_context(|| {
+                format!("{rel_dir}: no {WRIST_CAMERA_FOLDER} component for the head camera")
+            })?;
+            let head_partial = Self::partial_head_dir(partial);
+            check_frames(&head_partial, record)?;
+            self.move_into_place(&head_partial, &head_rel, &json)?;
+        }
+        check_frames(partial, record)?;
+        self.move_into_place(partial, rel_dir, &json)?;
+        self.append_manifest(&manifest_entry(rel_dir, record))
+    }
+
+    /// Writes `sequence.json` into a completed folder and renames it into place.
+    fn move_into_place(&self, partial: &Path, rel_dir: &str, json: &[u8]) -> Result<()> {
         std::fs::write(partial.join(SEQUENCE_FILE), json)
             .with_context(|| format!("cannot write {}", partial.display()))?;
         let target = self.root.join(rel_dir);
@@ -153,10 +181,8 @@ impl DatasetDir {
             std::fs::remove_dir_all(&target)
                 .with_context(|| format!("cannot replace {}", target.display()))?;
         }
-        std::fs::rename(partial, &target).with_context(|| {
-            format!("cannot move {} to {}", partial.display(), target.display())
-        })?;
-        self.append_manifest(&manifest_entry(rel_dir, record))
+        std::fs::rename(partial, &target)
+            .with_context(|| format!("cannot move {} to {}", partial.display(), target.display()))
     }
 
     fn append_manifest(&self, entry: &ManifestEntry) -> Result<()> {
@@ -186,6 +212,22 @@ impl DatasetDir {
     }
 }
 
+/// Every frame of `record` is a non-empty file in `dir`.
+fn check_frames(dir: &Path, record: &SequenceRecord) -> Result<()> {
+    for name in &record.frame_files {
+        let f = dir.join(name);
+        let len = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
+        if len == 0 {
+            bail!(
+                "sequence {}: frame {} is missing or empty",
+                record.plan.key.id(),
+                f.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {
     let plan = &record.plan;
     ManifestEntry {
@@ -208,8 +250,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Every finished sequence under `root` (folders holding `sequence.json`,
-/// outside the work folder), by relative path.
+/// outside the work folder and the head camera's folders), by relative path.
 pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
+    scan_sequences(root, false)
+}
+
+/// The head camera's sequence folders under `root` (holding `sequence.json`).
+pub fn find_head_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
+    scan_sequences(root, true)
+}
+
+fn scan_sequences(root: &Path, head: bool) -> Result<BTreeMap<String, SequenceRecord>> {
     let mut out = BTreeMap::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
@@ -223,7 +274,7 @@ pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
             }
             if path.is_dir() {
                 stack.push(path);
-            } else if name == SEQUENCE_FILE {
+            } else if name == SEQUENCE_FILE && in_head_folder(&path) == head {
                 let record = read_record(&path)?;
                 let rel = path
                     .parent()
@@ -235,6 +286,15 @@ pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
         }
     }
     Ok(out)
+}
+
+/// Whether a `sequence.json` lies in a `Head_d435/rgbNNNNN` folder.
+fn in_head_folder(record: &Path) -> bool {
+    record
+        .parent()
+        .and_then(Path::parent)
+        .and_then(Path::file_name)
+        .is_some_and(|n| n == HEAD_CAMERA_FOLDER)
 }
 
 pub fn read_record(path: &Path) -> Result<SequenceRecord> {

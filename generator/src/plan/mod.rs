@@ -7,6 +7,7 @@ pub mod camera;
 pub mod cli;
 pub mod conditions;
 pub mod draw;
+pub mod head_camera;
 mod planner;
 pub mod scene;
 pub mod trajectory;
@@ -15,6 +16,7 @@ pub mod wrist;
 
 pub use camera::CameraConfig;
 pub use conditions::ConditionsConfig;
+pub use head_camera::HeadCameraConfig;
 pub use planner::{sequence_keys, ObjectGeometry, Planner};
 pub use scene::SceneConfig;
 pub use trajectory::TrajectoryConfig;
@@ -66,6 +68,8 @@ pub struct PlanConfig {
     pub validity: ValidityConfig,
     /// Settings of the fast, seated and from_ground conditions.
     pub conditions: ConditionsConfig,
+    /// The optional egocentric (head-mounted) camera; off by default.
+    pub head_camera: HeadCameraConfig,
 }
 
 impl PlanConfig {
@@ -75,6 +79,7 @@ impl PlanConfig {
         self.camera.validate()?;
         self.trajectory.validate()?;
         self.conditions.validate()?;
+        self.head_camera.validate(&self.scene)?;
         for c in Condition::ALL {
             let d = self.conditions.duration_s(c, self.trajectory.duration_s);
             self.trajectory.frame_count(d)?;

@@ -478,7 +478,7 @@ impl Planner {
 
         let tail = traj.tail_frames(n);
         let class = Class::from(part.grasp_type.preshape());
-        let frames = (0..n)
+        let mut frames = (0..n)
             .map(|i| {
                 let tau = frame_tau(i, n);
                 let p = s.path.position(tau);
@@ -501,7 +501,13 @@ impl Planner {
                     head_camera: None,
                 }
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let head = self.head_camera(key, geo, &c.placement, stream);
+        if let Some(h) = &head {
+            for f in &mut frames {
+                f.head_camera = Some(h.pose());
+            }
+        }
 
         let mut sampled = BTreeMap::new();
         let mut put = |k: &str, v: serde_json::Value| {
@@ -543,6 +549,9 @@ impl Planner {
         put("ps_angle_deg", json!(ps_angle.to_degrees()));
         put("fe_angle_deg", json!(fe_angle.to_degrees()));
         schedule.record(&mut put);
+        for (k, v) in head.iter().flat_map(|h| h.sampled()) {
+            put(k, v);
+        }
 
         let appearance = Some(crate::appearance::sample(
             &self.config.appearance,
@@ -576,6 +585,33 @@ impl Planner {
             sampled,
             appearance,
         })
+    }
+}
+
+impl Planner {
+    /// The static head camera of a sequence, from its own sub-stream (None
+    /// unless `plan.head_camera.enabled`).
+    fn head_camera(
+        &self,
+        key: &SequenceKey,
+        geo: &ObjectGeometry,
+        placement: &Placement,
+        stream: u64,
+    ) -> Option<super::head_camera::HeadCamera> {
+        let cfg = &self.config.plan;
+        if !cfg.head_camera.enabled {
+            return None;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "head_camera"));
+        let center = placement.to_world(&geo.sphere_center);
+        Some(super::head_camera::sample(
+            &cfg.head_camera,
+            &cfg.scene,
+            key.condition,
+            [placement.position.x, placement.position.y],
+            &center,
+            &mut rng,
+        ))
     }
 }
 

@@ -9,7 +9,7 @@ use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::writer::{frame_files, write_atomic};
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use anyhow::{anyhow, bail, Context, Result};
-use grasp_schema::dataset::SequenceRecord;
+use grasp_schema::dataset::{RenderCost, SequenceRecord, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::{BTreeMap, VecDeque};
@@ -69,6 +69,7 @@ struct Job {
 enum Event {
     Rendered {
         peak_rss_kib: u64,
+        cost: RenderCost,
         job: Job,
         plan: Box<SequencePlan>,
         partial: PathBuf,
@@ -251,6 +252,7 @@ fn run_pool(
         match rx.recv_timeout(Duration::from_millis(200)) {
             Ok(Event::Rendered {
                 peak_rss_kib,
+                cost,
                 job,
                 plan,
                 partial,
@@ -261,7 +263,7 @@ fn run_pool(
                 let record = SequenceRecord {
                     plan: *plan,
                     frame_files: files,
-                    render: ctx.settings.clone(),
+                    render: with_cost(&ctx.settings, &cost),
                     generator_version: env!("CARGO_PKG_VERSION").to_string(),
                 };
                 match ctx.dataset.finish(&partial, &job.assigned.rel_dir, &record) {
@@ -300,6 +302,15 @@ fn run_pool(
         }
     }
     Ok(interrupted)
+}
+
+/// The render settings plus this sequence's cost, as stored in its record.
+fn with_cost(settings: &serde_json::Value, cost: &RenderCost) -> serde_json::Value {
+    let mut v = settings.clone();
+    if let (Some(map), Ok(c)) = (v.as_object_mut(), serde_json::to_value(cost)) {
+        map.insert(RENDER_COST_KEY.to_string(), c);
+    }
+    v
 }
 
 fn first_line(s: &str) -> &str {
@@ -439,13 +450,16 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
         };
         let partial = request.out_dir.clone();
         let files = request.frame_files.clone();
-        let outcome = (|| -> Result<u64> {
+        let head_partial = request.head_out_dir.clone();
+        let outcome = (|| -> Result<(u64, RenderCost)> {
             if proc.is_none() {
                 proc = Some(WorkerProc::spawn(slot, ctx)?);
             }
             let p = proc.as_mut().expect("worker started above");
             match p.call(&Request::Render(Box::new(request)), &log) {
-                Ok(Response::Done { peak_rss_kib, .. }) => Ok(peak_rss_kib),
+                Ok(Response::Done {
+                    peak_rss_kib, cost, ..
+                }) => Ok((peak_rss_kib, cost)),
                 Ok(Response::Error { message, .. }) => Err(anyhow!(message)),
                 Ok(other) => Err(anyhow!("unexpected worker answer {other:?}")),
                 Err(e) => {
@@ -455,10 +469,11 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
             }
         })();
         match outcome {
-            Ok(peak_rss_kib) => {
+            Ok((peak_rss_kib, cost)) => {
                 served += 1;
                 let _ = tx.send(Event::Rendered {
                     peak_rss_kib,
+                    cost,
                     job,
                     plan: Box::new(plan),
                     partial,
@@ -473,6 +488,9 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
             }
             Err(e) => {
                 let _ = std::fs::remove_dir_all(&partial);
+                if let Some(h) = &head_partial {
+                    let _ = std::fs::remove_dir_all(h);
+                }
                 if ctx.stopped() {
                     break;
                 }
@@ -522,15 +540,44 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
         .get(&key.object)
         .cloned()
         .with_context(|| format!("no mesh for object '{}'", key.object))?;
+    let out_dir = ctx
+        .dataset
+        .partial_dir(job.assigned.position, job.attempt)?;
+    let head_out_dir = head_partial(&plan, &out_dir)?;
     let request = RenderRequest {
         id: key.id(),
         object_color: ctx.source.object_color(&key.object),
-        out_dir: ctx
-            .dataset
-            .partial_dir(job.assigned.position, job.attempt)?,
+        out_dir,
+        head_out_dir,
         frame_files: frame_files(plan.frames.len()),
         mesh,
         plan: plan.clone(),
     };
     Ok((plan, request))
+}
+
+/// The head camera's fresh temporary folder, when the plan has head poses
+/// (all frames or none).
+fn head_partial(plan: &SequencePlan, out_dir: &Path) -> Result<Option<PathBuf>> {
+    let with_head = plan
+        .frames
+        .iter()
+        .filter(|f| f.head_camera.is_some())
+        .count();
+    if with_head == 0 {
+        return Ok(None);
+    }
+    if with_head != plan.frames.len() {
+        bail!(
+            "sequence {}: {with_head} of {} frames have a head camera pose (all or none)",
+            plan.key.id(),
+            plan.frames.len()
+        );
+    }
+    let dir = DatasetDir::partial_head_dir(out_dir);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir).with_context(|| format!("cannot clear {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    Ok(Some(dir))
 }

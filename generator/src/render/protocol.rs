@@ -3,6 +3,7 @@
 //! private copy of its stdout (Blender's own prints go to stderr).
 
 use super::SceneGeometry;
+use grasp_schema::dataset::RenderCost;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -29,6 +30,9 @@ pub struct RenderRequest {
     /// The object's own colour (linear RGB), used unless the plan randomizes it.
     pub object_color: [f64; 3],
     pub out_dir: PathBuf,
+    /// Where the head camera's frames go, when the plan has head poses.
+    #[serde(default)]
+    pub head_out_dir: Option<PathBuf>,
     pub frame_files: Vec<String>,
 }
 
@@ -53,6 +57,12 @@ pub enum Response {
         /// The worker's peak resident memory so far (Linux VmHWM), KiB.
         #[serde(default)]
         peak_rss_kib: u64,
+        /// The worker's resident memory after the sequence (VmRSS), KiB.
+        #[serde(default)]
+        rss_kib: u64,
+        /// Setup and per-camera render seconds.
+        #[serde(default)]
+        cost: RenderCost,
     },
     Error {
         id: Option<String>,

@@ -4,6 +4,7 @@
 
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
 use anyhow::{anyhow, bail, Context, Result};
+use grasp_schema::dataset::{RenderCost, HEAD_CAMERA_FOLDER, WRIST_CAMERA_FOLDER};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::fs::File;
@@ -50,10 +51,12 @@ pub fn run() -> Result<()> {
             Request::Render(req) => {
                 let start = Instant::now();
                 let reply = match render(&worker, &req) {
-                    Ok(()) => Response::Done {
+                    Ok(cost) => Response::Done {
                         id: req.id.clone(),
                         seconds: start.elapsed().as_secs_f64(),
-                        peak_rss_kib: peak_rss_kib(),
+                        peak_rss_kib: proc_status_kib("VmHWM:"),
+                        rss_kib: proc_status_kib("VmRSS:"),
+                        cost,
                     },
                     Err(e) => Response::Error {
                         id: Some(req.id.clone()),
@@ -98,11 +101,16 @@ fn send(out: &mut File, response: &Response) -> Result<()> {
 
 /// Peak resident set size of this process (0 where /proc is unavailable).
 pub fn peak_rss_kib() -> u64 {
+    proc_status_kib("VmHWM:")
+}
+
+/// A KiB field of /proc/self/status (`VmHWM:`, `VmRSS:`); 0 when unavailable.
+fn proc_status_kib(field: &str) -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
+                .find(|l| l.starts_with(field))
                 .and_then(|l| l.split_whitespace().nth(1))
                 .and_then(|v| v.parse().ok())
         })
@@ -163,24 +171,39 @@ fn to_pyerr(e: anyhow::Error) -> PyErr {
     pyo3::exceptions::PyValueError::new_err(format!("{e:#}"))
 }
 
-fn render(worker: &Py<PyAny>, req: &RenderRequest) -> Result<()> {
+/// Prepares the sequence, then renders each camera, timing each step.
+fn render(worker: &Py<PyAny>, req: &RenderRequest) -> Result<RenderCost> {
     Python::attach(|py| {
         let w = worker.bind(py);
+        let start = Instant::now();
         ensure_mesh(py, w, &req.mesh)?;
         let plan = json_to_py(py, &req.plan)?;
-        let out_dir = req.out_dir.to_string_lossy().into_owned();
-        w.call_method1(
-            "render",
-            (
-                plan,
-                out_dir,
-                req.frame_files.clone(),
-                req.object_color.to_vec(),
-            ),
-        )
-        .map_err(py_err)
-        .with_context(|| format!("rendering sequence {}", req.id))?;
-        Ok(())
+        w.call_method1("prepare", (plan.clone(), req.object_color.to_vec()))
+            .map_err(py_err)
+            .with_context(|| format!("preparing sequence {}", req.id))?;
+        let mut cost = RenderCost {
+            setup_seconds: start.elapsed().as_secs_f64(),
+            ..Default::default()
+        };
+        let head = req
+            .head_out_dir
+            .as_ref()
+            .map(|d| ("head", HEAD_CAMERA_FOLDER, d));
+        for (camera, folder, dir) in
+            std::iter::once(("wrist", WRIST_CAMERA_FOLDER, &req.out_dir)).chain(head)
+        {
+            let start = Instant::now();
+            let out_dir = dir.to_string_lossy().into_owned();
+            w.call_method1(
+                "render_camera",
+                (plan.clone(), camera, out_dir, req.frame_files.clone()),
+            )
+            .map_err(py_err)
+            .with_context(|| format!("rendering sequence {} from the {camera} camera", req.id))?;
+            cost.camera_seconds
+                .insert(folder.to_string(), start.elapsed().as_secs_f64());
+        }
+        Ok(cost)
     })
 }
 

@@ -192,7 +192,9 @@ pub fn options(out: &Path, workers: usize) -> RenderOptions {
     }
 }
 
-/// Every file under `root` except the work folder, with its bytes.
+/// Every file under `root` except the work folder, with its bytes; in
+/// `sequence.json` files the wall-clock `render.cost` is dropped (it differs
+/// between runs by nature; everything else must not).
 pub fn tree(root: &Path) -> BTreeMap<String, Vec<u8>> {
     let mut out = BTreeMap::new();
     let mut stack = vec![root.to_path_buf()];
@@ -206,9 +208,22 @@ pub fn tree(root: &Path) -> BTreeMap<String, Vec<u8>> {
                 stack.push(p);
             } else {
                 let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
-                out.insert(rel, std::fs::read(&p).unwrap());
+                let mut bytes = std::fs::read(&p).unwrap();
+                if rel.ends_with(grasp_schema::dataset::SEQUENCE_FILE) {
+                    bytes = without_cost(&bytes);
+                }
+                out.insert(rel, bytes);
             }
         }
     }
     out
+}
+
+/// A `sequence.json` without its `render.cost`, which must be present.
+fn without_cost(bytes: &[u8]) -> Vec<u8> {
+    let mut v: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+    let render = v["render"].as_object_mut().unwrap();
+    let cost = render.remove(grasp_schema::dataset::RENDER_COST_KEY);
+    assert!(cost.is_some(), "sequence.json without render.cost");
+    serde_json::to_vec_pretty(&v).unwrap()
 }
