@@ -126,6 +126,19 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
         assert!(cost.camera_seconds["Head_d435"] > 0.0);
     }
 
+    // The stats read both cameras' cost.
+    let stats: serde_json::Value =
+        serde_json::from_str(&grasp_gen(&["dataset", "stats", out_s, "--json"])).unwrap();
+    for camera in ["Wrist_d435", "Head_d435"] {
+        assert_eq!(stats["cameras"][camera]["frames"], 12, "{stats}");
+        assert!(
+            stats["cameras"][camera]["seconds_per_frame"]
+                .as_f64()
+                .unwrap()
+                > 0.0
+        );
+    }
+
     // A head folder removed after the fact is reported, and --resume redoes it.
     let victim = head_sequence_dir(&entries[0].path).unwrap();
     std::fs::remove_dir_all(out.join(&victim)).unwrap();

@@ -20,6 +20,13 @@ pub enum DatasetCommand {
     },
     /// Join shard outputs into OUT (copies, or hard links where possible).
     Merge { out: PathBuf, shards: Vec<PathBuf> },
+    /// Frames and measured render seconds per frame, per camera.
+    Stats {
+        dir: PathBuf,
+        /// Print JSON (for plots) instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(cmd: &DatasetCommand) -> Result<()> {
@@ -41,6 +48,15 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
                 bail!("{}: {} problems", dir.display(), report.problems.len());
             }
             println!("ok");
+            Ok(())
+        }
+        DatasetCommand::Stats { dir, json } => {
+            let s = super::stats::stats(dir)?;
+            if *json {
+                println!("{}", serde_json::to_string_pretty(&s)?);
+            } else {
+                print!("{}", s.render_text());
+            }
             Ok(())
         }
         DatasetCommand::Merge { out, shards } => {

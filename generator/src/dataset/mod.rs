@@ -4,6 +4,7 @@
 
 pub mod cli;
 pub mod merge;
+pub mod stats;
 pub mod verify;
 pub mod writer;
 
