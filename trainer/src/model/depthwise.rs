@@ -11,8 +11,8 @@
 //! - [`depthwise_conv3x3_bias_act`]: inference, with a fused per-channel bias
 //!   (folded batch norm) and optional ReLU6.
 
+use super::cpu::{alloc_uninit, par_chunks};
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
-use rayon::prelude::*;
 
 /// Output size of a 3x3 convolution with padding 1.
 pub fn out_size(size: usize, stride: usize) -> usize {
@@ -79,14 +79,7 @@ impl Geom {
 }
 
 fn contiguous<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
-    let data = match s {
-        CpuStorage::F32(d) => d.as_slice(),
-        _ => candle_core::bail!("depthwise3x3: {what} must be f32"),
-    };
-    match l.contiguous_offsets() {
-        Some((a, b)) => Ok(&data[a..b]),
-        None => candle_core::bail!("depthwise3x3: {what} must be contiguous"),
-    }
+    super::cpu::f32_slice("depthwise3x3", s, l, what)
 }
 
 fn check_weight(g: &Geom, l: &Layout) -> Result<()> {
@@ -200,16 +193,13 @@ fn conv_plane(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst: &mu
 /// Forward over all planes, in parallel.
 fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
     // every element is written by conv_plane (which starts from the bias)
-    let mut out = super::pointwise::alloc_uninit(g.n * g.c * g.out_plane());
-    out.par_chunks_mut(g.out_plane()).enumerate().for_each_init(
-        || vec![0f32; g.pad_len()],
-        |pad, (plane, dst)| {
-            let ch = plane % g.c;
-            pad_plane(g, &x[plane * g.in_plane()..(plane + 1) * g.in_plane()], pad);
-            let b = bias.map_or(0.0, |b| b[ch]);
-            conv_plane(g, pad, &w[9 * ch..9 * ch + 9], b, relu6, dst);
-        },
-    );
+    let mut out = alloc_uninit(g.n * g.c * g.out_plane());
+    par_chunks(&mut out, g.out_plane(), g.pad_len(), |pad, plane, dst| {
+        let ch = plane % g.c;
+        pad_plane(g, &x[plane * g.in_plane()..(plane + 1) * g.in_plane()], pad);
+        let b = bias.map_or(0.0, |b| b[ch]);
+        conv_plane(g, pad, &w[9 * ch..9 * ch + 9], b, relu6, dst);
+    });
     out
 }
 
@@ -217,29 +207,26 @@ fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) ->
 fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
     let mut out = vec![0f32; g.n * g.c * g.in_plane()];
     let (s, ph, pw) = (g.stride, g.h + 2, g.w + 2);
-    out.par_chunks_mut(g.in_plane()).enumerate().for_each_init(
-        || vec![0f32; ph * pw],
-        |pad, (plane, dst)| {
-            let k = &w[9 * (plane % g.c)..9 * (plane % g.c) + 9];
-            let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
-            pad.fill(0.0);
-            for oy in 0..g.oh {
-                for ky in 0..3 {
-                    let row = &mut pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
-                    for kx in 0..3 {
-                        let kv = k[3 * ky + kx];
-                        for ox in 0..g.ow {
-                            row[s * ox + kx] += kv * gp[oy * g.ow + ox];
-                        }
+    par_chunks(&mut out, g.in_plane(), ph * pw, |pad, plane, dst| {
+        let k = &w[9 * (plane % g.c)..9 * (plane % g.c) + 9];
+        let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
+        pad.fill(0.0);
+        for oy in 0..g.oh {
+            for ky in 0..3 {
+                let row = &mut pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
+                for kx in 0..3 {
+                    let kv = k[3 * ky + kx];
+                    for ox in 0..g.ow {
+                        row[s * ox + kx] += kv * gp[oy * g.ow + ox];
                     }
                 }
             }
-            for y in 0..g.h {
-                dst[y * g.w..(y + 1) * g.w]
-                    .copy_from_slice(&pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]);
-            }
-        },
-    );
+        }
+        for y in 0..g.h {
+            dst[y * g.w..(y + 1) * g.w]
+                .copy_from_slice(&pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]);
+        }
+    });
     out
 }
 
@@ -247,39 +234,36 @@ fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
 fn backward_weight(g: &Geom, x: &[f32], grad: &[f32]) -> Vec<f32> {
     let (s, pw) = (g.stride, g.w + 2);
     let mut out = vec![0f32; g.c * 9];
-    out.par_chunks_mut(9).enumerate().for_each_init(
-        || vec![0f32; (g.h + 2) * pw],
-        |pad, (ch, dst)| {
-            let mut acc = [0f64; 9];
-            for n in 0..g.n {
-                let plane = n * g.c + ch;
-                let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
-                pad.fill(0.0);
-                for y in 0..g.h {
-                    pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]
-                        .copy_from_slice(&src[y * g.w..(y + 1) * g.w]);
-                }
-                let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
-                for oy in 0..g.oh {
-                    let grow = &gp[oy * g.ow..(oy + 1) * g.ow];
-                    for ky in 0..3 {
-                        let row = &pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
-                        for kx in 0..3 {
-                            let dot: f32 = grow
-                                .iter()
-                                .enumerate()
-                                .map(|(ox, &gv)| gv * row[s * ox + kx])
-                                .sum();
-                            acc[3 * ky + kx] += dot as f64;
-                        }
+    par_chunks(&mut out, 9, (g.h + 2) * pw, |pad, ch, dst| {
+        let mut acc = [0f64; 9];
+        for n in 0..g.n {
+            let plane = n * g.c + ch;
+            let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
+            pad.fill(0.0);
+            for y in 0..g.h {
+                pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]
+                    .copy_from_slice(&src[y * g.w..(y + 1) * g.w]);
+            }
+            let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
+            for oy in 0..g.oh {
+                let grow = &gp[oy * g.ow..(oy + 1) * g.ow];
+                for ky in 0..3 {
+                    let row = &pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
+                    for kx in 0..3 {
+                        let dot: f32 = grow
+                            .iter()
+                            .enumerate()
+                            .map(|(ox, &gv)| gv * row[s * ox + kx])
+                            .sum();
+                        acc[3 * ky + kx] += dot as f64;
                     }
                 }
             }
-            for (d, a) in dst.iter_mut().zip(acc) {
-                *d = a as f32;
-            }
-        },
-    );
+        }
+        for (d, a) in dst.iter_mut().zip(acc) {
+            *d = a as f32;
+        }
+    });
     out
 }
 

@@ -3,6 +3,7 @@
 //! loading and ImageNet preprocessing.
 
 mod batch_norm;
+mod cpu;
 pub mod depthwise;
 mod legacy_pth;
 mod mobilenet_v2;

@@ -7,6 +7,7 @@
 //!   candle's rayon pool) and applies the bias, the optional residual and
 //!   the optional ReLU6 while the tile is still in cache.
 
+use super::cpu::{alloc_uninit, par_chunks};
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
@@ -106,27 +107,7 @@ struct PointwiseBiasAct {
 }
 
 fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
-    let data = match s {
-        CpuStorage::F32(d) => d.as_slice(),
-        _ => candle_core::bail!("pointwise conv: {what} must be f32"),
-    };
-    match l.contiguous_offsets() {
-        Some((a, b)) => Ok(&data[a..b]),
-        None => candle_core::bail!("pointwise conv: {what} must be contiguous"),
-    }
-}
-
-/// An output buffer without the cost of zeroing it, as candle's own CPU
-/// kernels allocate theirs. Callers must write every element before any read.
-pub(crate) fn alloc_uninit(len: usize) -> Vec<f32> {
-    let mut v = Vec::with_capacity(len);
-    // SAFETY: f32 has no invalid bit patterns and callers overwrite every
-    // element before reading it.
-    #[allow(clippy::uninit_vec)]
-    unsafe {
-        v.set_len(len)
-    };
-    v
+    super::cpu::f32_slice("pointwise conv", s, l, what)
 }
 
 /// Raw pointer that may cross threads: every task writes a disjoint tile.
@@ -298,30 +279,28 @@ impl candle_core::CustomOp1 for Im2Col3x3 {
         let x = f32_slice(storage, l, "input")?;
         // every element is written below
         let mut out = alloc_uninit(n * c * 9 * oh * ow);
-        out.par_chunks_mut(oh * ow)
-            .enumerate()
-            .for_each(|(row, dst)| {
-                let (plane, tap) = (row / 9, row % 9);
-                let (ky, kx) = (tap / 3, tap % 3);
-                let src = &x[plane * h * w..(plane + 1) * h * w];
-                for oy in 0..oh {
-                    let iy = (s * oy + ky) as isize - 1;
-                    let out = &mut dst[oy * ow..(oy + 1) * ow];
-                    if iy < 0 || iy >= h as isize {
-                        out.fill(0.0); // padding
-                        continue;
-                    }
-                    let src_row = &src[iy as usize * w..(iy as usize + 1) * w];
-                    for (ox, d) in out.iter_mut().enumerate() {
-                        let ix = (s * ox + kx) as isize - 1;
-                        *d = if ix >= 0 && ix < w as isize {
-                            src_row[ix as usize]
-                        } else {
-                            0.0
-                        };
-                    }
+        par_chunks(&mut out, oh * ow, 0, |_, row, dst| {
+            let (plane, tap) = (row / 9, row % 9);
+            let (ky, kx) = (tap / 3, tap % 3);
+            let src = &x[plane * h * w..(plane + 1) * h * w];
+            for oy in 0..oh {
+                let iy = (s * oy + ky) as isize - 1;
+                let out = &mut dst[oy * ow..(oy + 1) * ow];
+                if iy < 0 || iy >= h as isize {
+                    out.fill(0.0); // padding
+                    continue;
                 }
-            });
+                let src_row = &src[iy as usize * w..(iy as usize + 1) * w];
+                for (ox, d) in out.iter_mut().enumerate() {
+                    let ix = (s * ox + kx) as isize - 1;
+                    *d = if ix >= 0 && ix < w as isize {
+                        src_row[ix as usize]
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        });
         Ok((CpuStorage::F32(out), Shape::from((n, c * 9, oh, ow))))
     }
 }
