@@ -5,7 +5,7 @@ import os
 import bpy
 
 ENGINES = {"cycles": "CYCLES", "workbench": "BLENDER_WORKBENCH", "eevee": "BLENDER_EEVEE"}
-PASSES = ("rgb", "depth", "instance")
+PASSES = ("rgb", "depth", "instance", "part")
 # Object pass indices written to the `instance` pass (IndexOB).
 INDEX_OBJECT, INDEX_HAND, INDEX_TABLE = 1, 2, 3
 
@@ -45,8 +45,10 @@ def configure(settings):
     unknown = [p for p in passes if p not in PASSES]
     if unknown:
         raise ValueError(f"unknown passes {unknown} (expected some of {PASSES})")
-    layer.use_pass_z = "depth" in passes
-    layer.use_pass_object_index = "instance" in passes
+    # The part labels are computed in Rust from the depth, and from the object
+    # index where the engine has one (Cycles).
+    layer.use_pass_z = "depth" in passes or "part" in passes
+    layer.use_pass_object_index = "instance" in passes or ("part" in passes and engine == "cycles")
 
 
 def _cycles(scene, s):

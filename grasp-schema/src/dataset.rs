@@ -77,6 +77,17 @@ pub struct SequenceRecord {
     pub generator_version: String,
 }
 
+/// Name of the `part` pass's label image of a frame: `partNNNNN.png` next to
+/// `NNNNN.png` (8-bit; 0 = background, k = the k-th name of
+/// [`SequenceRecord::part_labels`]).
+pub fn part_file_name(frame_file: &str) -> String {
+    format!("part{frame_file}")
+}
+
+/// Key of the part names (label k is entry k - 1) inside
+/// [`SequenceRecord::render`], present when the `part` pass was rendered.
+pub const PART_LABELS_KEY: &str = "part_labels";
+
 /// Key of [`RenderCost`] inside [`SequenceRecord::render`].
 pub const RENDER_COST_KEY: &str = "cost";
 
@@ -98,6 +109,13 @@ impl SequenceRecord {
     /// The sequence's render cost, when the record carries one.
     pub fn render_cost(&self) -> Option<RenderCost> {
         let v = self.render.get(RENDER_COST_KEY)?;
+        serde_json::from_value(v.clone()).ok()
+    }
+
+    /// The object's part names in label order (label k is entry k - 1),
+    /// when the sequence has the `part` pass.
+    pub fn part_labels(&self) -> Option<Vec<String>> {
+        let v = self.render.get(PART_LABELS_KEY)?;
         serde_json::from_value(v.clone()).ok()
     }
 

@@ -5,7 +5,7 @@
 //! the plan source, checks each record against a fresh re-plan and its folder.
 
 use super::assign_folders;
-use super::writer::{find_head_sequences, find_sequences, manifest_entry, WORK_DIR};
+use super::writer::{find_head_sequences, find_sequences, manifest_entry, output_files, WORK_DIR};
 use crate::render::PlanSource;
 use anyhow::{Context, Result};
 use grasp_schema::dataset::{head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE};
@@ -235,8 +235,8 @@ fn check_frames(
         ));
     }
     let k = &record.plan.intrinsics;
-    for name in &record.frame_files {
-        let path = root.join(rel).join(name);
+    for name in output_files(record) {
+        let path = root.join(rel).join(&name);
         let size = if decode {
             image::open(&path)
                 .map(|i| (i.width(), i.height()))

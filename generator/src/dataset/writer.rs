@@ -10,8 +10,9 @@
 use crate::render::PlannedKey;
 use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{
-    camera_dir, frame_file_name, head_sequence_dir, padding_for, sequence_dir_name, ManifestEntry,
-    SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER,
+    camera_dir, frame_file_name, head_sequence_dir, padding_for, part_file_name, sequence_dir_name,
+    ManifestEntry, SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE,
+    WRIST_CAMERA_FOLDER,
 };
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -212,10 +213,11 @@ impl DatasetDir {
     }
 }
 
-/// Every frame of `record` is a non-empty file in `dir`.
+/// Every frame of `record` (and its part labels, with the `part` pass) is a
+/// non-empty file in `dir`.
 fn check_frames(dir: &Path, record: &SequenceRecord) -> Result<()> {
-    for name in &record.frame_files {
-        let f = dir.join(name);
+    for name in output_files(record) {
+        let f = dir.join(&name);
         let len = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
         if len == 0 {
             bail!(
@@ -226,6 +228,16 @@ fn check_frames(dir: &Path, record: &SequenceRecord) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The files a sequence folder must hold besides `sequence.json`: the
+/// frames, then the part label images when the record has part labels.
+pub fn output_files(record: &SequenceRecord) -> Vec<String> {
+    let mut files = record.frame_files.clone();
+    if record.part_labels().is_some() {
+        files.extend(record.frame_files.iter().map(|f| part_file_name(f)));
+    }
+    files
 }
 
 pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {

@@ -8,6 +8,7 @@
 
 pub mod cli;
 pub mod orchestrator;
+pub mod parts;
 pub mod planner_source;
 pub mod protocol;
 pub mod scene;
@@ -44,6 +45,9 @@ pub enum Pass {
     Depth,
     /// Object index (1 object, 2 hand, 3 table), in the same EXR.
     Instance,
+    /// Which grasp part of the object each pixel shows, as `partNNNNN.png`
+    /// (computed in Rust from the depth; see [`parts`]).
+    Part,
 }
 
 /// Cycles light bounces.
@@ -88,6 +92,9 @@ pub struct RenderConfig {
     /// Clamp of indirect light, which removes fireflies at few samples.
     pub clamp_indirect: f64,
     pub passes: Vec<Pass>,
+    /// `part` pass: a point this far outside a part's box still gets its
+    /// label, metres (boxes are annotated on the surface, not around it).
+    pub part_tolerance_m: f64,
     /// Blender view transform: `AgX` (filmic, the default) or `Standard`.
     pub view_transform: String,
     /// Render threads per worker; 0 lets Blender use every core.
@@ -117,6 +124,7 @@ impl Default for RenderConfig {
             bounces: Bounces::default(),
             clamp_indirect: 3.0,
             passes: vec![Pass::Rgb],
+            part_tolerance_m: 0.005,
             view_transform: "AgX".into(),
             threads: 0,
             one_call: true,
@@ -161,6 +169,12 @@ impl RenderConfig {
         if self.workers == 0 || self.recycle_every == 0 {
             bail!("[render] workers and recycle_every must be at least 1");
         }
+        if !(self.part_tolerance_m >= 0.0 && self.part_tolerance_m < 0.1) {
+            bail!(
+                "[render] part_tolerance_m: must be in [0, 0.1) metres, got {}",
+                self.part_tolerance_m
+            );
+        }
         if !(self.adaptive_threshold >= 0.0 && self.clamp_indirect >= 0.0) {
             bail!("[render] adaptive_threshold and clamp_indirect must be >= 0");
         }
@@ -181,6 +195,7 @@ impl RenderConfig {
             "bounces": self.bounces,
             "clamp_indirect": self.clamp_indirect,
             "passes": self.passes,
+            "part_tolerance_m": self.part_tolerance_m,
             "view_transform": self.view_transform,
             "threads": self.threads,
             "one_call": self.one_call,

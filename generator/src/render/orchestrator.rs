@@ -9,7 +9,7 @@ use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::writer::{frame_files, write_atomic};
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use anyhow::{anyhow, bail, Context, Result};
-use grasp_schema::dataset::{RenderCost, SequenceRecord, RENDER_COST_KEY};
+use grasp_schema::dataset::{RenderCost, SequenceRecord, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::{BTreeMap, VecDeque};
@@ -70,6 +70,8 @@ enum Event {
     Rendered {
         peak_rss_kib: u64,
         cost: RenderCost,
+        /// Part names in label order (the `part` pass), else empty.
+        part_labels: Vec<String>,
         job: Job,
         plan: Box<SequencePlan>,
         partial: PathBuf,
@@ -96,6 +98,8 @@ struct Shared {
     worker_env: Vec<(String, String)>,
     recycle_every: usize,
     max_retries: u32,
+    /// Whether the `part` pass is on (requests then carry the part boxes).
+    part_pass: bool,
     queue: Mutex<VecDeque<Job>>,
     stop: Arc<AtomicBool>,
     /// The live worker process of each slot, so the main thread can kill it.
@@ -158,6 +162,7 @@ pub fn render(
             worker_env: opts.worker_env.clone(),
             recycle_every: config.recycle_every,
             max_retries: config.max_retries,
+            part_pass: config.passes.contains(&super::Pass::Part),
             queue: Mutex::new(todo),
             stop: opts.stop.clone(),
             children: Mutex::new(vec![None; workers]),
@@ -253,6 +258,7 @@ fn run_pool(
             Ok(Event::Rendered {
                 peak_rss_kib,
                 cost,
+                part_labels,
                 job,
                 plan,
                 partial,
@@ -263,7 +269,7 @@ fn run_pool(
                 let record = SequenceRecord {
                     plan: *plan,
                     frame_files: files,
-                    render: with_cost(&ctx.settings, &cost),
+                    render: record_settings(&ctx.settings, &cost, &part_labels),
                     generator_version: env!("CARGO_PKG_VERSION").to_string(),
                 };
                 match ctx.dataset.finish(&partial, &job.assigned.rel_dir, &record) {
@@ -304,11 +310,19 @@ fn run_pool(
     Ok(interrupted)
 }
 
-/// The render settings plus this sequence's cost, as stored in its record.
-fn with_cost(settings: &serde_json::Value, cost: &RenderCost) -> serde_json::Value {
+/// The render settings plus this sequence's cost and part names, as stored
+/// in its record.
+fn record_settings(
+    settings: &serde_json::Value,
+    cost: &RenderCost,
+    part_labels: &[String],
+) -> serde_json::Value {
     let mut v = settings.clone();
     if let (Some(map), Ok(c)) = (v.as_object_mut(), serde_json::to_value(cost)) {
         map.insert(RENDER_COST_KEY.to_string(), c);
+        if !part_labels.is_empty() {
+            map.insert(PART_LABELS_KEY.to_string(), serde_json::json!(part_labels));
+        }
     }
     v
 }
@@ -451,6 +465,7 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
         let partial = request.out_dir.clone();
         let files = request.frame_files.clone();
         let head_partial = request.head_out_dir.clone();
+        let part_labels: Vec<String> = request.parts.iter().map(|p| p.name.clone()).collect();
         let outcome = (|| -> Result<(u64, RenderCost)> {
             if proc.is_none() {
                 proc = Some(WorkerProc::spawn(slot, ctx)?);
@@ -474,6 +489,7 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                 let _ = tx.send(Event::Rendered {
                     peak_rss_kib,
                     cost,
+                    part_labels,
                     job,
                     plan: Box::new(plan),
                     partial,
@@ -544,12 +560,25 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
         .dataset
         .partial_dir(job.assigned.position, job.attempt)?;
     let head_out_dir = head_partial(&plan, &out_dir)?;
+    let parts = if ctx.part_pass {
+        let parts = ctx
+            .source
+            .parts(&key.object)
+            .with_context(|| format!("the part boxes of object '{}'", key.object))?;
+        if parts.is_empty() {
+            bail!("object '{}' has no parts to label", key.object);
+        }
+        parts
+    } else {
+        Vec::new()
+    };
     let request = RenderRequest {
         id: key.id(),
         object_color: ctx.source.object_color(&key.object),
         out_dir,
         head_out_dir,
         frame_files: frame_files(plan.frames.len()),
+        parts,
         mesh,
         plan: plan.clone(),
     };

@@ -2,6 +2,7 @@
 //! holds Python-backed ray casters that must stay on one thread, so it runs
 //! on its own thread and answers plan requests over a channel.
 
+use super::parts::PartBox;
 use super::scene::{Room, Table};
 use super::source::{Mesh, PlanSource, PlannedKey};
 use super::SceneGeometry;
@@ -120,6 +121,23 @@ impl PlanSource for PlannerSource {
 
     fn scene(&self) -> SceneGeometry {
         scene_from_config(&self.config.plan.scene)
+    }
+
+    fn parts(&self, object: &str) -> Result<Vec<PartBox>> {
+        let spec = self
+            .catalog
+            .object(object)
+            .with_context(|| format!("unknown object '{object}'"))?;
+        Ok(spec
+            .parts
+            .iter()
+            .map(|p| PartBox {
+                name: p.name.clone(),
+                center: p.center,
+                rotation_wxyz: p.rotation_wxyz,
+                size: p.size,
+            })
+            .collect())
     }
 }
 

@@ -34,6 +34,9 @@ pub struct RenderRequest {
     #[serde(default)]
     pub head_out_dir: Option<PathBuf>,
     pub frame_files: Vec<String>,
+    /// The object's part boxes in catalog order, when the `part` pass is on.
+    #[serde(default)]
+    pub parts: Vec<super::parts::PartBox>,
 }
 
 /// A cached object mesh: little-endian f64 xyz vertices and u32 triangles.

@@ -2,6 +2,7 @@
 //! their plans, the object meshes and the scene. The real source wraps the
 //! catalog and the planner; [`StaticSource`] renders given plans.
 
+use super::parts::PartBox;
 use super::SceneGeometry;
 use anyhow::{bail, Context, Result};
 use grasp_schema::taxonomy::Preshape;
@@ -31,6 +32,8 @@ pub trait PlanSource: Send + Sync {
     fn plan(&self, key: &SequenceKey) -> Result<SequencePlan>;
     fn mesh(&self, object: &str) -> Result<Mesh>;
     fn scene(&self) -> SceneGeometry;
+    /// The object's grasp-part boxes in catalog order (the `part` pass).
+    fn parts(&self, object: &str) -> Result<Vec<PartBox>>;
     /// The object's own colour (linear RGB), used when the plan keeps it.
     fn object_color(&self, object: &str) -> [f64; 3] {
         default_object_color(object)
@@ -51,6 +54,8 @@ pub fn default_object_color(object: &str) -> [f64; 3] {
 pub struct StaticSource {
     pub plans: Vec<SequencePlan>,
     pub meshes: BTreeMap<String, Mesh>,
+    /// Part boxes per object (needed only for the `part` pass).
+    pub parts: BTreeMap<String, Vec<PartBox>>,
     pub scene: SceneGeometry,
 }
 
@@ -84,5 +89,12 @@ impl PlanSource for StaticSource {
 
     fn scene(&self) -> SceneGeometry {
         self.scene.clone()
+    }
+
+    fn parts(&self, object: &str) -> Result<Vec<PartBox>> {
+        match self.parts.get(object) {
+            Some(p) => Ok(p.clone()),
+            None => bail!("no part boxes for object '{object}'"),
+        }
     }
 }

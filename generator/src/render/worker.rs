@@ -2,9 +2,11 @@
 //! `bpy` once, builds the scene once, then renders the sequences the parent
 //! sends until told to quit or its stdin closes.
 
+use super::parts::{read_exr, write_labels, PartLabeler};
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
+use crate::catalog::TriMesh;
 use anyhow::{anyhow, bail, Context, Result};
-use grasp_schema::dataset::{RenderCost, HEAD_CAMERA_FOLDER, WRIST_CAMERA_FOLDER};
+use grasp_schema::dataset::{part_file_name, RenderCost, HEAD_CAMERA_FOLDER, WRIST_CAMERA_FOLDER};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::fs::File;
@@ -24,7 +26,7 @@ pub fn run() -> Result<()> {
     let Some(first) = lines.next() else {
         return Ok(());
     };
-    let worker = match init_worker(&first.context("reading the init message")?) {
+    let (worker, settings) = match init_worker(&first.context("reading the init message")?) {
         Ok(w) => w,
         Err(e) => {
             send(
@@ -50,7 +52,7 @@ pub fn run() -> Result<()> {
             Request::Init { .. } => bail!("init sent twice"),
             Request::Render(req) => {
                 let start = Instant::now();
-                let reply = match render(&worker, &req) {
+                let reply = match render(&worker, &settings, &req) {
                     Ok(cost) => Response::Done {
                         id: req.id.clone(),
                         seconds: start.elapsed().as_secs_f64(),
@@ -144,7 +146,7 @@ fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> Result<Bou
         .map_err(py_err)
 }
 
-fn init_worker(line: &str) -> Result<Py<PyAny>> {
+fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value)> {
     let Request::Init { geometry, settings } =
         serde_json::from_str::<Request>(line).context("invalid init message")?
     else {
@@ -163,7 +165,7 @@ fn init_worker(line: &str) -> Result<Py<PyAny>> {
             })
             .map_err(py_err)
             .context("building the Blender scene")?;
-        Ok(worker.unbind())
+        Ok((worker.unbind(), settings.clone()))
     })
 }
 
@@ -171,8 +173,17 @@ fn to_pyerr(e: anyhow::Error) -> PyErr {
     pyo3::exceptions::PyValueError::new_err(format!("{e:#}"))
 }
 
-/// Prepares the sequence, then renders each camera, timing each step.
-fn render(worker: &Py<PyAny>, req: &RenderRequest) -> Result<RenderCost> {
+/// Prepares the sequence, then renders each camera, timing each step (the
+/// `part` labels count as part of their camera's time).
+fn render(
+    worker: &Py<PyAny>,
+    settings: &serde_json::Value,
+    req: &RenderRequest,
+) -> Result<RenderCost> {
+    let labeler = match req.parts.is_empty() {
+        true => None,
+        false => Some(part_labeler(settings, req)?),
+    };
     Python::attach(|py| {
         let w = worker.bind(py);
         let start = Instant::now();
@@ -200,6 +211,10 @@ fn render(worker: &Py<PyAny>, req: &RenderRequest) -> Result<RenderCost> {
             )
             .map_err(py_err)
             .with_context(|| format!("rendering sequence {} from the {camera} camera", req.id))?;
+            if let Some(l) = &labeler {
+                label_parts(l, settings, req, camera == "head", dir)
+                    .with_context(|| format!("part labels of {} ({camera} camera)", req.id))?;
+            }
             cost.camera_seconds
                 .insert(folder.to_string(), start.elapsed().as_secs_f64());
         }
@@ -229,5 +244,75 @@ fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result
     )
     .map_err(py_err)
     .with_context(|| format!("loading the mesh of '{}'", mesh.object))?;
+    Ok(())
+}
+
+fn part_labeler(settings: &serde_json::Value, req: &RenderRequest) -> Result<PartLabeler> {
+    let read = |p: &std::path::Path| {
+        std::fs::read(p).with_context(|| format!("cannot read mesh file {}", p.display()))
+    };
+    let (v, f) = (read(&req.mesh.vertices)?, read(&req.mesh.faces)?);
+    let mesh = TriMesh {
+        vertices: v
+            .chunks_exact(24)
+            .map(|c| {
+                std::array::from_fn(|k| {
+                    f64::from_le_bytes(c[8 * k..8 * k + 8].try_into().unwrap_or_default())
+                })
+            })
+            .collect(),
+        faces: f
+            .chunks_exact(12)
+            .map(|c| {
+                std::array::from_fn(|k| {
+                    u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap_or_default())
+                })
+            })
+            .collect(),
+    };
+    let bad = mesh
+        .faces
+        .iter()
+        .flatten()
+        .any(|&i| i as usize >= mesh.vertices.len());
+    anyhow::ensure!(
+        !bad,
+        "mesh of '{}': a face index is out of range",
+        req.mesh.object
+    );
+    let tolerance = settings["part_tolerance_m"].as_f64().unwrap_or(0.005);
+    PartLabeler::new(&req.parts, &mesh, tolerance)
+        .with_context(|| format!("the parts of object '{}'", req.mesh.object))
+}
+
+/// Turns each frame's EXR (depth, object index) into `partNNNNN.png`, and
+/// removes the EXR unless the depth or instance pass was asked for too.
+fn label_parts(
+    labeler: &PartLabeler,
+    settings: &serde_json::Value,
+    req: &RenderRequest,
+    head: bool,
+    dir: &std::path::Path,
+) -> Result<()> {
+    let passes = settings["passes"].as_array().cloned().unwrap_or_default();
+    let keep_exr = passes.iter().any(|p| p == "depth" || p == "instance");
+    let plan = &req.plan;
+    let k = &plan.intrinsics;
+    for (frame, name) in plan.frames.iter().zip(&req.frame_files) {
+        let pose = match head {
+            true => frame
+                .head_camera
+                .context("a frame without a head camera pose")?,
+            false => frame.camera,
+        };
+        let exr = dir.join(name).with_extension("exr");
+        let buffers = read_exr(&exr)?;
+        let labels = labeler.label(&buffers, k, &pose, &plan.object.pose)?;
+        write_labels(&dir.join(part_file_name(name)), k.width, k.height, labels)?;
+        if !keep_exr {
+            std::fs::remove_file(&exr)
+                .with_context(|| format!("cannot remove {}", exr.display()))?;
+        }
+    }
     Ok(())
 }

@@ -5,6 +5,7 @@
 #![allow(dead_code)]
 
 use generator::appearance::{sample, AppearanceConfig};
+use generator::render::parts::PartBox;
 use generator::render::source::{Mesh, StaticSource};
 use generator::render::{Engine, RenderConfig, RenderOptions, SceneGeometry, Shard};
 use grasp_schema::plan::{CameraIntrinsics, FramePlan, ObjectPlacement, Pose};
@@ -164,11 +165,36 @@ pub fn source(n: u32, frames: usize, px: u32) -> StaticSource {
         ("a_box".to_string(), box_mesh([0.08, 0.08, 0.15])),
         ("b_box".to_string(), box_mesh([0.15, 0.06, 0.05])),
     ]);
+    let parts = BTreeMap::from([
+        ("a_box".to_string(), box_parts([0.08, 0.08, 0.15])),
+        ("b_box".to_string(), box_parts([0.15, 0.06, 0.05])),
+    ]);
     StaticSource {
         plans,
         meshes,
+        parts,
         scene: SceneGeometry::default(),
     }
+}
+
+/// Two parts of a [`box_mesh`]: a 1 cm slab on its top face, then a box
+/// around its sides below that (catalog order: top, sides).
+pub fn box_parts(size: [f64; 3]) -> Vec<PartBox> {
+    let [x, y, z] = size;
+    vec![
+        PartBox {
+            name: "top".into(),
+            center: [0.0, 0.0, z],
+            rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
+            size: [x, y, 0.01],
+        },
+        PartBox {
+            name: "sides".into(),
+            center: [0.0, 0.0, (z - 0.005) / 2.0],
+            rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
+            size: [x + 0.01, y + 0.01, z - 0.005],
+        },
+    ]
 }
 
 pub fn workbench() -> RenderConfig {

@@ -1,0 +1,80 @@
+//! The `part` pass on tiny renders (64 px, 2 frames): Workbench (object found
+//! by the depth against the mesh) and Cycles at 1 sample (object index pass).
+//! The camera ends facing the box's -Y side, so nearly every labelled pixel
+//! of the last frame is the `sides` part; from the first, higher view the top
+//! shows too.
+
+mod render_common;
+
+use generator::dataset::verify::verify;
+use generator::render::{render, Engine, Pass, RenderConfig};
+use grasp_schema::dataset::{part_file_name, ManifestEntry, SequenceRecord, MANIFEST_FILE};
+use render_common::*;
+use std::path::Path;
+use std::sync::Arc;
+
+fn labels(dir: &Path, frame: &str) -> Vec<u8> {
+    image::open(dir.join(part_file_name(frame)))
+        .unwrap()
+        .to_luma8()
+        .into_raw()
+}
+
+fn check(config: RenderConfig, keep_exr: bool) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut src = source(1, 2, 64);
+    src.plans.truncate(1); // a_box, seen from (0, -0.7, 1.15) then (0, -0.25, 0.9)
+    let src = Arc::new(src);
+    let s = render(src.clone(), &config, &options(dir.path(), 1)).unwrap();
+    assert_eq!((s.rendered, s.failed.len()), (1, 0), "{s:?}");
+    let report = verify(dir.path(), Some(src.as_ref()), true).unwrap();
+    assert!(report.ok(), "{}", report.render_text());
+
+    let manifest = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
+    let entry: ManifestEntry = serde_json::from_str(manifest.lines().next().unwrap()).unwrap();
+    let seq = dir.path().join(&entry.path);
+    let record: SequenceRecord =
+        serde_json::from_str(&std::fs::read_to_string(seq.join("sequence.json")).unwrap()).unwrap();
+    assert_eq!(record.part_labels().unwrap(), ["top", "sides"]);
+    assert_eq!(seq.join("00000.exr").exists(), keep_exr);
+
+    let last = labels(&seq, "00001.png");
+    let counts = |l: &[u8]| [0u8, 1, 2].map(|k| l.iter().filter(|x| **x == k).count());
+    let [_, top, sides] = counts(&last);
+    assert!(sides > 160, "{:?}", counts(&last));
+    assert!(
+        sides as f64 >= 0.9 * (top + sides) as f64,
+        "{:?}",
+        counts(&last)
+    );
+    let [_, top, sides] = counts(&labels(&seq, "00000.png"));
+    assert!(
+        top > 5 && sides > 5,
+        "first frame: top {top}, sides {sides}"
+    );
+}
+
+#[test]
+fn part_labels_from_workbench_depth() {
+    if !have_blender() {
+        return;
+    }
+    let mut c = workbench();
+    c.passes = vec![Pass::Rgb, Pass::Part];
+    check(c, false);
+}
+
+#[test]
+fn part_labels_from_cycles_object_index() {
+    if !have_blender() {
+        return;
+    }
+    let c = RenderConfig {
+        engine: Engine::Cycles,
+        samples: 1,
+        denoiser: "none".into(),
+        passes: vec![Pass::Rgb, Pass::Instance, Pass::Part],
+        ..Default::default()
+    };
+    check(c, true);
+}
