@@ -67,6 +67,20 @@ impl BackboneInfo {
         })
     }
 
+    /// Stands for the backbone of features that were generated rather than
+    /// computed (tests and benchmarks of the heads).
+    pub fn generated(id: &str) -> BackboneInfo {
+        BackboneInfo {
+            id: id.to_string(),
+            weights_path: None,
+            weights_sha256: None,
+            width_mult: 1.0,
+            num_classes: 1000,
+            weights_prefix: None,
+            source_checkpoint: None,
+        }
+    }
+
     /// A checkpoint's backbone, to be used frozen: the `backbone.*` tensors
     /// of a from-scratch checkpoint, or the pretrained file a frozen one was
     /// trained on. Also returns the checkpoint's preprocessing, which the

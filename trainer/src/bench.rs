@@ -49,15 +49,7 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
         train: split(w.sequences, w.frames, w.dim, 1)?,
         val: split(w.val_sequences, w.frames, w.dim, 2)?,
         real_data: false,
-        backbone: Some(BackboneInfo {
-            id: "bench".into(),
-            weights_path: None,
-            weights_sha256: None,
-            width_mult: 1.0,
-            num_classes: 1000,
-            weights_prefix: None,
-            source_checkpoint: None,
-        }),
+        backbone: Some(BackboneInfo::generated("bench")),
         feature_dim: w.dim,
         preprocess: crate::backbone::Preprocess::imagenet(224),
     };

@@ -54,6 +54,7 @@ enum Command {
     /// log_x, by_condition, then [[report]] tables with label, x (optional)
     /// and path (relative to the current directory, else to the file).
     /// Flags add to the file's entries and override its settings.
+    #[command(verbatim_doc_comment)]
     Summarize(SummarizeArgs),
     /// Benchmark one training epoch of a head on generated cached features.
     BenchHeads(BenchArgs),
@@ -170,6 +171,7 @@ struct SummarizeArgs {
     /// Name of the x values (table column, plot axis).
     #[arg(long)]
     x_label: Option<String>,
+    /// Title of the summary and of the plot.
     #[arg(long)]
     title: Option<String>,
 }

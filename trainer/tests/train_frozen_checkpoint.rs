@@ -93,23 +93,11 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
             )
         })
         .collect();
-    let a: Vec<f32> = source
-        .backbone()
-        .extract(&frames)
-        .unwrap()
-        .flatten_all()
-        .unwrap()
-        .to_vec1()
-        .unwrap();
-    let b: Vec<f32> = clf
-        .backbone()
-        .extract(&frames)
-        .unwrap()
-        .flatten_all()
-        .unwrap()
-        .to_vec1()
-        .unwrap();
-    assert_eq!(a, b);
+    let features = |c: &Classifier| -> Vec<f32> {
+        let t = c.backbone().extract(&frames).unwrap();
+        t.flatten_all().unwrap().to_vec1().unwrap()
+    };
+    assert_eq!(features(&source), features(&clf));
 
     // The report names the backbone.
     let report = fc.report.unwrap();

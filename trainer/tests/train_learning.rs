@@ -51,15 +51,9 @@ fn learn(head: HeadKind) -> f64 {
         train: split(40, 1, &means),
         val: split(12, 2, &means),
         real_data: false,
-        backbone: Some(trainer::backbone::BackboneInfo {
-            id: "generated-features".into(),
-            weights_path: None,
-            weights_sha256: None,
-            width_mult: 1.0,
-            num_classes: 1000,
-            weights_prefix: None,
-            source_checkpoint: None,
-        }),
+        backbone: Some(trainer::backbone::BackboneInfo::generated(
+            "generated-features",
+        )),
         feature_dim: DIM,
         preprocess: trainer::backbone::Preprocess::imagenet(224),
     };

@@ -85,15 +85,7 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         train: split(features.clone()),
         val: split(features),
         real_data: false,
-        backbone: Some(trainer::backbone::BackboneInfo {
-            id: "test".into(),
-            weights_path: None,
-            weights_sha256: None,
-            width_mult: 1.0,
-            num_classes: 1000,
-            weights_prefix: None,
-            source_checkpoint: None,
-        }),
+        backbone: Some(trainer::backbone::BackboneInfo::generated("test")),
         feature_dim: dim,
         preprocess: trainer::backbone::Preprocess::imagenet(224),
     }
