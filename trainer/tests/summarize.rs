@@ -164,43 +164,31 @@ fn conditions_as_columns() {
     assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("MODEL/CONDITION"));
 }
 
+/// The error of summarizing the one report `e`, with its causes.
+fn load_error(e: Entry) -> String {
+    let spec = SummarySpec {
+        reports: vec![e],
+        ..Default::default()
+    };
+    format!("{:#}", Summary::load(spec).unwrap_err())
+}
+
 #[test]
 fn bad_reports_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nowhere");
-    let err = format!(
-        "{:#}",
-        Summary::load(SummarySpec {
-            reports: vec![entry("m", None, &missing)],
-            ..Default::default()
-        })
-        .unwrap_err()
-    );
+    let err = load_error(entry("m", None, &missing));
     assert!(err.contains("`m`") && err.contains("nowhere"), "{err}");
 
     let empty = write_report(&dir.path().join("empty"), &[]);
-    let err = format!(
-        "{:#}",
-        Summary::load(SummarySpec {
-            reports: vec![entry("e", None, &empty)],
-            ..Default::default()
-        })
-        .unwrap_err()
-    );
+    let err = load_error(entry("e", None, &empty));
     assert!(
         err.contains("video_accuracy") && err.contains("empty"),
         "{err}"
     );
 
     std::fs::write(dir.path().join("junk.json"), "{\"mode\": 3}").unwrap();
-    let err = format!(
-        "{:#}",
-        Summary::load(SummarySpec {
-            reports: vec![entry("j", None, &dir.path().join("junk.json"))],
-            ..Default::default()
-        })
-        .unwrap_err()
-    );
+    let err = load_error(entry("j", None, &dir.path().join("junk.json")));
     assert!(err.contains("junk.json"), "{err}");
 
     let ok = write_report(&dir.path().join("ok"), &[(0.5, 0.5)]);
