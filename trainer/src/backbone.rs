@@ -2,7 +2,7 @@
 //! classifier: how it was made (pretrained file or from scratch), its
 //! preprocessing, and feature extraction.
 
-use crate::checkpoint::{CheckpointMeta, TrainMode, WEIGHTS_FILE};
+use crate::checkpoint::{CheckpointMeta, TrainMode, META_FILE, WEIGHTS_FILE};
 use crate::features::FeatureExtractor;
 use crate::model::{MobileNetV2, MobileNetV2Config};
 use anyhow::{Context, Result};
@@ -86,6 +86,13 @@ impl BackboneInfo {
     /// trained on. Also returns the checkpoint's preprocessing, which the
     /// backbone was trained with and must keep.
     pub fn from_checkpoint(dir_or_json: &Path) -> Result<(BackboneInfo, Preprocess)> {
+        if dir_or_json.is_dir() && !dir_or_json.join(META_FILE).is_file() {
+            anyhow::bail!(
+                "{} is not a checkpoint (no {META_FILE}){}",
+                dir_or_json.display(),
+                seed_hint(dir_or_json)
+            );
+        }
         let (meta, dir) = CheckpointMeta::load(dir_or_json)?;
         let info = match meta.mode {
             TrainMode::FromScratch => {
@@ -206,6 +213,22 @@ impl FeatureExtractor for Backbone {
     fn extract(&self, images: &[RgbImage]) -> Result<Tensor> {
         let x = self.input(images)?;
         Ok(self.net.features(&x, false)?)
+    }
+}
+
+/// ", e.g. RUN/seed-0" when `run` is a training run's directory.
+fn seed_hint(run: &Path) -> String {
+    let mut seeds: Vec<String> = std::fs::read_dir(run)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().join(META_FILE).is_file())
+        .map(|e| e.path().display().to_string())
+        .collect();
+    seeds.sort();
+    match seeds.first() {
+        Some(s) => format!("; its checkpoints are in seed folders, e.g. {s}"),
+        None => String::new(),
     }
 }
 

@@ -56,6 +56,11 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
     let scratch = trainer::experiment::run(&scratch_cfg(root), 2).unwrap();
     let (seed0, seed1) = (&scratch.runs[0].checkpoint, &scratch.runs[1].checkpoint);
 
+    // A run's directory is not a checkpoint: the error points to a seed.
+    let cfg = frozen_cfg(root, &root.join("scratch"), HeadKind::Fc, "bad");
+    let err = format!("{:#}", trainer::experiment::run(&cfg, 1).err().unwrap());
+    assert!(err.contains("seed-0"), "{err}");
+
     // The directory and its best.json are both accepted.
     let cfg = frozen_cfg(root, seed0, HeadKind::Fc, "fc");
     let fc = trainer::experiment::run(&cfg, 1).unwrap();
