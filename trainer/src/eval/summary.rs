@@ -117,6 +117,11 @@ pub struct Row {
     pub frame_accuracy: Option<MeanStd>,
     pub frame_accuracy_without_no_grasp: Option<MeanStd>,
     pub baseline_video_accuracy: Option<MeanStd>,
+    /// Per-video accuracy on objects with one pre-shape and with several.
+    #[serde(default)]
+    pub video_accuracy_single: Option<MeanStd>,
+    #[serde(default)]
+    pub video_accuracy_multi: Option<MeanStd>,
 }
 
 impl Row {
@@ -162,6 +167,8 @@ impl Row {
             frame_accuracy: get("frame_accuracy"),
             frame_accuracy_without_no_grasp: get("frame_accuracy_without_no_grasp"),
             baseline_video_accuracy: get("baseline_video_accuracy"),
+            video_accuracy_single: get("video_accuracy_single"),
+            video_accuracy_multi: get("video_accuracy_multi"),
         })
     }
 
@@ -267,11 +274,11 @@ impl Summary {
         };
         let _ = writeln!(
             s,
-            "| label |{xh} runs | per-video accuracy | per-video error | per-frame accuracy | per-frame w/o no_grasp | baseline |"
+            "| label |{xh} runs | per-video accuracy | per-video error | per-frame accuracy | per-frame w/o no_grasp | baseline | single-grasp videos | multi-grasp videos |"
         );
         let _ = writeln!(
             s,
-            "|---|{}---|---|---|---|---|---|",
+            "|---|{}---|---|---|---|---|---|---|---|",
             if x { "---|" } else { "" }
         );
         for r in &self.rows {
@@ -282,7 +289,7 @@ impl Summary {
             };
             let _ = writeln!(
                 s,
-                "| {} |{xv} {} | {} | {} | {} | {} | {} |",
+                "| {} |{xv} {} | {} | {} | {} | {} | {} | {} | {} |",
                 r.label,
                 r.runs,
                 pct(Some(&r.video_accuracy)),
@@ -290,6 +297,8 @@ impl Summary {
                 pct(r.frame_accuracy.as_ref()),
                 pct(r.frame_accuracy_without_no_grasp.as_ref()),
                 pct(r.baseline_video_accuracy.as_ref()),
+                pct(r.video_accuracy_single.as_ref()),
+                pct(r.video_accuracy_multi.as_ref()),
             );
         }
     }
