@@ -9,6 +9,16 @@ import numpy as np
 from blender_scripts import lights, materials, render, scene
 
 
+def _clear_animation(obj):
+    """Removes an object's keyframes and their action: a cleared action stays
+    in bpy.data with no users, one more per sequence."""
+    data = obj.animation_data
+    action = data.action if data is not None else None
+    obj.animation_data_clear()
+    if action is not None and action.users == 0:
+        bpy.data.actions.remove(action)
+
+
 def _reset_factory():
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
@@ -87,7 +97,7 @@ class Worker:
         color = obj["color"] if obj["randomized"] else object_color
         materials.apply_plain(self.object_mat, color, obj["roughness"])
         self.lights.apply(a["lights"], aim_at=plan["object"]["pose"]["position"])
-        bpy.context.scene.view_settings.exposure = float(a["exposure"])
+        render.set_exposure(self.settings, float(a["exposure"]))
         self.arm.set_hand_visible(bool(a["hand_visible"]))
 
     def prepare(self, plan, object_color):
@@ -150,7 +160,7 @@ class Worker:
     def _render_animation(self, plan, view, out_dir, frame_files):
         moving = [self.arm.camera] + ([] if view is None else [view.camera])
         for obj in moving:
-            obj.animation_data_clear()
+            _clear_animation(obj)
         frames = plan["frames"]
         for frame in frames:
             self.arm.set_pose(frame["camera"])
@@ -165,7 +175,7 @@ class Worker:
         stem = os.path.splitext(frame_files[0])[0]
         render.render_animation(out_dir, first, last, padding=len(stem))
         for obj in moving:
-            obj.animation_data_clear()
+            _clear_animation(obj)
         # Blender names files by frame number; rename if the plan's names differ.
         for frame, name in zip(frames, frame_files):
             made = os.path.join(out_dir, f"{frame['index']:0{len(stem)}d}.png")

@@ -473,8 +473,15 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
             let p = proc.as_mut().expect("worker started above");
             match p.call(&Request::Render(Box::new(request)), &log) {
                 Ok(Response::Done {
-                    peak_rss_kib, cost, ..
-                }) => Ok((peak_rss_kib, cost)),
+                    peak_rss_kib,
+                    rss_kib,
+                    cost,
+                    ..
+                }) => {
+                    // RUST_LOG=generator::render=debug traces worker memory.
+                    tracing::debug!(slot, served, rss_kib, peak_rss_kib, "worker memory");
+                    Ok((peak_rss_kib, cost))
+                }
                 Ok(Response::Error { message, .. }) => Err(anyhow!(message)),
                 Ok(other) => Err(anyhow!("unexpected worker answer {other:?}")),
                 Err(e) => {
