@@ -76,6 +76,10 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
         text.contains("head camera: 4 sequences, 12 frames"),
         "{text}"
     );
+    assert!(
+        text.contains("render cost Head_d435: ") && text.contains("over 12 frames"),
+        "{text}"
+    );
 
     let manifest = std::fs::read_to_string(out.join(MANIFEST_FILE)).unwrap();
     let entries: Vec<ManifestEntry> = manifest

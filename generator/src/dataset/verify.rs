@@ -25,6 +25,8 @@ pub struct VerifyReport {
     pub counts: BTreeMap<String, BTreeMap<Condition, usize>>,
     /// Everything wrong, one line each, naming the file.
     pub problems: Vec<String>,
+    /// Frames and measured render cost (see `dataset stats`).
+    pub stats: super::stats::DatasetStats,
 }
 
 impl VerifyReport {
@@ -58,6 +60,13 @@ impl VerifyReport {
             self.sequences,
             self.frames
         );
+        for (camera, c) in &self.stats.cameras {
+            let _ = writeln!(
+                s,
+                "render cost {camera}: {:.4} s per frame over {} frames",
+                c.seconds_per_frame, c.frames
+            );
+        }
         if self.head_sequences > 0 {
             let _ = writeln!(
                 s,
@@ -83,6 +92,7 @@ pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Res
     let mut report = VerifyReport::default();
     check_manifest(root, &records, &mut report);
     check_head_folders(root, &records, &heads, decode, &mut report);
+    report.stats = super::stats::DatasetStats::from_records(records.values());
     let expected_dirs = match source {
         Some(s) => Some(
             assign_folders(&s.keys()?)
