@@ -116,6 +116,7 @@ $BIN/hannes-run run --checkpoint "$OUT/model/seed-0" --source "$SEQUENCE" --port
   --trigger now --closure delay:0.5 --report "$OUT/replay.jsonl"
 sleep 0.5
 kill $HAND 2>/dev/null || true
+wait $HAND 2>/dev/null || true
 echo "the simulated hand's events ($OUT/hand-events.jsonl):"
 cat "$OUT/hand-events.jsonl"
 elapsed
