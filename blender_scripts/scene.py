@@ -6,6 +6,7 @@ along local -Z, +Y up in the image.
 """
 
 import bpy
+from mathutils import Vector
 
 from blender_scripts import materials
 
@@ -212,19 +213,52 @@ class Arm:
 
 class HeadCamera:
     """The egocentric camera: a second camera with the wrist camera's
-    intrinsics, posed from the plan's `head_camera` poses."""
+    intrinsics, posed from the plan's `head_camera` poses, and the arm it
+    sees: a sleeve from the wrist camera to the planned shoulder (the wrist
+    view's forearm runs along its own camera axis and is hidden here)."""
 
     def __init__(self):
         data = bpy.data.cameras.new("head_camera")
         self.camera = bpy.data.objects.new("head_camera", data)
         self.camera.rotation_mode = "QUATERNION"
         bpy.context.scene.collection.objects.link(self.camera)
+        sleeve_mat = bpy.data.materials.get("sleeve")
+        # Unit-length cylinders along +Z, stretched between the joints.
+        self.links = [
+            cylinder(f"head_view_{name}", radius, 1.0, material=sleeve_mat)
+            for name, radius in (("forearm", 0.04), ("upper_arm", 0.05))
+        ]
+        for link in self.links:
+            link.rotation_mode = "QUATERNION"
+        self.joints = None
+        self.show_arm(False)
 
     def set_intrinsics(self, k):
         apply_intrinsics(self.camera.data, k)
 
-    def set_pose(self, pose):
+    def set_arm(self, shoulder, elbows):
+        """The planned shoulder and per-frame elbows (None: no arm)."""
+        self.joints = None if shoulder is None or elbows is None else (shoulder, elbows)
+
+    def show_arm(self, visible):
+        for link in self.links:
+            link.hide_render = not visible
+
+    def moving(self):
+        return [self.camera, *self.links]
+
+    def set_pose(self, pose, wrist_pose, frame_index):
         set_pose(self.camera, pose)
+        self.show_arm(self.joints is not None)
+        if self.joints is None:
+            return
+        shoulder, elbows = self.joints
+        wrist, elbow = Vector(wrist_pose["position"]), Vector(elbows[frame_index])
+        for link, (a, b) in zip(self.links, ((wrist, elbow), (elbow, Vector(shoulder)))):
+            span = b - a
+            link.location = a
+            link.rotation_quaternion = span.to_track_quat("Z", "Y")
+            link.scale = (1.0, 1.0, max(span.length, 1e-3))
 
 
 def set_pose(obj, pose):

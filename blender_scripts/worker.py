@@ -123,6 +123,8 @@ class Worker:
         finally:
             bpy.context.scene.camera = self.arm.camera
             self.arm.set_hand_visible(bool(plan["appearance"]["hand_visible"]))
+            if self.head is not None:
+                self.head.show_arm(False)
 
     def render(self, plan, out_dir, frame_files, object_color, head_out_dir=None):
         """Prepares `plan` and renders the wrist view, and the head view too
@@ -139,6 +141,11 @@ class Worker:
         if self.head is None:
             self.head = scene.HeadCamera()
         self.head.set_intrinsics(plan["intrinsics"])
+        sampled = plan.get("sampled", {})
+        elbows = sampled.get("head_elbows")
+        if elbows is not None and len(elbows) != len(plan["frames"]):
+            raise ValueError(f"{len(elbows)} head_elbows for {len(plan['frames'])} frames")
+        self.head.set_arm(sampled.get("head_shoulder"), elbows)
         # A head camera sees the hand whatever the wrist view's setting.
         self.arm.set_hand_visible(True, forearm=False)
         return self.head
@@ -148,27 +155,28 @@ class Worker:
         if self.settings.get("one_call", True) and not extra:
             self._render_animation(plan, view, out_dir, frame_files)
             return
-        for frame, name in zip(plan["frames"], frame_files):
+        for i, (frame, name) in enumerate(zip(plan["frames"], frame_files)):
             self.arm.set_pose(frame["camera"])
             if view is not None:
-                view.set_pose(frame["head_camera"])
+                view.set_pose(frame["head_camera"], frame["camera"], i)
             render.render_still()
             png = os.path.join(out_dir, name)
             exr = os.path.splitext(png)[0] + ".exr" if extra else None
             render.write_frame(png, exr)
 
     def _render_animation(self, plan, view, out_dir, frame_files):
-        moving = [self.arm.camera] + ([] if view is None else [view.camera])
+        moving = [self.arm.camera] + ([] if view is None else view.moving())
         for obj in moving:
             _clear_animation(obj)
         frames = plan["frames"]
-        for frame in frames:
+        for i, frame in enumerate(frames):
             self.arm.set_pose(frame["camera"])
             if view is not None:
-                view.set_pose(frame["head_camera"])
+                view.set_pose(frame["head_camera"], frame["camera"], i)
             for obj in moving:
                 obj.keyframe_insert("location", frame=frame["index"])
                 obj.keyframe_insert("rotation_quaternion", frame=frame["index"])
+                obj.keyframe_insert("scale", frame=frame["index"])
         first, last = frames[0]["index"], frames[-1]["index"]
         if [f["index"] for f in frames] != list(range(first, last + 1)):
             raise ValueError("frame indices are not consecutive")

@@ -192,6 +192,8 @@ fn the_head_camera_changes_nothing_else_in_the_plan() {
         assert!(a.frames.iter().all(|f| f.head_camera.is_none()));
         assert!(b.frames.iter().all(|f| f.head_camera.is_some()));
         assert!(b.sampled.contains_key("head_eye"));
+        let elbows = b.sampled["head_elbows"].as_array().unwrap();
+        assert_eq!(elbows.len(), b.frames.len());
         for f in &mut b.frames {
             f.head_camera = None;
         }

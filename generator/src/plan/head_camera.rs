@@ -14,6 +14,11 @@
 //! a cone of half-angle `aim_jitter_deg`, with a small roll about the view
 //! axis. Every value comes from the sequence's own `head_camera` sub-stream,
 //! so turning the camera on changes no other value of the plan.
+//!
+//! The right shoulder sits at a fixed offset from the eyes
+//! ([`SHOULDER_FROM_EYE`]); for every frame, [`elbow`] bends a two-link arm
+//! from it to the wrist camera, so the head view can draw the upper arm and
+//! the forearm (the wrist view's forearm runs along its own camera axis).
 
 use super::scene::{uniform, SceneConfig};
 use super::wrist::{look_at, roll, to_wxyz};
@@ -24,6 +29,32 @@ use nalgebra::{Unit, UnitQuaternion, Vector3};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
+
+/// The right shoulder relative to the eyes (world axes: slightly behind,
+/// to the right, below), metres; adult averages.
+pub const SHOULDER_FROM_EYE: [f64; 3] = [-0.05, -0.18, -0.22];
+
+/// Shoulder-to-elbow and elbow-to-wrist-camera lengths, metres.
+pub const UPPER_ARM_M: f64 = 0.30;
+pub const FOREARM_M: f64 = 0.27;
+
+/// The elbow of a two-link arm from `shoulder` to `wrist`, bent down and a
+/// little outwards (to the right, -Y) as a relaxed arm is. Out of reach,
+/// the arm is straight towards the wrist.
+pub fn elbow(shoulder: &Vector3<f64>, wrist: &Vector3<f64>) -> Vector3<f64> {
+    let (l1, l2) = (UPPER_ARM_M, FOREARM_M);
+    let d = wrist - shoulder;
+    let u = d.try_normalize(1e-9).unwrap_or(-Vector3::z());
+    let reach = d.norm().clamp((l1 - l2).abs(), l1 + l2);
+    // Law of cosines: the elbow circle's centre along u and its radius.
+    let along = (l1 * l1 - l2 * l2 + reach * reach) / (2.0 * reach);
+    let radius = (l1 * l1 - along * along).max(0.0).sqrt();
+    let bend = Vector3::new(0.0, -0.3, -1.0);
+    let n = (bend - u * u.dot(&bend))
+        .try_normalize(1e-9)
+        .unwrap_or_else(|| u.cross(&Vector3::x()).normalize());
+    shoulder + u * along + n * radius
+}
 
 /// `[plan.head_camera]`: off unless `enabled = true`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,6 +144,11 @@ pub struct HeadCamera {
 }
 
 impl HeadCamera {
+    /// The right shoulder, world.
+    pub fn shoulder(&self) -> Vector3<f64> {
+        self.eye + Vector3::from(SHOULDER_FROM_EYE)
+    }
+
     pub fn pose(&self) -> Pose {
         Pose {
             position: self.eye.into(),
@@ -124,6 +160,7 @@ impl HeadCamera {
     pub fn sampled(&self) -> Vec<(&'static str, serde_json::Value)> {
         vec![
             ("head_eye", json!(self.eye.as_slice())),
+            ("head_shoulder", json!(self.shoulder().as_slice())),
             (
                 "head_posture",
                 json!(if self.seated { "seated" } else { "standing" }),
@@ -216,6 +253,29 @@ mod tests {
         }
         // The cone is used, not just its axis.
         assert!(largest > 0.9 * cfg.aim_jitter_deg.to_radians());
+    }
+
+    #[test]
+    fn the_elbow_joins_links_of_the_arm_lengths_and_bends_down() {
+        let shoulder = Vector3::new(-0.6, -0.2, 1.3);
+        for wrist in [
+            Vector3::new(-0.3, -0.1, 0.95),
+            Vector3::new(-0.2, 0.1, 1.2),
+            Vector3::new(-0.55, -0.25, 1.0),
+        ] {
+            let e = elbow(&shoulder, &wrist);
+            assert!(((e - shoulder).norm() - UPPER_ARM_M).abs() < 1e-9);
+            assert!(((wrist - e).norm() - FOREARM_M).abs() < 1e-9);
+            // Below the shoulder-wrist line.
+            let t = (e - shoulder).dot(&(wrist - shoulder)) / (wrist - shoulder).norm_squared();
+            assert!(e.z < shoulder.z + t * (wrist.z - shoulder.z));
+        }
+        // Out of reach: straight, the upper arm pointing at the wrist.
+        let far = Vector3::new(0.4, -0.2, 1.3);
+        let e = elbow(&shoulder, &far);
+        assert!((e - (shoulder + Vector3::x() * UPPER_ARM_M)).norm() < 1e-9);
+        // Degenerate: the wrist on the shoulder gives a finite point.
+        assert!(elbow(&shoulder, &shoulder).iter().all(|x| x.is_finite()));
     }
 
     #[test]

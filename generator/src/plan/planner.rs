@@ -503,9 +503,12 @@ impl Planner {
             })
             .collect::<Vec<_>>();
         let head = self.head_camera(key, geo, &c.placement, stream);
+        let mut elbows = Vec::new();
         if let Some(h) = &head {
             for f in &mut frames {
                 f.head_camera = Some(h.pose());
+                let e = super::head_camera::elbow(&h.shoulder(), &f.camera.position.into());
+                elbows.push([e.x, e.y, e.z]);
             }
         }
 
@@ -551,6 +554,9 @@ impl Planner {
         schedule.record(&mut put);
         for (k, v) in head.iter().flat_map(|h| h.sampled()) {
             put(k, v);
+        }
+        if head.is_some() {
+            put("head_elbows", json!(elbows));
         }
 
         let appearance = Some(crate::appearance::sample(
