@@ -19,7 +19,7 @@
 # (--resume), finished trainings and evaluations are skipped.
 # Knobs (environment): OUT, BIN, SEEDS (3), WIDTH (0.35), INPUT (64),
 # BACKBONE_EPOCHS (20), SCRATCH_EPOCHS (10), SCRATCH_LR (3e-3), TRAIN_SEQ
-# (16 sequences per pair), TEST_SEQ (2), EGO_SEQ (4), QUALITY_SEQ (4).
+# (16 sequences per pair), TEST_SEQ (2), EGO_SEQ (4), QUALITY_SEQ (2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/experiments}
@@ -36,7 +36,7 @@ SCRATCH_LR=${SCRATCH_LR:-3e-3}
 TRAIN_SEQ=${TRAIN_SEQ:-16}
 TEST_SEQ=${TEST_SEQ:-2}
 EGO_SEQ=${EGO_SEQ:-4}
-QUALITY_SEQ=${QUALITY_SEQ:-4}
+QUALITY_SEQ=${QUALITY_SEQ:-2}
 BASE=configs/experiments.toml
 CONDITIONS=(default fast from_ground seated background)
 mkdir -p "$OUT"
@@ -44,16 +44,21 @@ LOG="$OUT/commands.log"
 
 # Logs and runs one command; EXPERIMENTS.md quotes these lines.
 run() {
-  echo "+ $*" | tee -a "$LOG"
+  echo "+ $*" | tee -a "$LOG" >&2
   "$@"
 }
 
 # A render config: BASE with the seed, sequences per pair and conditions
-# replaced, plus any extra TOML appended.
+# replaced (and, when set, RENDER_RES pixels square, RENDER_SAMPLES Cycles
+# samples instead of Workbench), plus any extra TOML appended.
 derived_config() { # out seed per_pair conditions [extra toml]
   local out=$1 seed=$2 per_pair=$3 conditions=$4 extra=${5:-}
-  sed -e "s/^seed = .*/seed = $seed/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $per_pair/" \
-    -e "s/^conditions = .*/conditions = [$conditions]/" "${RENDER_BASE:-$BASE}" >"$out"
+  local edits=(-e "s/^seed = .*/seed = $seed/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $per_pair/"
+    -e "s/^conditions = .*/conditions = [$conditions]/")
+  [ -z "${RENDER_RES:-}" ] || edits+=(-e "s/^resolution = .*/resolution = [$RENDER_RES, $RENDER_RES]/")
+  [ -z "${RENDER_SAMPLES:-}" ] ||
+    edits+=(-e "s/^engine = .*/engine = \"cycles\"\nsamples = $RENDER_SAMPLES/")
+  sed "${edits[@]}" "${RENDER_BASE:-$BASE}" >"$out"
   [ -z "$extra" ] || printf '%s\n' "$extra" >>"$out"
 }
 
@@ -155,21 +160,22 @@ stage_egocentric() {
 
 # Error against render cost: the same plans rendered by Workbench and by
 # Cycles at 1, 4 and 16 samples (denoised), heads trained on each; one test
-# set rendered by Cycles at 16 samples.
+# set rendered by Cycles at 16 samples. 64 x 64 pixels, the network's input.
 stage_quality() {
-  local q="$OUT/quality" cycles
-  cycles() { printf '[render]\nengine = "cycles"\nsamples = %s' "$1"; }
-  for c in default background; do render "$q" "test-$c" 3 "$TEST_SEQ" "$c" "$(cycles 16)"; done
+  local q="$OUT/quality"
+  export RENDER_RES=64
+  RENDER_SAMPLES=16 render "$q" test-default 3 "$TEST_SEQ" default
   for level in workbench cycles-1 cycles-4 cycles-16; do
-    local extra='' d="$q/$level"
-    [ "$level" = workbench ] || extra=$(cycles "${level#cycles-}")
-    render "$d" train 1 "$QUALITY_SEQ" default "$extra"
-    render "$d" val 2 1 default "$extra"
-    for c in default background; do ln -sfn "../test-$c" "$d/test-$c"; done
+    local d="$q/$level" samples=''
+    [ "$level" = workbench ] || samples=${level#cycles-}
+    RENDER_SAMPLES=$samples render "$d" train 1 "$QUALITY_SEQ" default
+    RENDER_SAMPLES=$samples render "$d" val 2 1 default
+    ln -sfn ../test-default "$d/test-default"
     frozen_heads "$d" "$d/heads-fc" fc
-    evaluate "$d" "$d/heads-fc" "default background"
+    evaluate "$d" "$d/heads-fc" default
     run "$BIN/grasp-gen" dataset stats "$d/train" --json >"$d/train-stats.json"
   done
+  unset RENDER_RES
 }
 
 # The real YCB meshes (when ../shared/ycb is present): the same protocol.
@@ -213,14 +219,12 @@ stage_summary() {
   run "$BIN/grasp-train" summarize --x-label "training sequences per pair" --log-x \
     --title "Error against training set size (FC head, frozen backbone)" --out "$s/size" "${reports[@]}"
   reports=()
-  for c in default background; do
-    for level in workbench cycles-1 cycles-4 cycles-16; do
-      local d="$OUT/quality/$level"
-      local x
-      x=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds_per_frame"])' \
-        "$d/train-stats.json")
-      reports+=(--report "$c/$level=$x:$d/heads-fc/report/$c")
-    done
+  for level in workbench cycles-1 cycles-4 cycles-16; do
+    local d="$OUT/quality/$level" x
+    # render seconds per frame, the object swap and appearance included
+    x=$(python3 -c 'import json,sys; s = json.load(open(sys.argv[1])); print(s["cameras"]["Wrist_d435"]["seconds_per_frame"] + s["setup_seconds_per_frame"])' \
+      "$d/train-stats.json")
+    reports+=(--report "default/$level=$x:$d/heads-fc/report/default")
   done
   run "$BIN/grasp-train" summarize --x-label "render seconds per training frame" --log-x \
     --title "Error against render cost (FC head, frozen backbone)" --out "$s/quality" "${reports[@]}"
