@@ -72,7 +72,7 @@ render() { # dir name seed per_pair condition [extra toml]
 
 # Train (seed 1), val (seed 2) and test sets (seed 3) into DIR.
 render_sets() { # dir train_per_pair val_per_pair test_per_pair extra "conditions"
-  local dir=$1 per_pair=$2 val_per_pair=$3 test_per_pair=$4 extra=$5 conds=$6
+  local dir=$1 per_pair=$2 val_per_pair=$3 test_per_pair=$4 extra=$5 conds=$6 c
   shift 6
   render "$dir" train 1 "$per_pair" default "$extra" "$@"
   render "$dir" val 2 "$val_per_pair" default "$extra" "$@"
@@ -100,6 +100,7 @@ scratch() { # data runs seed epochs flags...
 frozen_heads() { # data runs head flags...
   local data=$1 runs=$2 head=$3
   shift 3
+  local s
   for s in $(seq 0 $((SEEDS - 1))); do
     train "$data" "$runs" "$s" --mode frozen-pretrained --weights "$OUT/backbone/seed-0" \
       --head "$head" "$@"
@@ -110,8 +111,8 @@ frozen_heads() { # data runs head flags...
 evaluate() { # data runs "conditions" [flags...]
   local data=$1 runs=$2 conds=$3
   shift 3
-  local ckpts=()
-  for d in "$runs"/seed-*; do ckpts+=(-c "$d"); done
+  local ckpts=() ckpt c
+  for ckpt in "$runs"/seed-*; do ckpts+=(-c "$ckpt"); done
   for c in $conds; do
     [ -f "$runs/report/$c/report.json" ] ||
       run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$data/test-$c" \
