@@ -108,10 +108,18 @@ impl HeadCameraConfig {
             "plan.head_camera.behind_edge_m must be >= 0 (the user cannot stand in the table), got {:?}",
             self.behind_edge_m
         );
-        for (name, r) in [
-            ("standing_eye_height_m", self.standing_eye_height_m),
-            ("seated_eye_height_m", self.seated_eye_height_m),
-        ] {
+        // The eyes must fit the scene only when the camera is used: a scaled
+        // scene (tests plan millimetre tables) need not rescale a camera
+        // that stays off.
+        let heights = if self.enabled {
+            vec![
+                ("standing_eye_height_m", self.standing_eye_height_m),
+                ("seated_eye_height_m", self.seated_eye_height_m),
+            ]
+        } else {
+            Vec::new()
+        };
+        for (name, r) in heights {
             ensure!(
                 r[0] > scene.table_height && r[1] < scene.room_size[2],
                 "plan.head_camera.{name} {r:?} must lie between the table top ({}) and the ceiling ({})",
@@ -302,12 +310,16 @@ mod tests {
     #[test]
     fn bad_ranges_name_the_field() {
         let scene = SceneConfig::default();
-        let bad = HeadCameraConfig {
+        let mut bad = HeadCameraConfig {
+            enabled: true,
             seated_eye_height_m: [0.5, 0.7],
             ..Default::default()
         };
         let e = bad.validate(&scene).unwrap_err().to_string();
         assert!(e.contains("plan.head_camera.seated_eye_height_m"), "{e}");
+        // Eyes below the table only matter when the camera is on.
+        bad.enabled = false;
+        bad.validate(&scene).unwrap();
         let bad = HeadCameraConfig {
             lateral_m: [0.3, 0.1],
             ..Default::default()
