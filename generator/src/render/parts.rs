@@ -211,29 +211,10 @@ mod tests {
 
     /// A 10 cm cube on z in [0, 0.1], two parts: the top slab and the -X face.
     fn cube() -> (TriMesh, Vec<PartBox>) {
-        let v = |x: f64, y: f64, z: f64| [x * 0.05, y * 0.05, z * 0.1];
-        let vertices = vec![
-            v(-1., -1., 0.),
-            v(1., -1., 0.),
-            v(1., 1., 0.),
-            v(-1., 1., 0.),
-            v(-1., -1., 1.),
-            v(1., -1., 1.),
-            v(1., 1., 1.),
-            v(-1., 1., 1.),
-        ];
-        let quads = [
-            [0, 3, 2, 1],
-            [4, 5, 6, 7],
-            [0, 1, 5, 4],
-            [1, 2, 6, 5],
-            [2, 3, 7, 6],
-            [3, 0, 4, 7],
-        ];
-        let faces = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
+        let mut mesh = crate::catalog::shapes::cuboid([0.1, 0.1, 0.1]);
+        for v in &mut mesh.vertices {
+            v[2] += 0.05;
+        }
         let parts = vec![
             PartBox {
                 name: "top".into(),
@@ -248,7 +229,7 @@ mod tests {
                 size: [0.01, 0.1, 0.08],
             },
         ];
-        (TriMesh { vertices, faces }, parts)
+        (mesh, parts)
     }
 
     fn intrinsics(px: u32) -> CameraIntrinsics {
