@@ -5,10 +5,12 @@
 //!
 //! Parameter names follow PyTorch (`fc.weight`, `lstm.weight_ih_l0`, ...,
 //! gate order i, f, g, o), so heads can be exchanged with the authors' code.
-//! The LSTM projects every input step in one matrix product before the
-//! recurrence, which then only multiplies by `weight_hh`.
+//! The LSTM projects every input step in one matrix product, then runs the
+//! recurrence as one fused op (`model::lstm`).
 
-use candle_core::{Module, Result, Tensor, D};
+use crate::model::linear::linear;
+use crate::model::lstm::lstm_recurrence;
+use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 
@@ -55,18 +57,32 @@ impl LstmState {
 #[derive(Debug, Clone)]
 struct Lstm {
     w_ih: Tensor,
-    w_hh_t: Tensor,
+    w_hh: Tensor,
+    /// `bias_ih + bias_hh`: both only ever appear summed.
     bias: Tensor,
     hidden: usize,
+}
+
+/// A linear layer's parameters, applied with [`linear`] so that cached
+/// (constant) inputs get no gradient.
+#[derive(Debug, Clone)]
+struct Fc {
+    weight: Tensor,
+    bias: Tensor,
+}
+
+impl Fc {
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        linear(x, &self.weight, &self.bias)
+    }
 }
 
 #[derive(Debug, Clone)]
 pub struct Head {
     pub cfg: HeadConfig,
     lstm: Option<Lstm>,
-    fc: candle_nn::Linear,
+    fc: Fc,
 }
-
 impl Head {
     /// Builds the head from `vb` (a VarMap while training, a checkpoint when
     /// loading).
@@ -75,10 +91,10 @@ impl Head {
             HeadKind::Fc => cfg.feature_dim,
             HeadKind::Lstm => cfg.lstm_hidden,
         };
-        let fc = candle_nn::Linear::new(
-            vb.get((cfg.classes, fc_in), "fc.weight")?,
-            Some(vb.get(cfg.classes, "fc.bias")?),
-        );
+        let fc = Fc {
+            weight: vb.get((cfg.classes, fc_in), "fc.weight")?,
+            bias: vb.get(cfg.classes, "fc.bias")?,
+        };
         let lstm = match cfg.kind {
             HeadKind::Fc => None,
             HeadKind::Lstm => {
@@ -90,7 +106,7 @@ impl Head {
                 let b_hh = vb.get(4 * h, "bias_hh_l0")?;
                 Some(Lstm {
                     w_ih,
-                    w_hh_t: w_hh.t()?,
+                    w_hh,
                     bias: (b_ih + b_hh)?,
                     hidden: h,
                 })
@@ -177,14 +193,14 @@ impl Head {
             cfg: self.cfg,
             lstm: self.lstm.as_ref().map(|l| Lstm {
                 w_ih: l.w_ih.detach(),
-                w_hh_t: l.w_hh_t.detach(),
+                w_hh: l.w_hh.detach(),
                 bias: l.bias.detach(),
                 hidden: l.hidden,
             }),
-            fc: candle_nn::Linear::new(
-                self.fc.weight().detach(),
-                self.fc.bias().map(Tensor::detach),
-            ),
+            fc: Fc {
+                weight: self.fc.weight.detach(),
+                bias: self.fc.bias.detach(),
+            },
         }
     }
 }
@@ -195,32 +211,24 @@ impl Lstm {
         Ok(LstmState { h: z.clone(), c: z })
     }
 
-    /// Returns the hidden states `(B, T, H)` and the final state.
+    /// Returns the hidden states `(B, T, H)` and the final state: the input
+    /// projection of every step in one product, then the fused recurrence.
     fn run(&self, x: &Tensor, state: &LstmState) -> Result<(Tensor, LstmState)> {
-        let (b, t, d) = x.dims3()?;
-        let h4 = 4 * self.hidden;
-        // Input projection of every step at once, laid out time-major.
-        let xi = x
-            .reshape((b * t, d))?
-            .matmul(&self.w_ih.t()?)?
-            .broadcast_add(&self.bias)?
-            .reshape((b, t, h4))?
-            .transpose(0, 1)?
-            .contiguous()?;
-        let (mut h, mut c) = (state.h.clone(), state.c.clone());
-        let mut outputs = Vec::with_capacity(t);
-        for step in 0..t {
-            let gates = (xi.get(step)? + h.matmul(&self.w_hh_t)?)?;
-            let chunks = gates.chunk(4, D::Minus1)?;
-            let i = candle_nn::ops::sigmoid(&chunks[0])?;
-            let f = candle_nn::ops::sigmoid(&chunks[1])?;
-            let g = chunks[2].tanh()?;
-            let o = candle_nn::ops::sigmoid(&chunks[3])?;
-            c = ((f * &c)? + (i * g)?)?;
-            h = (o * c.tanh()?)?;
-            outputs.push(h.clone());
+        let t = x.dim(1)?;
+        let h = self.hidden;
+        if t == 0 {
+            let (b, _, _) = x.dims3()?;
+            let empty = Tensor::zeros((b, 0, h), x.dtype(), x.device())?;
+            return Ok((empty, state.clone()));
         }
-        let hs = Tensor::stack(&outputs, 1)?;
-        Ok((hs, LstmState { h, c }))
+        let gates_x = linear(x, &self.w_ih, &self.bias)?;
+        let state0 = Tensor::cat(&[&state.h, &state.c], 1)?;
+        let out = lstm_recurrence(&gates_x, &self.w_hh, &state0)?;
+        let last = out.narrow(1, t - 1, 1)?.squeeze(1)?;
+        let state = LstmState {
+            h: last.narrow(1, 0, h)?,
+            c: last.narrow(1, h, h)?,
+        };
+        Ok((out.narrow(2, 0, h)?, state))
     }
 }

@@ -12,7 +12,7 @@
 //! there the decay does not pass through the moment estimates.
 
 use candle_core::backprop::GradStore;
-use candle_core::{Result, Tensor, Var};
+use candle_core::{DType, Result, Tensor, Var};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -40,8 +40,9 @@ impl Default for AdamConfig {
 
 struct Slot {
     var: Var,
-    m: Tensor,
-    v: Tensor,
+    /// First and second moment estimates, updated in place.
+    m: Vec<f32>,
+    v: Vec<f32>,
 }
 
 pub struct Adam {
@@ -51,13 +52,20 @@ pub struct Adam {
 }
 
 impl Adam {
+    /// Adam over `vars`, which must be f32 (all of the trainer's are).
     pub fn new(vars: Vec<Var>, cfg: AdamConfig) -> Result<Self> {
         let slots = vars
             .into_iter()
             .map(|var| {
-                let m = var.zeros_like()?;
-                let v = var.zeros_like()?;
-                Ok(Slot { var, m, v })
+                if var.dtype() != DType::F32 {
+                    candle_core::bail!("Adam: parameters must be f32, got {:?}", var.dtype());
+                }
+                let n = var.elem_count();
+                Ok(Slot {
+                    var,
+                    m: vec![0.0; n],
+                    v: vec![0.0; n],
+                })
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Adam {
@@ -76,31 +84,54 @@ impl Adam {
     }
 
     /// One update from `grads`. Parameters without a gradient are left as
-    /// they are (PyTorch skips parameters whose `.grad` is None).
+    /// they are (PyTorch skips parameters whose `.grad` is None). The scalar
+    /// factors are computed in f64, as PyTorch computes them in Python, and
+    /// each parameter is updated in one pass over its values.
     pub fn step(&mut self, grads: &GradStore) -> Result<()> {
         self.step += 1;
         let c = self.cfg;
-        let bc1 = 1.0 - c.beta1.powi(self.step);
-        let bc2 = 1.0 - c.beta2.powi(self.step);
-        let step_size = c.lr / bc1;
-        let inv_sqrt_bc2 = 1.0 / bc2.sqrt();
+        let k = Factors {
+            beta1: c.beta1 as f32,
+            beta2: c.beta2 as f32,
+            eps: c.eps as f32,
+            weight_decay: c.weight_decay as f32,
+            step_size: (c.lr / (1.0 - c.beta1.powi(self.step))) as f32,
+            inv_sqrt_bc2: (1.0 / (1.0 - c.beta2.powi(self.step)).sqrt()) as f32,
+        };
         for slot in &mut self.slots {
             let Some(grad) = grads.get(slot.var.as_tensor()) else {
                 continue;
             };
-            let p = slot.var.as_tensor().detach();
-            let g = if c.weight_decay != 0.0 {
-                (grad + (&p * c.weight_decay)?)?
-            } else {
-                grad.clone()
-            };
-            slot.m = ((&slot.m * c.beta1)? + (&g * (1.0 - c.beta1))?)?;
-            slot.v = ((&slot.v * c.beta2)? + (g.sqr()? * (1.0 - c.beta2))?)?;
-            let denom = ((slot.v.sqrt()? * inv_sqrt_bc2)? + c.eps)?;
-            let update = ((&slot.m / denom)? * step_size)?;
-            slot.var.set(&(p - update)?)?;
+            let p: Vec<f32> = slot.var.as_tensor().flatten_all()?.to_vec1()?;
+            let g: Vec<f32> = grad.flatten_all()?.to_dtype(DType::F32)?.to_vec1()?;
+            let p = k.update(p, &g, &mut slot.m, &mut slot.v);
+            let shape = slot.var.shape().clone();
+            slot.var
+                .set(&Tensor::from_vec(p, shape, slot.var.device())?)?;
         }
         Ok(())
+    }
+}
+
+/// The per-step constants of the update.
+struct Factors {
+    beta1: f32,
+    beta2: f32,
+    eps: f32,
+    weight_decay: f32,
+    step_size: f32,
+    inv_sqrt_bc2: f32,
+}
+
+impl Factors {
+    fn update(&self, mut p: Vec<f32>, grad: &[f32], m: &mut [f32], v: &mut [f32]) -> Vec<f32> {
+        for (((p, g), m), v) in p.iter_mut().zip(grad).zip(m).zip(v) {
+            let g = g + self.weight_decay * *p;
+            *m = self.beta1 * *m + (1.0 - self.beta1) * g;
+            *v = self.beta2 * *v + (1.0 - self.beta2) * g * g;
+            *p -= self.step_size * *m / (v.sqrt() * self.inv_sqrt_bc2 + self.eps);
+        }
+        p
     }
 }
 
@@ -120,7 +151,7 @@ mod tests {
             eps: 1e-8,
             weight_decay: 0.5,
         };
-        let var = Var::new(&[2.0f64], &Device::Cpu).unwrap();
+        let var = Var::new(&[2.0f32], &Device::Cpu).unwrap();
         let mut adam = Adam::new(vec![var.clone()], cfg).unwrap();
         let (mut m, mut v, mut p) = (0.0f64, 0.0f64, 2.0f64);
         for t in 1..=2 {
@@ -135,9 +166,17 @@ mod tests {
             let bc1 = 1.0 - 0.9f64.powi(t);
             let bc2 = 1.0 - 0.999f64.powi(t);
             p -= 0.1 / bc1 * m / (v.sqrt() / bc2.sqrt() + 1e-8);
-            let got: Vec<f64> = var.as_tensor().to_vec1().unwrap();
-            assert!((got[0] - p).abs() < 1e-12, "step {t}: {} vs {p}", got[0]);
+            let got: Vec<f32> = var.as_tensor().to_vec1().unwrap();
+            let got = f64::from(got[0]);
+            assert!((got - p).abs() < 1e-6 * p.abs(), "step {t}: {got} vs {p}");
         }
+    }
+
+    #[test]
+    fn rejects_non_f32_parameters() {
+        let var = Var::new(&[1.0f64], &Device::Cpu).unwrap();
+        let err = Adam::new(vec![var], AdamConfig::default()).err().unwrap();
+        assert!(err.to_string().contains("f32"), "{err}");
     }
 
     #[test]
@@ -149,16 +188,16 @@ mod tests {
             weight_decay: 1e-3,
             ..Default::default()
         };
-        let var = Var::new(&[1.0f64], &Device::Cpu).unwrap();
+        let var = Var::new(&[1.0f32], &Device::Cpu).unwrap();
         let mut adam = Adam::new(vec![var.clone()], cfg).unwrap();
         let loss = var.as_tensor().sum_all().unwrap();
         let mut grads = loss.backward().unwrap();
         grads.insert(
             var.as_tensor(),
-            Tensor::new(&[0.0f64], &Device::Cpu).unwrap(),
+            Tensor::new(&[0.0f32], &Device::Cpu).unwrap(),
         );
         adam.step(&grads).unwrap();
-        let got: Vec<f64> = var.as_tensor().to_vec1().unwrap();
+        let got: Vec<f32> = var.as_tensor().to_vec1().unwrap();
         assert!((got[0] - 0.99).abs() < 1e-6, "{}", got[0]);
     }
 }

@@ -14,6 +14,7 @@ use crate::data::split::{self, Split};
 use crate::data::{self, BadData, Dataset};
 use crate::features::{FeatureCache, SequenceFeatures};
 use crate::heads::{Head, HeadConfig, HeadKind};
+use crate::model::gather::gather_rows;
 use crate::optim::Adam;
 use anyhow::{Context, Result};
 use candle_core::{DType, Device, Tensor, D};
@@ -221,27 +222,21 @@ impl Net {
         v
     }
 
-    /// Features `(rows, D)` of `rows` of `frames`.
+    /// Features `(rows, D)` of `rows` of `frames` (`None`: a zero padding
+    /// row, for sequence batches).
     fn features(
         &self,
         frames: &SplitFrames,
-        rows: &[usize],
+        rows: &[Option<usize>],
         train: bool,
         rng: &mut impl Rng,
     ) -> Result<Tensor> {
         match (&frames.source, &self.backbone) {
-            (FrameSource::Cached(x), _) => {
-                let dev = x.device();
-                let idx = Tensor::from_vec(
-                    rows.iter().map(|r| *r as u32).collect::<Vec<_>>(),
-                    rows.len(),
-                    dev,
-                )?;
-                Ok(x.index_select(&idx, 0)?)
-            }
+            (FrameSource::Cached(x), _) => Ok(gather_rows(x, rows)?),
             (FrameSource::Images(images), Some((bb, _))) => {
                 let size = bb.preprocess.size;
-                let batch: Vec<RgbImage> = rows
+                let present: Vec<usize> = rows.iter().flatten().copied().collect();
+                let batch: Vec<RgbImage> = present
                     .iter()
                     .map(|r| {
                         if train {
@@ -252,7 +247,26 @@ impl Net {
                     })
                     .collect();
                 let x = bb.input(&batch)?;
-                Ok(bb.net.features(&x, train)?)
+                let f = bb.net.features(&x, train)?;
+                if present.len() == rows.len() {
+                    return Ok(f);
+                }
+                // Padding rows: a zero row appended after the features.
+                let zero = Tensor::zeros((1, f.dim(1)?), f.dtype(), f.device())?;
+                let with_zero = Tensor::cat(&[&f, &zero], 0)?;
+                let mut next = 0u32;
+                let index: Vec<u32> = rows
+                    .iter()
+                    .map(|r| match r {
+                        Some(_) => {
+                            next += 1;
+                            next - 1
+                        }
+                        None => present.len() as u32,
+                    })
+                    .collect();
+                let index = Tensor::from_vec(index, rows.len(), f.device())?;
+                Ok(with_zero.index_select(&index, 0)?)
             }
             (FrameSource::Images(_), None) => {
                 anyhow::bail!("image frames need a trainable backbone")
@@ -272,7 +286,8 @@ impl Net {
         let dev = self.head_device();
         match self.head.cfg.kind {
             HeadKind::Fc => {
-                let x = self.features(frames, units, train, rng)?;
+                let rows: Vec<Option<usize>> = units.iter().map(|r| Some(*r)).collect();
+                let x = self.features(frames, &rows, train, rng)?;
                 let targets: Vec<u32> = units.iter().map(|r| frames.labels[*r]).collect();
                 Ok(Batch {
                     logits: self.head.forward_frames(&x)?,
@@ -285,6 +300,7 @@ impl Net {
         }
     }
 
+    /// A batch of sequences padded at the end to the longest, `(B, T, D)`.
     fn forward_sequences(
         &self,
         frames: &SplitFrames,
@@ -293,34 +309,24 @@ impl Net {
         rng: &mut impl Rng,
     ) -> Result<Batch> {
         let dev = self.head_device();
-        let rows: Vec<usize> = seqs
-            .iter()
-            .flat_map(|s| frames.seq_rows[*s].iter().copied())
-            .collect();
-        let x = self.features(frames, &rows, train, rng)?;
-        let d = x.dim(1)?;
         let t_max = seqs
             .iter()
             .map(|s| frames.seq_rows[*s].len())
             .max()
             .unwrap_or(0);
-        let (mut parts, mut targets, mut mask) = (Vec::new(), Vec::new(), Vec::new());
-        let mut start = 0;
+        let (mut rows, mut targets, mut mask) = (Vec::new(), Vec::new(), Vec::new());
         for s in seqs {
             let r = &frames.seq_rows[*s];
-            let mut p = x.narrow(0, start, r.len())?;
-            if r.len() < t_max {
-                let pad = Tensor::zeros((t_max - r.len(), d), x.dtype(), x.device())?;
-                p = Tensor::cat(&[&p, &pad], 0)?;
-            }
-            parts.push(p);
+            let pad = t_max - r.len();
+            rows.extend(r.iter().map(|row| Some(*row)));
+            rows.extend(std::iter::repeat_n(None, pad));
             targets.extend(r.iter().map(|row| frames.labels[*row]));
-            targets.extend(std::iter::repeat_n(0, t_max - r.len()));
+            targets.extend(std::iter::repeat_n(0, pad));
             mask.extend(std::iter::repeat_n(1f32, r.len()));
-            mask.extend(std::iter::repeat_n(0f32, t_max - r.len()));
-            start += r.len();
+            mask.extend(std::iter::repeat_n(0f32, pad));
         }
-        let xs = Tensor::stack(&parts, 0)?;
+        let x = self.features(frames, &rows, train, rng)?;
+        let xs = x.reshape((seqs.len(), t_max, ()))?;
         let logits = self.lstm_logits(&xs, train)?;
         let n = seqs.len() * t_max;
         Ok(Batch {
@@ -780,8 +786,7 @@ fn batch_name(
 }
 
 fn check_finite(t: &Tensor, what: &str, name: &dyn Fn() -> String) -> Result<()> {
-    let v: Vec<f32> = t.flatten_all()?.to_vec1()?;
-    if let Some(bad) = v.iter().find(|x| !x.is_finite()) {
+    if let Some(bad) = crate::model::first_non_finite(t)? {
         anyhow::bail!("non-finite {what} value ({bad}) in {}", name());
     }
     Ok(())

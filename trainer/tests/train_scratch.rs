@@ -19,14 +19,21 @@ fn from_scratch_trains_the_backbone_and_says_so() {
         mode: TrainMode::FromScratch,
         width_mult: 0.25,
         input_size: 32,
-        max_epochs: 4,
+        max_epochs: 8,
         ..Default::default()
     };
     cfg.reader.real_fps = 4.0; // 0.5 s = the last 2 of 10 frames
     cfg.optimizer.lr = 5e-3;
     let out = trainer::experiment::run(&cfg, 1).unwrap();
     let h = &out.runs[0].history;
-    assert!(h.last().unwrap().train_loss < h[0].train_loss, "{h:?}");
+    // Tiny batches with augmentation and batch norm in training mode make
+    // single epochs (and the training loss) noisy: compare the accuracy and
+    // the validation loss of the last three epochs with the first.
+    let last3 = |f: fn(&trainer::train::EpochStats) -> f64| {
+        h[h.len() - 3..].iter().map(f).sum::<f64>() / 3.0
+    };
+    assert!(last3(|e| e.train_accuracy) > h[0].train_accuracy, "{h:?}");
+    assert!(last3(|e| e.val_loss) < h[0].val_loss, "{h:?}");
     let report = out.report.unwrap();
     assert_eq!(report.mode, "from-scratch");
     let md = std::fs::read_to_string(cfg.out.join("report/report.md")).unwrap();

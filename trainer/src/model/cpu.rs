@@ -48,3 +48,128 @@ where
         .enumerate()
         .for_each_init(|| vec![0f32; scratch], |buf, (i, dst)| f(buf, i, dst));
 }
+
+/// Runs `f` on the f32 data of `t` (copied to a contiguous layout first when
+/// it is strided); errors name the kernel `op` and the operand `what`.
+pub(crate) fn with_f32<R>(
+    op: &str,
+    t: &candle_core::Tensor,
+    what: &str,
+    f: impl FnOnce(&[f32]) -> R,
+) -> Result<R> {
+    let t = t.contiguous()?;
+    let (storage, layout) = t.storage_and_layout();
+    match &*storage {
+        candle_core::Storage::Cpu(s) => Ok(f(f32_slice(op, s, layout, what)?)),
+        _ => candle_core::bail!("{op}: {what} must be on the CPU"),
+    }
+}
+
+/// A read-only matrix operand of [`gemm_into`]: element (i, j) is
+/// `data[i * rs + j * cs]`.
+#[derive(Clone, Copy)]
+pub(crate) struct MatRef<'a> {
+    pub data: &'a [f32],
+    pub rs: usize,
+    pub cs: usize,
+}
+
+impl<'a> MatRef<'a> {
+    /// A row-major matrix with `cols` columns.
+    pub fn rows(data: &'a [f32], cols: usize) -> Self {
+        MatRef {
+            data,
+            rs: cols,
+            cs: 1,
+        }
+    }
+
+    /// The transpose of a row-major matrix with `cols` columns.
+    pub fn transposed(data: &'a [f32], cols: usize) -> Self {
+        MatRef {
+            data,
+            rs: 1,
+            cs: cols,
+        }
+    }
+
+    fn fits(&self, rows: usize, cols: usize) -> bool {
+        rows == 0 || cols == 0 || (rows - 1) * self.rs + (cols - 1) * self.cs < self.data.len()
+    }
+}
+
+/// Products below this many multiply-adds run on one thread: splitting them
+/// costs more than it saves.
+const PARALLEL_MACS: usize = 1 << 23;
+
+/// `dst (m x n, row-major) = [dst +] lhs (m x k) @ rhs (k x n)` with `gemm`,
+/// on candle's rayon pool when the product is large.
+pub(crate) fn gemm_into(
+    dst: &mut [f32],
+    (m, n, k): (usize, usize, usize),
+    accumulate: bool,
+    lhs: MatRef,
+    rhs: MatRef,
+) {
+    assert!(dst.len() >= m * n, "gemm_into: destination too small");
+    assert!(
+        lhs.fits(m, k) && rhs.fits(k, n),
+        "gemm_into: operand too small"
+    );
+    if m == 0 || n == 0 {
+        return;
+    }
+    if k == 0 {
+        if !accumulate {
+            dst[..m * n].fill(0.0);
+        }
+        return;
+    }
+    let threads = rayon::current_num_threads();
+    let parallelism = if threads > 1 && m * n * k >= PARALLEL_MACS {
+        gemm::Parallelism::Rayon(threads)
+    } else {
+        gemm::Parallelism::None
+    };
+    // SAFETY: the asserts above keep every index gemm touches in bounds, and
+    // `dst` is borrowed mutably for the whole call.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            dst.as_mut_ptr(),
+            1,
+            n as isize,
+            accumulate,
+            lhs.data.as_ptr(),
+            lhs.cs as isize,
+            lhs.rs as isize,
+            rhs.data.as_ptr(),
+            rhs.cs as isize,
+            rhs.rs as isize,
+            1.0,
+            1.0,
+            false,
+            false,
+            false,
+            parallelism,
+        )
+    }
+}
+
+/// The transpose of a row-major `rows x cols` matrix, in cache-sized tiles.
+pub(crate) fn transpose(m: &[f32], rows: usize, cols: usize) -> Vec<f32> {
+    const TILE: usize = 32;
+    let mut out = alloc_uninit(rows * cols);
+    for r0 in (0..rows).step_by(TILE) {
+        for c0 in (0..cols).step_by(TILE) {
+            for r in r0..(r0 + TILE).min(rows) {
+                for c in c0..(c0 + TILE).min(cols) {
+                    out[c * rows + r] = m[r * cols + c];
+                }
+            }
+        }
+    }
+    out
+}

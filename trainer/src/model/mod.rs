@@ -5,10 +5,35 @@
 mod batch_norm;
 mod cpu;
 pub mod depthwise;
+pub mod gather;
 mod legacy_pth;
+pub mod linear;
+pub mod lstm;
 mod mobilenet_v2;
 pub mod pointwise;
 pub mod preprocess;
 pub mod weights;
 
 pub use mobilenet_v2::{make_divisible, MobileNetV2, MobileNetV2Config};
+
+/// The first NaN or infinite value of `t` (read in place when contiguous).
+pub fn first_non_finite(t: &candle_core::Tensor) -> candle_core::Result<Option<f32>> {
+    cpu::with_f32("finite check", t, "tensor", |v| {
+        // x * 0 is NaN exactly for NaN and infinite x; summing lane-wise
+        // keeps the common all-finite case a vectorized pass.
+        let mut lanes = [0f32; 16];
+        let chunks = v.chunks_exact(16);
+        let tail = chunks.remainder();
+        for c in chunks {
+            for (l, x) in lanes.iter_mut().zip(c) {
+                *l += x * 0.0;
+            }
+        }
+        let clean = lanes.iter().all(|l| *l == 0.0) && tail.iter().all(|x| x.is_finite());
+        if clean {
+            None
+        } else {
+            v.iter().copied().find(|x| !x.is_finite())
+        }
+    })
+}
