@@ -612,6 +612,7 @@ fn tanh(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::test_util::max_diff;
     use candle_core::{Device, Var, D};
 
     /// The LSTM written step by step with candle's tensor ops, as the head
@@ -636,19 +637,6 @@ mod tests {
             out.push(Tensor::cat(&[&hs, &cs], 1).unwrap());
         }
         Tensor::stack(&out, 1).unwrap()
-    }
-
-    fn max_diff(a: &Tensor, b: &Tensor) -> f32 {
-        (a - b)
-            .unwrap()
-            .abs()
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .max(0)
-            .unwrap()
-            .to_scalar()
-            .unwrap()
     }
 
     /// Forward values and the gradients of all three inputs against the

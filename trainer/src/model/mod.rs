@@ -37,3 +37,16 @@ pub fn first_non_finite(t: &candle_core::Tensor) -> candle_core::Result<Option<f
         }
     })
 }
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    use candle_core::Tensor;
+
+    /// The largest absolute difference between two tensors of one shape.
+    pub fn max_diff(a: &Tensor, b: &Tensor) -> f32 {
+        assert_eq!(a.dims(), b.dims());
+        (a - b)
+            .and_then(|d| d.abs()?.flatten_all()?.max(0)?.to_scalar::<f32>())
+            .expect("difference of two f32 tensors")
+    }
+}
