@@ -326,7 +326,7 @@ impl Net {
             mask.extend(std::iter::repeat_n(0f32, pad));
         }
         let x = self.features(frames, &rows, train, rng)?;
-        let xs = x.reshape((seqs.len(), t_max, ()))?;
+        let xs = x.reshape((seqs.len(), t_max, x.dim(1)?))?;
         let logits = self.lstm_logits(&xs, train)?;
         let n = seqs.len() * t_max;
         Ok(Batch {
