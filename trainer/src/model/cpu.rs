@@ -1,9 +1,49 @@
 //! Plumbing shared by the CPU custom-op kernels (depthwise, pointwise,
-//! im2col): reading candle's storage as f32 slices, uninitialised output
-//! buffers, and the parallel loop over output planes.
+//! im2col, linear, LSTM): the run-time choice of the vector unit, candle's
+//! storage read as f32 slices, uninitialised output buffers, the parallel
+//! loop over output planes, and `gemm` calls.
 
 use candle_core::{CpuStorage, Layout, Result};
+
+/// Defines `fn $name` to run `$body` compiled for AVX-512 or AVX2 when the
+/// CPU has them, and for baseline x86-64 (SSE2) otherwise. The release
+/// build targets the baseline, so without this the kernels' loops would
+/// vectorize 4 lanes wide instead of 16 or 8. `$body` should call only
+/// `#[inline(always)]` functions, so that they are compiled with the
+/// features too.
+macro_rules! simd_dispatch {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) $body:block) => {
+        $(#[$doc])*
+        fn $name($($arg: $ty),*) {
+            #[inline(always)]
+            fn body($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx2,fma")]
+                unsafe fn avx512($($arg: $ty),*) {
+                    body($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                unsafe fn avx2($($arg: $ty),*) {
+                    body($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU supports the enabled features.
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: as above.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            body($($arg),*)
+        }
+    };
+}
 use rayon::prelude::*;
+pub(crate) use simd_dispatch;
 
 /// The contiguous f32 data of one operand of kernel `op`; errors name the
 /// kernel and the operand (`what`).

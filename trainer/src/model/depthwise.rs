@@ -11,7 +11,7 @@
 //! - [`depthwise_conv3x3_bias_act`]: inference, with a fused per-channel bias
 //!   (folded batch norm) and optional ReLU6.
 
-use super::cpu::{alloc_uninit, par_chunks};
+use super::cpu::{alloc_uninit, par_chunks, simd_dispatch};
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
 
 /// Output size of a 3x3 convolution with padding 1.
@@ -154,40 +154,11 @@ fn conv_plane_body(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx2,fma")]
-unsafe fn conv_plane_avx512(
-    g: &Geom,
-    pad: &[f32],
-    k: &[f32],
-    b: f32,
-    relu6: bool,
-    dst: &mut [f32],
-) {
-    conv_plane_body(g, pad, k, b, relu6, dst)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn conv_plane_avx2(g: &Geom, pad: &[f32], k: &[f32], b: f32, relu6: bool, dst: &mut [f32]) {
-    conv_plane_body(g, pad, k, b, relu6, dst)
-}
-
-/// Dispatches to the widest vector unit this CPU has.
+simd_dispatch! {
+/// [`conv_plane_body`] on the widest vector unit this CPU has.
 fn conv_plane(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports the enabled features (checked above).
-            return unsafe { conv_plane_avx512(g, pad, k, bias, relu6, dst) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: as above.
-            return unsafe { conv_plane_avx2(g, pad, k, bias, relu6, dst) };
-        }
-    }
     conv_plane_body(g, pad, k, bias, relu6, dst)
+}
 }
 
 /// Forward over all planes, in parallel.

@@ -18,7 +18,7 @@
 //! activations and the hidden and cell states of every step for the
 //! backward pass (only when a gradient can be asked for).
 
-use super::cpu::{alloc_uninit, f32_slice, gemm_into, transpose, with_f32, MatRef};
+use super::cpu::{alloc_uninit, f32_slice, gemm_into, simd_dispatch, transpose, with_f32, MatRef};
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -156,6 +156,16 @@ struct Dims {
 }
 
 impl Dims {
+    /// From the shape of the gates, `(B, T, 4H)`.
+    fn of(gates: &Shape) -> Result<Self> {
+        let (batch, steps, h4) = gates.dims3()?;
+        Ok(Dims {
+            batch,
+            steps,
+            hidden: h4 / 4,
+        })
+    }
+
     /// One step's `(H, B)` state.
     fn state(&self) -> usize {
         self.hidden * self.batch
@@ -176,12 +186,7 @@ impl CustomOp3 for Recurrence {
         ss: &CpuStorage,
         sl: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (batch, steps, h4) = xl.shape().dims3()?;
-        let d = Dims {
-            batch,
-            steps,
-            hidden: h4 / 4,
-        };
+        let d = Dims::of(xl.shape())?;
         let gates_x = f32_slice(OP, xs, xl, "gates")?;
         let w = self
             .parts
@@ -194,7 +199,7 @@ impl CustomOp3 for Recurrence {
         }
         Ok((
             CpuStorage::F32(out),
-            Shape::from((batch, steps, 2 * d.hidden)),
+            Shape::from((d.batch, d.steps, 2 * d.hidden)),
         ))
     }
 
@@ -206,12 +211,7 @@ impl CustomOp3 for Recurrence {
         _out: &Tensor,
         grad: &Tensor,
     ) -> Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
-        let (batch, steps, h4) = gates_x.dims3()?;
-        let d = Dims {
-            batch,
-            steps,
-            hidden: h4 / 4,
-        };
+        let d = Dims::of(gates_x.shape())?;
         let slot = self
             .saved
             .as_ref()
@@ -229,9 +229,13 @@ impl CustomOp3 for Recurrence {
         })??;
         let dev = gates_x.device();
         Ok((
-            Some(Tensor::from_vec(grads.gates_x, (batch, steps, h4), dev)?),
-            Some(Tensor::from_vec(grads.w_hh, (h4, d.hidden), dev)?),
-            Some(Tensor::from_vec(grads.state0, (batch, 2 * d.hidden), dev)?),
+            Some(Tensor::from_vec(grads.gates_x, gates_x.shape(), dev)?),
+            Some(Tensor::from_vec(grads.w_hh, w_hh.shape(), dev)?),
+            Some(Tensor::from_vec(
+                grads.state0,
+                (d.batch, 2 * d.hidden),
+                dev,
+            )?),
         ))
     }
 }
@@ -466,40 +470,7 @@ fn to_step_major(src: &[f32], d: Dims, cols: &[usize], out: &mut [f32]) {
         });
 }
 
-/// Defines `$name` to run `$body` compiled for AVX-512 or AVX2 when the
-/// CPU has them (the release build targets baseline x86-64, SSE2 only), so
-/// that the cell loops vectorize 16 or 8 lanes wide.
-macro_rules! with_simd_dispatch {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) $body:block) => {
-        $(#[$doc])*
-        fn $name($($arg: $ty),*) {
-            #[inline(always)]
-            fn body($($arg: $ty),*) $body
-            #[cfg(target_arch = "x86_64")]
-            {
-                #[target_feature(enable = "avx512f")]
-                unsafe fn avx512($($arg: $ty),*) {
-                    body($($arg),*)
-                }
-                #[target_feature(enable = "avx2,fma")]
-                unsafe fn avx2($($arg: $ty),*) {
-                    body($($arg),*)
-                }
-                if std::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the CPU supports the enabled features.
-                    return unsafe { avx512($($arg),*) };
-                }
-                if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-                    // SAFETY: as above.
-                    return unsafe { avx2($($arg),*) };
-                }
-            }
-            body($($arg),*)
-        }
-    };
-}
-
-with_simd_dispatch! {
+simd_dispatch! {
 /// One step of the cells of one part: `z` holds the pre-activations of the
 /// part's gates, `(4n, B)` gate-major; they become activations in place.
 fn cells_forward(z: &mut [f32], c_prev: &[f32], h_next: &mut [f32], c_next: &mut [f32]) {
@@ -532,7 +503,7 @@ struct CellsBack<'a> {
     dh: &'a [f32],
 }
 
-with_simd_dispatch! {
+simd_dispatch! {
 /// Turns the gradients reaching h_t and c_t into those of the gate
 /// pre-activations `dz (4n, B)`; `dc` carries the cell gradient from step
 /// t + 1 in and to step t - 1 out.
