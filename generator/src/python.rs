@@ -1,69 +1,21 @@
 //! Finding and initialising the embedded Python environment.
 //!
 //! `grasp-gen` embeds CPython 3.11 (through pyo3) to call trimesh for geometric
-//! queries and Blender's `bpy` module for rendering. The packages live in a
-//! virtual environment built from the repository's `pyproject.toml`:
-//!
-//! 1. `$GRASP_VENV`, if set;
-//! 2. otherwise `.venv` in the nearest ancestor of the current directory that
-//!    holds `pyproject.toml`;
-//! 3. otherwise `.venv` next to the workspace this binary was built from.
-//!
-//! `scripts/setup.sh` creates it.
+//! queries and Blender's `bpy` module for rendering. The packages live in the
+//! project's virtual environment, found by [`grasp_schema::venv`] (the
+//! trainer finds pretrained weights in it the same way); `scripts/setup.sh`
+//! creates it.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-pub const VENV_ENV_VAR: &str = "GRASP_VENV";
-const PYTHON_VERSION_DIR: &str = "python3.11";
-
-/// What to tell a user whose environment is missing.
-pub fn setup_hint() -> String {
-    format!(
-        "run `scripts/setup.sh` from the repository root (it creates .venv from pyproject.toml), \
-         or point {VENV_ENV_VAR} at a Python 3.11 venv where `pip install -e .[dev]` was run"
-    )
-}
-
-/// The virtual environment to use, by the rules in the module docs.
-pub fn venv_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os(VENV_ENV_VAR) {
-        return PathBuf::from(dir);
-    }
-    if let Ok(cwd) = std::env::current_dir() {
-        for dir in cwd.ancestors() {
-            if dir.join("pyproject.toml").is_file() && dir.join(".venv").is_dir() {
-                return dir.join(".venv");
-            }
-        }
-    }
-    workspace_root().join(".venv")
-}
-
-/// Root of the workspace this binary was built from.
-pub fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."))
-}
+pub use grasp_schema::venv::{setup_hint, venv_dir, workspace_root, VENV_ENV_VAR};
 
 /// `site-packages` of the venv, checked to exist.
 pub fn site_packages(venv: &Path) -> Result<PathBuf> {
-    let dir = venv
-        .join("lib")
-        .join(PYTHON_VERSION_DIR)
-        .join("site-packages");
-    if !dir.is_dir() {
-        bail!(
-            "Python environment not found: {} does not exist; {}",
-            dir.display(),
-            setup_hint()
-        );
-    }
-    Ok(dir)
+    Ok(grasp_schema::venv::site_packages(venv)?)
 }
 
 static INITIALISED: OnceLock<Result<PathBuf, String>> = OnceLock::new();

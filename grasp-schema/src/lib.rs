@@ -1,10 +1,12 @@
 //! Shared vocabulary of the toolkit: the grasp taxonomy of Vasile et al.
-//! (IROS 2022, Table 1), sequence plans, and the dataset layout.
+//! (IROS 2022, Table 1), sequence plans, the dataset layout, and where the
+//! project's Python environment is.
 
 pub mod appearance;
 pub mod dataset;
 pub mod plan;
 pub mod taxonomy;
+pub mod venv;
 
 pub use plan::{Condition, SequenceKey, SequencePlan};
 pub use taxonomy::{Class, GraspType, HandConfiguration, Preshape, Thumb};
