@@ -108,11 +108,12 @@ pub fn write_random_backbone(
     let net = MobileNetV2::new(vb, &cfg)?;
     reinit_backbone(&vm, seed)?;
     let mut rng = crate::rng::stream(seed, "init/calibration");
+    let pre = crate::model::preprocess::Preprocess::imagenet(input_size);
     for _ in 0..if calibration.len() < 2 { 0 } else { 40 } {
         let batch: Vec<image::RgbImage> = (0..16)
             .map(|_| calibration[rng.gen_range(0..calibration.len())].clone())
             .collect();
-        let x = crate::model::preprocess::to_tensor(&batch, input_size, &Device::Cpu)?;
+        let x = crate::model::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
         net.features(&x, true)?;
     }
     let tmp = crate::checkpoint::temp_path(path);
