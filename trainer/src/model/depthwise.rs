@@ -1,15 +1,25 @@
-//! Depthwise 3x3 convolution (padding 1, stride 1 or 2) as candle custom ops.
+//! Depthwise convolutions (3x3 or 5x5, stride 1 or 2, symmetric PyTorch or
+//! TensorFlow "SAME" padding) as candle custom ops.
 //!
 //! candle's grouped convolution splits the input into one convolution per
-//! channel, which is slow for MobileNetV2's depthwise layers. These kernels
-//! work plane by plane (one image, one channel) in NCHW layout, in parallel
-//! over planes on candle's rayon pool. Each plane is first copied into a
-//! zero-padded scratch buffer (de-interleaved by column parity for stride 2)
-//! so that the inner loops have no bounds special cases and vectorize.
+//! channel, which is slow for the depthwise layers of MobileNetV2 and
+//! EfficientNet-Lite. These kernels work plane by plane (one image, one
+//! channel) in NCHW layout, in parallel over planes on candle's rayon pool.
 //!
-//! - [`depthwise_conv3x3`]: differentiable (input and weight gradients).
-//! - [`depthwise_conv3x3_bias_act`]: inference, with a fused per-channel bias
-//!   (folded batch norm) and optional ReLU6.
+//! Each plane is first copied into a zero-padded scratch buffer split into
+//! its stride x stride polyphase components (even/odd rows and columns for
+//! stride 2), each `sh x sw` with `sw = ow + (k - 1) / stride`. Then every
+//! tap (ky, kx) of every output (oy, ox) reads component (ky % s, kx % s) at
+//! flat index `(oy + ky / s) * sw + ox + kx / s`: a constant offset per tap
+//! from the output's flat "wide" index `oy * sw + ox`. One long vectorized
+//! loop over the wide index computes all outputs (plus `sw - ow` throwaway
+//! columns per row), so that even 7x7 planes fill whole vectors.
+//!
+//! - [`depthwise_conv3x3`]: differentiable (input and weight gradients),
+//!   3x3 with padding 1, as MobileNetV2 trains.
+//! - [`depthwise_conv_bias_act`]: inference, any supported kernel, stride
+//!   and padding, with a fused per-channel bias (folded batch norm) and
+//!   optional ReLU6.
 
 use super::cpu::{alloc_uninit, par_chunks, simd_dispatch};
 use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tensor};
@@ -19,6 +29,37 @@ pub fn out_size(size: usize, stride: usize) -> usize {
     (size + 2 - 3) / stride + 1
 }
 
+/// How a convolution pads its input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Padding {
+    /// `p` zeros on every side (PyTorch's `padding=p`).
+    Symmetric(usize),
+    /// TensorFlow's "SAME": output `ceil(size / stride)`, the padding that
+    /// needs split with the extra pixel at the bottom/right.
+    Same,
+}
+
+impl Padding {
+    /// (output size, padding before) along one axis, or `None` when the
+    /// kernel does not fit.
+    pub fn resolve(self, size: usize, kernel: usize, stride: usize) -> Option<(usize, usize)> {
+        if size == 0 || kernel == 0 || stride == 0 {
+            return None;
+        }
+        match self {
+            Padding::Symmetric(p) => {
+                let padded = size + 2 * p;
+                (padded >= kernel).then(|| ((padded - kernel) / stride + 1, p))
+            }
+            Padding::Same => {
+                let out = size.div_ceil(stride);
+                let total = ((out - 1) * stride + kernel).saturating_sub(size);
+                Some((out, total / 2))
+            }
+        }
+    }
+}
+
 /// Geometry of one depthwise call.
 #[derive(Clone, Copy, Debug)]
 struct Geom {
@@ -26,28 +67,44 @@ struct Geom {
     c: usize,
     h: usize,
     w: usize,
+    k: usize,
+    stride: usize,
     oh: usize,
     ow: usize,
-    stride: usize,
+    /// Padding above and to the left.
+    pt: usize,
+    pl: usize,
 }
 
+/// Lanes of one block of outputs in the stencil loop (four AVX-512 vectors:
+/// enough independent accumulators to hide the FMA latency).
+const BLOCK: usize = 64;
+
 impl Geom {
-    fn new(shape: &Shape, stride: usize) -> Result<Self> {
+    fn new(shape: &Shape, k: usize, stride: usize, padding: Padding) -> Result<Self> {
         if stride != 1 && stride != 2 {
-            candle_core::bail!("depthwise3x3: stride must be 1 or 2, got {stride}");
+            candle_core::bail!("depthwise: stride must be 1 or 2, got {stride}");
+        }
+        if k != 3 && k != 5 {
+            candle_core::bail!("depthwise: kernel must be 3x3 or 5x5, got {k}x{k}");
         }
         let (n, c, h, w) = shape.dims4()?;
-        if h == 0 || w == 0 {
-            candle_core::bail!("depthwise3x3: empty spatial size {h}x{w}");
-        }
+        let (Some((oh, pt)), Some((ow, pl))) =
+            (padding.resolve(h, k, stride), padding.resolve(w, k, stride))
+        else {
+            candle_core::bail!("depthwise: a {k}x{k} kernel does not fit a {h}x{w} plane");
+        };
         Ok(Self {
             n,
             c,
             h,
             w,
-            oh: out_size(h, stride),
-            ow: out_size(w, stride),
+            k,
             stride,
+            oh,
+            ow,
+            pt,
+            pl,
         })
     }
 
@@ -59,122 +116,196 @@ impl Geom {
         self.oh * self.ow
     }
 
-    /// Width of one padded scratch row (both parities side by side for stride 2).
-    fn pad_w(&self) -> usize {
-        if self.stride == 1 {
-            self.w + 2
-        } else {
-            // even columns then odd columns, each ceil((w + 2) / 2) long
-            2 * (self.w + 3).div_euclid(2)
-        }
+    /// Width and height of one polyphase component.
+    fn phase_dims(&self) -> (usize, usize) {
+        let reach = (self.k - 1) / self.stride;
+        (self.oh + reach, self.ow + reach)
     }
 
-    fn pad_len(&self) -> usize {
-        (self.h + 2) * self.pad_w()
+    fn phase_len(&self) -> usize {
+        let (sh, sw) = self.phase_dims();
+        sh * sw
+    }
+
+    /// Outputs in wide (row stride `sw`) layout, rounded up to whole blocks.
+    fn wide_len(&self) -> usize {
+        let (_, sw) = self.phase_dims();
+        ((self.oh - 1) * sw + self.ow).next_multiple_of(BLOCK)
+    }
+
+    /// Scratch floats per worker: the phases (with a block of slack, read by
+    /// the last block's taps), then the wide outputs.
+    fn scratch_len(&self) -> usize {
+        self.stride * self.stride * self.phase_len() + BLOCK + self.wide_len()
     }
 
     fn out_shape(&self) -> Shape {
         Shape::from((self.n, self.c, self.oh, self.ow))
     }
+
+    /// Offset of tap (ky, kx) from the wide output index.
+    fn tap_offset(&self, ky: usize, kx: usize) -> usize {
+        let s = self.stride;
+        let (_, sw) = self.phase_dims();
+        let phase = (ky % s) * s + kx % s;
+        phase * self.phase_len() + (ky / s) * sw + kx / s
+    }
 }
 
 fn contiguous<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
-    super::cpu::f32_slice("depthwise3x3", s, l, what)
+    super::cpu::f32_slice("depthwise", s, l, what)
 }
 
 fn check_weight(g: &Geom, l: &Layout) -> Result<()> {
     let dims = l.dims();
-    if dims != [g.c, 1, 3, 3] {
+    if dims != [g.c, 1, g.k, g.k] {
         candle_core::bail!(
-            "depthwise3x3: weight shape {dims:?} does not match [{}, 1, 3, 3]",
-            g.c
+            "depthwise: weight shape {dims:?} does not match [{}, 1, {}, {}]",
+            g.c,
+            g.k,
+            g.k
         );
     }
     Ok(())
 }
 
-/// Copies a plane into `pad` with a zero border of one pixel. For stride 2
-/// the padded columns are split: even columns first, then odd columns.
+/// Splits a plane into its zero-padded polyphase components in `phases`.
 #[inline(always)]
-fn pad_plane(g: &Geom, src: &[f32], pad: &mut [f32]) {
-    let pw = g.pad_w();
-    pad[..pw].fill(0.0);
-    pad[(g.h + 1) * pw..].fill(0.0);
+fn pad_plane(g: &Geom, src: &[f32], phases: &mut [f32]) {
+    let s = g.stride;
+    let (sh, sw) = g.phase_dims();
+    let plen = g.phase_len();
+    phases.fill(0.0);
     for y in 0..g.h {
-        let row = &src[y * g.w..(y + 1) * g.w];
-        let dst = &mut pad[(y + 1) * pw..(y + 2) * pw];
-        if g.stride == 1 {
-            dst[0] = 0.0;
-            dst[1..=g.w].copy_from_slice(row);
-            dst[g.w + 1] = 0.0;
-        } else {
-            // padded column j holds row[j - 1]; even j -> even[j / 2], odd j -> odd[j / 2].
-            // So row[2t] -> odd[t] and row[2t + 1] -> even[t + 1].
-            let half = pw / 2;
-            dst.fill(0.0);
-            let (even, odd) = dst.split_at_mut(half);
-            let pairs = row.chunks_exact(2);
-            if let [last] = pairs.remainder() {
-                odd[g.w / 2] = *last;
-            }
-            for ((pair, o), e) in pairs.zip(odd.iter_mut()).zip(even[1..].iter_mut()) {
-                *o = pair[0];
-                *e = pair[1];
+        // padded row y + pt lives in row (y + pt) / s of phase row (y + pt) % s
+        let py = y + g.pt;
+        let (prow, row) = (py % s, py / s);
+        if row >= sh {
+            continue; // below every tap (SAME padding may drop the last rows)
+        }
+        let src_row = &src[y * g.w..(y + 1) * g.w];
+        for px in 0..s {
+            let base = (prow * s + px) * plen + row * sw;
+            let dst = &mut phases[base..base + sw];
+            // padded column j = x + pl with j % s == px, at j / s
+            let first_x = (px + s - g.pl % s) % s;
+            for (x, v) in src_row.iter().enumerate().skip(first_x).step_by(s) {
+                let j = (x + g.pl) / s;
+                if j < sw {
+                    dst[j] = *v;
+                }
             }
         }
     }
 }
 
-/// One output plane from a padded input plane: dst = act(bias + conv(pad, k)).
+/// The stencil over the wide outputs: `wide[q] = act(bias + sum_t w[t] *
+/// src[off[t] + q])`, `BLOCK` outputs at a time.
 #[inline(always)]
-fn conv_plane_body(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst: &mut [f32]) {
-    let pw = g.pad_w();
-    let ow = g.ow;
-    for (oy, out) in dst.chunks_exact_mut(ow).enumerate() {
-        out.fill(bias);
-        for ky in 0..3 {
-            let r = &pad[(g.stride * oy + ky) * pw..(g.stride * oy + ky + 1) * pw];
-            let (k0, k1, k2) = (k[3 * ky], k[3 * ky + 1], k[3 * ky + 2]);
-            // taps: stride 1 -> r[x], r[x+1], r[x+2]; stride 2 -> even[x], odd[x], even[x+1]
-            let (a, b, c) = if g.stride == 1 {
-                (&r[..ow], &r[1..ow + 1], &r[2..ow + 2])
-            } else {
-                let half = pw / 2;
-                (&r[..ow], &r[half..half + ow], &r[1..ow + 1])
-            };
-            for (((o, &a), &b), &c) in out.iter_mut().zip(a).zip(b).zip(c) {
-                *o += k0 * a + k1 * b + k2 * c;
+fn stencil<const T: usize>(
+    src: &[f32],
+    off: &[usize; T],
+    w: &[f32; T],
+    bias: f32,
+    relu6: bool,
+    wide: &mut [f32],
+) {
+    let max_off = off.iter().copied().max().unwrap_or(0);
+    assert!(
+        max_off + wide.len() <= src.len(),
+        "depthwise: scratch too small"
+    );
+    for (b, out) in wide.chunks_exact_mut(BLOCK).enumerate() {
+        let q = b * BLOCK;
+        let mut acc = [bias; BLOCK];
+        for t in 0..T {
+            let x: &[f32; BLOCK] = src[off[t] + q..off[t] + q + BLOCK]
+                .try_into()
+                .expect("BLOCK floats");
+            let wt = w[t];
+            for l in 0..BLOCK {
+                acc[l] += wt * x[l];
             }
         }
         if relu6 {
-            for o in out.iter_mut() {
-                *o = o.clamp(0.0, 6.0);
+            for a in acc.iter_mut() {
+                *a = a.clamp(0.0, 6.0);
             }
         }
+        out.copy_from_slice(&acc);
+    }
+}
+
+/// One output plane: pad, run the stencil, compact the wide rows into `dst`.
+#[inline(always)]
+fn conv_plane_body(
+    g: &Geom,
+    src: &[f32],
+    k: &[f32],
+    bias: f32,
+    relu6: bool,
+    scratch: &mut [f32],
+    dst: &mut [f32],
+) {
+    let phases_len = g.stride * g.stride * g.phase_len() + BLOCK;
+    let (phases, wide) = scratch.split_at_mut(phases_len);
+    pad_plane(g, src, &mut phases[..phases_len - BLOCK]);
+    let wide = &mut wide[..g.wide_len()];
+    match g.k {
+        3 => {
+            let off = std::array::from_fn(|t| g.tap_offset(t / 3, t % 3));
+            let w: [f32; 9] = k.try_into().expect("9 taps");
+            stencil(phases, &off, &w, bias, relu6, wide);
+        }
+        _ => {
+            let off = std::array::from_fn(|t| g.tap_offset(t / 5, t % 5));
+            let w: [f32; 25] = k.try_into().expect("25 taps");
+            stencil(phases, &off, &w, bias, relu6, wide);
+        }
+    }
+    let (_, sw) = g.phase_dims();
+    for (oy, row) in dst.chunks_exact_mut(g.ow).enumerate() {
+        row.copy_from_slice(&wide[oy * sw..oy * sw + g.ow]);
     }
 }
 
 simd_dispatch! {
 /// [`conv_plane_body`] on the widest vector unit this CPU has.
-fn conv_plane(g: &Geom, pad: &[f32], k: &[f32], bias: f32, relu6: bool, dst: &mut [f32]) {
-    conv_plane_body(g, pad, k, bias, relu6, dst)
+fn conv_plane(
+    g: &Geom,
+    src: &[f32],
+    k: &[f32],
+    bias: f32,
+    relu6: bool,
+    scratch: &mut [f32],
+    dst: &mut [f32]
+) {
+    conv_plane_body(g, src, k, bias, relu6, scratch, dst)
 }
 }
 
 /// Forward over all planes, in parallel.
 fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
-    // every element is written by conv_plane (which starts from the bias)
+    let taps = g.k * g.k;
+    // every element is written by conv_plane
     let mut out = alloc_uninit(g.n * g.c * g.out_plane());
-    par_chunks(&mut out, g.out_plane(), g.pad_len(), |pad, plane, dst| {
-        let ch = plane % g.c;
-        pad_plane(g, &x[plane * g.in_plane()..(plane + 1) * g.in_plane()], pad);
-        let b = bias.map_or(0.0, |b| b[ch]);
-        conv_plane(g, pad, &w[9 * ch..9 * ch + 9], b, relu6, dst);
-    });
+    par_chunks(
+        &mut out,
+        g.out_plane(),
+        g.scratch_len(),
+        |scratch, plane, dst| {
+            let ch = plane % g.c;
+            let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
+            let b = bias.map_or(0.0, |b| b[ch]);
+            let k = &w[taps * ch..taps * (ch + 1)];
+            conv_plane(g, src, k, b, relu6, scratch, dst);
+        },
+    );
     out
 }
 
-/// Gradient of the input: scatter every output gradient back through the taps.
+/// Gradient of the input (3x3, padding 1): scatter every output gradient
+/// back through the taps.
 fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
     let mut out = vec![0f32; g.n * g.c * g.in_plane()];
     let (s, ph, pw) = (g.stride, g.h + 2, g.w + 2);
@@ -201,7 +332,8 @@ fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
     out
 }
 
-/// Gradient of the weight: per channel, correlate the input with the output gradient.
+/// Gradient of the weight (3x3, padding 1): per channel, correlate the
+/// input with the output gradient.
 fn backward_weight(g: &Geom, x: &[f32], grad: &[f32]) -> Vec<f32> {
     let (s, pw) = (g.stride, g.w + 2);
     let mut out = vec![0f32; g.c * 9];
@@ -238,9 +370,15 @@ fn backward_weight(g: &Geom, x: &[f32], grad: &[f32]) -> Vec<f32> {
     out
 }
 
-/// Differentiable depthwise 3x3 convolution: (x, weight[C, 1, 3, 3]).
+/// Differentiable depthwise 3x3 convolution, padding 1: (x, weight[C, 1, 3, 3]).
 struct Depthwise3x3 {
     stride: usize,
+}
+
+impl Depthwise3x3 {
+    fn geom(&self, shape: &Shape) -> Result<Geom> {
+        Geom::new(shape, 3, self.stride, Padding::Symmetric(1))
+    }
 }
 
 impl CustomOp2 for Depthwise3x3 {
@@ -255,7 +393,7 @@ impl CustomOp2 for Depthwise3x3 {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let g = Geom::new(l1.shape(), self.stride)?;
+        let g = self.geom(l1.shape())?;
         check_weight(&g, l2)?;
         let (x, w) = (contiguous(s1, l1, "input")?, contiguous(s2, l2, "weight")?);
         Ok((
@@ -311,7 +449,7 @@ impl CustomOp2 for Backward {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let g = Geom::new(&self.input_shape, self.stride)?;
+        let g = Geom::new(&self.input_shape, 3, self.stride, Padding::Symmetric(1))?;
         let (a, b) = (contiguous(s1, l1, "arg 1")?, contiguous(s2, l2, "arg 2")?);
         if self.wrt_input {
             let dx = backward_input(&g, a, b);
@@ -323,15 +461,16 @@ impl CustomOp2 for Backward {
     }
 }
 
-/// Inference depthwise 3x3 with fused bias and optional ReLU6: (x, weight, bias).
-struct Depthwise3x3BiasAct {
+/// Inference depthwise with fused bias and optional ReLU6: (x, weight, bias).
+struct DepthwiseBiasAct {
     stride: usize,
+    padding: Padding,
     relu6: bool,
 }
 
-impl CustomOp3 for Depthwise3x3BiasAct {
+impl CustomOp3 for DepthwiseBiasAct {
     fn name(&self) -> &'static str {
-        "depthwise3x3-bias-act"
+        "depthwise-bias-act"
     }
 
     fn cpu_fwd(
@@ -343,10 +482,11 @@ impl CustomOp3 for Depthwise3x3BiasAct {
         s3: &CpuStorage,
         l3: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let g = Geom::new(l1.shape(), self.stride)?;
+        let k = l2.dims().last().copied().unwrap_or(0);
+        let g = Geom::new(l1.shape(), k, self.stride, self.padding)?;
         check_weight(&g, l2)?;
         if l3.dims() != [g.c] {
-            candle_core::bail!("depthwise3x3: bias shape {:?} is not [{}]", l3.dims(), g.c);
+            candle_core::bail!("depthwise: bias shape {:?} is not [{}]", l3.dims(), g.c);
         }
         let x = contiguous(s1, l1, "input")?;
         let (w, b) = (contiguous(s2, l2, "weight")?, contiguous(s3, l3, "bias")?);
@@ -362,8 +502,8 @@ pub fn depthwise_conv3x3(x: &Tensor, weight: &Tensor, stride: usize) -> Result<T
         .apply_op2(&weight.contiguous()?, Depthwise3x3 { stride })
 }
 
-/// Inference-only depthwise 3x3 with a per-channel `bias` (C) added and, if
-/// `relu6`, the result clamped to [0, 6]. Not differentiable.
+/// Inference-only depthwise 3x3, padding 1, with a per-channel `bias` (C)
+/// added and, if `relu6`, the result clamped to [0, 6]. Not differentiable.
 pub fn depthwise_conv3x3_bias_act(
     x: &Tensor,
     weight: &Tensor,
@@ -371,9 +511,45 @@ pub fn depthwise_conv3x3_bias_act(
     stride: usize,
     relu6: bool,
 ) -> Result<Tensor> {
+    depthwise_conv_bias_act(x, weight, bias, stride, Padding::Symmetric(1), relu6)
+}
+
+/// Inference-only depthwise convolution of `x` (N, C, H, W) with `weight`
+/// (C, 1, K, K), K 3 or 5, stride 1 or 2, padded as `padding` says, plus a
+/// per-channel `bias` (C) and, if `relu6`, clamped to [0, 6].
+pub fn depthwise_conv_bias_act(
+    x: &Tensor,
+    weight: &Tensor,
+    bias: &Tensor,
+    stride: usize,
+    padding: Padding,
+    relu6: bool,
+) -> Result<Tensor> {
     x.contiguous()?.apply_op3_no_bwd(
         &weight.contiguous()?,
         &bias.contiguous()?,
-        &Depthwise3x3BiasAct { stride, relu6 },
+        &DepthwiseBiasAct {
+            stride,
+            padding,
+            relu6,
+        },
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Padding;
+
+    #[test]
+    fn same_padding_puts_the_extra_pixel_after() {
+        // (size, kernel, stride) -> (out, before), as TensorFlow computes them
+        assert_eq!(Padding::Same.resolve(224, 3, 2), Some((112, 0)));
+        assert_eq!(Padding::Same.resolve(225, 3, 2), Some((113, 1)));
+        assert_eq!(Padding::Same.resolve(56, 5, 2), Some((28, 1)));
+        assert_eq!(Padding::Same.resolve(57, 5, 2), Some((29, 2)));
+        assert_eq!(Padding::Same.resolve(14, 5, 1), Some((14, 2)));
+        assert_eq!(Padding::Same.resolve(1, 5, 2), Some((1, 2)));
+        assert_eq!(Padding::Symmetric(1).resolve(7, 3, 2), Some((4, 1)));
+        assert_eq!(Padding::Symmetric(0).resolve(2, 3, 1), None);
+    }
 }

@@ -8,6 +8,7 @@
 //!   the optional ReLU6 while the tile is still in cache.
 
 use super::cpu::{alloc_uninit, par_chunks};
+use super::depthwise::Padding;
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
@@ -260,47 +261,59 @@ unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
 /// tap (ky, kx). A dense 3x3 convolution is then a pointwise one with the
 /// weight reshaped to (Cout, C*9). Inference only.
 pub fn im2col3x3(x: &Tensor, stride: usize) -> Result<Tensor> {
-    x.contiguous()?.apply_op1_no_bwd(&Im2Col3x3 { stride })
+    im2col(x, 3, stride, Padding::Symmetric(1))
 }
 
-struct Im2Col3x3 {
+/// im2col for a dense `k` x `k` convolution with `stride` and `padding`
+/// (TensorFlow's SAME too): (N, C, H, W) -> (N, C*k*k, OH, OW), row
+/// `c*k*k + ky*k + kx` holding the input pixel under tap (ky, kx), zero in
+/// the padding. Inference only.
+pub fn im2col(x: &Tensor, k: usize, stride: usize, padding: Padding) -> Result<Tensor> {
+    x.contiguous()?
+        .apply_op1_no_bwd(&Im2Col { k, stride, padding })
+}
+
+struct Im2Col {
+    k: usize,
     stride: usize,
+    padding: Padding,
 }
 
-impl candle_core::CustomOp1 for Im2Col3x3 {
+impl candle_core::CustomOp1 for Im2Col {
     fn name(&self) -> &'static str {
-        "im2col3x3"
+        "im2col"
     }
 
     fn cpu_fwd(&self, storage: &CpuStorage, l: &Layout) -> Result<(CpuStorage, Shape)> {
         let (n, c, h, w) = l.shape().dims4()?;
-        let s = self.stride;
-        let (oh, ow) = ((h + 2 - 3) / s + 1, (w + 2 - 3) / s + 1);
+        let (s, k) = (self.stride, self.k);
+        let (Some((oh, pt)), Some((ow, pl))) =
+            (self.padding.resolve(h, k, s), self.padding.resolve(w, k, s))
+        else {
+            candle_core::bail!("im2col: a {k}x{k} kernel does not fit a {h}x{w} plane");
+        };
         let x = f32_slice(storage, l, "input")?;
+        let taps = k * k;
         // every element is written below
-        let mut out = alloc_uninit(n * c * 9 * oh * ow);
+        let mut out = alloc_uninit(n * c * taps * oh * ow);
         par_chunks(&mut out, oh * ow, 0, |_, row, dst| {
-            let (plane, tap) = (row / 9, row % 9);
-            let (ky, kx) = (tap / 3, tap % 3);
+            let (plane, tap) = (row / taps, row % taps);
+            let (ky, kx) = (tap / k, tap % k);
             let src = &x[plane * h * w..(plane + 1) * h * w];
             for oy in 0..oh {
-                let iy = (s * oy + ky) as isize - 1;
                 let out = &mut dst[oy * ow..(oy + 1) * ow];
-                if iy < 0 || iy >= h as isize {
+                let iy = (s * oy + ky).checked_sub(pt).filter(|iy| *iy < h);
+                let Some(iy) = iy else {
                     out.fill(0.0); // padding
                     continue;
-                }
-                let src_row = &src[iy as usize * w..(iy as usize + 1) * w];
+                };
+                let src_row = &src[iy * w..(iy + 1) * w];
                 for (ox, d) in out.iter_mut().enumerate() {
-                    let ix = (s * ox + kx) as isize - 1;
-                    *d = if ix >= 0 && ix < w as isize {
-                        src_row[ix as usize]
-                    } else {
-                        0.0
-                    };
+                    let ix = (s * ox + kx).checked_sub(pl).filter(|ix| *ix < w);
+                    *d = ix.map_or(0.0, |ix| src_row[ix]);
                 }
             }
         });
-        Ok((CpuStorage::F32(out), Shape::from((n, c * 9, oh, ow))))
+        Ok((CpuStorage::F32(out), Shape::from((n, c * taps, oh, ow))))
     }
 }
