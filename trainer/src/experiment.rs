@@ -128,17 +128,22 @@ fn same<T: PartialEq + std::fmt::Debug>(
     }
 }
 
-/// With a checkpoint as the frozen backbone, its width multiplier and input
-/// size replace the configured ones (the backbone only works with those),
-/// so that the saved `config.toml` says what was run.
+/// Settles the frozen backbone before anything runs, so that the saved
+/// `config.toml` says what was run: with a checkpoint as the backbone, its
+/// width multiplier and input size replace the configured ones (the
+/// backbone only works with those); with a pretrained file or the venv's
+/// default, the architecture and the file are recorded.
 fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
     let mut cfg = cfg.clone();
+    if cfg.mode != TrainMode::FrozenPretrained {
+        return Ok(cfg);
+    }
+    let (info, pre) = train::frozen_backbone(&cfg)?;
     let from_checkpoint = cfg
         .weights
         .as_deref()
         .is_some_and(crate::backbone::is_checkpoint);
-    if cfg.mode == TrainMode::FrozenPretrained && from_checkpoint {
-        let (info, pre) = train::frozen_backbone(&cfg)?;
+    if from_checkpoint {
         tracing::info!(
             "{}: width multiplier {}, input {} px",
             info.describe(),
@@ -147,6 +152,10 @@ fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
         );
         cfg.width_mult = info.width_mult;
         cfg.input_size = pre.size;
+    } else {
+        tracing::info!("{}, input {} px", info.describe(), pre.size);
+        cfg.backbone = Some(info.arch);
+        cfg.weights = info.weights_path;
     }
     Ok(cfg)
 }

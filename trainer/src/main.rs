@@ -3,13 +3,16 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
+use trainer::backbone::Architecture;
 use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::{BadData, OnBadData};
 use trainer::heads::HeadKind;
 
-/// Train and evaluate pre-shape classifiers (MobileNetV2 + FC or LSTM head)
-/// on sequences in the layout ROOT/CATEGORY/OBJECT/PRESHAPE/Wrist_d435/rgbN/.
+/// Train and evaluate pre-shape classifiers (a frozen ImageNet
+/// EfficientNet-Lite0 or MobileNetV2, or MobileNetV2 from scratch, with an
+/// FC or LSTM head) on sequences in the layout
+/// ROOT/CATEGORY/OBJECT/PRESHAPE/Wrist_d435/rgbN/.
 #[derive(Parser)]
 #[command(name = "grasp-train", version, about, long_about = None)]
 struct Cli {
@@ -24,11 +27,22 @@ struct Cli {
 enum Command {
     /// Train with the paper's protocol; with a test split, evaluate too.
     ///
-    /// Frozen-pretrained (the paper's): --weights mobilenet_v2-b0353104.pth;
-    /// features are cached on disk and only the head is trained. --weights
-    /// RUN/seed-0 freezes the backbone of a from-scratch checkpoint instead.
-    /// From-scratch: --mode from-scratch trains the whole network, with
+    /// Frozen-pretrained (the paper's protocol, the default): the backbone's
+    /// features are cached on disk and only the head is trained. Without
+    /// --weights the backbone is EfficientNet-Lite0 with the ImageNet
+    /// weights that scripts/setup.sh pip-installs into .venv (see
+    /// `grasp-train doctor`):
+    ///
+    ///   grasp-train train --data D --val-data V --head fc
+    ///
+    /// --weights FILE uses another pretrained file (EfficientNet-Lite .pth,
+    /// or torchvision's mobilenet_v2-b0353104.pth; the architecture is
+    /// detected from the tensor names); --weights RUN/seed-0 freezes the
+    /// backbone of a from-scratch checkpoint instead.
+    ///
+    /// From-scratch: --mode from-scratch trains a whole MobileNetV2, with
     /// augmentation; pick --width-mult and --input-size for the CPU budget.
+    #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
     Eval(EvalArgs),
@@ -58,6 +72,36 @@ enum Command {
     Summarize(SummarizeArgs),
     /// Benchmark one training epoch of a head on generated cached features.
     BenchHeads(BenchArgs),
+    /// Benchmark backbone feature extraction: images/s at a batch size and
+    /// batch-1 latency (median, p99); prints one JSON line (the PyTorch
+    /// peer is scripts/bench_torch.py).
+    BenchBackbone(BenchBackboneArgs),
+    /// Say which backbones' pretrained weights are installed, and where.
+    Doctor,
+}
+
+#[derive(Args)]
+struct BenchBackboneArgs {
+    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
+    backbone: Architecture,
+    /// Weights file (default: the venv's for EfficientNet-Lite, random
+    /// weights for MobileNetV2).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    #[arg(long, default_value_t = 32)]
+    batch: usize,
+    /// Input height and width.
+    #[arg(long, default_value_t = 224)]
+    size: usize,
+    /// MobileNetV2 width multiplier.
+    #[arg(long, default_value_t = 1.0)]
+    width_mult: f64,
+    /// Timed batches for throughput (after 2 warm-up batches).
+    #[arg(long, default_value_t = 10)]
+    iters: usize,
+    /// Timed batch-1 calls for latency (after 10 warm-up calls).
+    #[arg(long, default_value_t = 200)]
+    latency_iters: usize,
 }
 
 #[derive(Args)]
@@ -99,14 +143,21 @@ struct TrainArgs {
     mode: Option<TrainMode>,
     #[arg(long, value_enum)]
     head: Option<HeadKind>,
-    /// Frozen backbone: pretrained weights (.pth or .safetensors), or a
-    /// checkpoint (RUN/seed-N or its best.json) whose backbone, width
-    /// multiplier and input size are reused as they are.
+    /// Backbone architecture. Frozen without --weights: an EfficientNet-Lite
+    /// from the venv (default efficientnet-lite0). From scratch:
+    /// mobilenet-v2 only.
+    #[arg(long, value_enum)]
+    backbone: Option<Architecture>,
+    /// Frozen backbone: pretrained weights (.pth or .safetensors; default:
+    /// the venv's EfficientNet-Lite0 file), or a checkpoint (RUN/seed-N or
+    /// its best.json) whose backbone, width multiplier and input size are
+    /// reused as they are.
     #[arg(long)]
     weights: Option<PathBuf>,
     #[arg(long)]
     width_mult: Option<f64>,
-    /// Input side in pixels (224 in the paper).
+    /// Input side in pixels (224 in the paper; EfficientNet-Lite1/2 were
+    /// trained at 240/260).
     #[arg(long)]
     input_size: Option<u32>,
     /// Default: 256 on synthetic data, 32 on real data (frozen backbone); 32 frames or 4 sequences from scratch.
@@ -214,6 +265,8 @@ fn main() -> Result<()> {
         Command::Eval(a) => eval(a),
         Command::Summarize(a) => summarize(a),
         Command::BenchHeads(a) => bench(a),
+        Command::BenchBackbone(a) => bench_backbone(a),
+        Command::Doctor => doctor(),
     }
 }
 
@@ -233,6 +286,7 @@ fn train(a: TrainArgs) -> Result<()> {
     cfg.val_data = a.val_data.or(cfg.val_data);
     cfg.test_data = a.test_data.or(cfg.test_data);
     cfg.weights = a.weights.or(cfg.weights);
+    cfg.backbone = a.backbone.or(cfg.backbone);
     cfg.batch_size = a.batch_size.or(cfg.batch_size);
     cfg.sequences_per_pair = a.sequences_per_pair.or(cfg.sequences_per_pair);
     set!(cfg.out, a.out);
@@ -337,6 +391,49 @@ fn bench(a: BenchArgs) -> Result<()> {
         secs[secs.len() / 2],
         all
     );
+    Ok(())
+}
+
+fn bench_backbone(a: BenchBackboneArgs) -> Result<()> {
+    let w = trainer::bench::BackboneWorkload {
+        arch: a.backbone,
+        weights: a.weights,
+        batch: a.batch,
+        size: a.size,
+        width_mult: a.width_mult,
+        iters: a.iters,
+        latency_iters: a.latency_iters,
+    };
+    println!("{}", trainer::bench::backbone(&w)?);
+    Ok(())
+}
+
+fn doctor() -> Result<()> {
+    let venv = grasp_schema::venv::venv_dir();
+    println!("Python venv: {}", venv.display());
+    let mut missing_default = false;
+    for arch in Architecture::ALL {
+        let Some(variant) = arch.lite() else {
+            println!(
+                "{:20} no pip package: pass --weights mobilenet_v2-b0353104.pth (torchvision), \
+                 or train it with --mode from-scratch",
+                arch.name()
+            );
+            continue;
+        };
+        match trainer::backbone::venv_weights(variant) {
+            Ok(path) => println!("{:20} found: {}", arch.name(), path.display()),
+            Err(e) => {
+                missing_default |= variant == trainer::model::LiteVariant::Lite0;
+                println!("{:20} missing: {e:#}", arch.name());
+            }
+        }
+    }
+    if missing_default {
+        anyhow::bail!(
+            "the default backbone's weights (efficientnet-lite0) are missing; run scripts/setup.sh"
+        );
+    }
     Ok(())
 }
 

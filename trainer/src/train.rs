@@ -7,7 +7,7 @@
 //! Two modes share the loop: frozen-pretrained (the paper's; heads on cached
 //! features) and from-scratch (the whole MobileNetV2, with augmentation).
 
-use crate::backbone::{Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
+use crate::backbone::{Architecture, Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
 use crate::checkpoint::{self, CheckpointMeta, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::split::{self, Split};
@@ -516,23 +516,53 @@ pub struct Prepared {
     pub preprocess: Preprocess,
 }
 
-/// The frozen backbone named by `cfg.weights`: a pretrained weights file
-/// (preprocessed at `cfg.input_size` with ImageNet statistics), or a
-/// checkpoint whose backbone and preprocessing are reused as they are.
+/// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
+/// backbone and preprocessing are reused as they are; a pretrained weights
+/// file named by `cfg.weights`, its architecture detected from its tensor
+/// names; or, without `cfg.weights`, the venv's ImageNet file of
+/// `cfg.backbone` (EfficientNet-Lite0 by default). Pretrained files get
+/// their architecture's preprocessing at `cfg.input_size`.
 pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
-    let path = cfg
-        .weights
-        .as_ref()
-        .context("frozen-pretrained mode needs --weights")?;
+    let Some(path) = cfg.weights.as_ref() else {
+        let arch = cfg.backbone.unwrap_or(Architecture::EfficientNetLite0);
+        let variant = arch
+            .lite()
+            .with_context(|| format!("a frozen {} needs --weights FILE", arch.name()))?;
+        let path = crate::backbone::venv_weights(variant)?;
+        return Ok((
+            BackboneInfo::pretrained(&path, arch, cfg.width_mult)?,
+            arch.preprocess(cfg.input_size),
+        ));
+    };
     if crate::backbone::is_checkpoint(path) {
-        BackboneInfo::from_checkpoint(path)
-            .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()))
-    } else {
-        Ok((
-            BackboneInfo::pretrained(path, cfg.width_mult)?,
-            Preprocess::imagenet(cfg.input_size),
-        ))
+        return BackboneInfo::from_checkpoint(path)
+            .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()));
     }
+    let arch = detect_architecture(path)?;
+    if let Some(asked) = cfg.backbone.filter(|a| *a != arch) {
+        anyhow::bail!(
+            "--backbone {} does not match the weights file {}, which is {}",
+            asked.name(),
+            path.display(),
+            arch.name()
+        );
+    }
+    Ok((
+        BackboneInfo::pretrained(path, arch, cfg.width_mult)?,
+        arch.preprocess(cfg.input_size),
+    ))
+}
+
+/// The architecture of a pretrained weights file, from its tensor names.
+pub fn detect_architecture(path: &Path) -> Result<Architecture> {
+    let vb = crate::model::weights::var_builder(path, &Device::Cpu)?;
+    Architecture::detect(&vb).with_context(|| {
+        format!(
+            "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \
+             EfficientNet-Lite0/1/2 (_conv_stem.weight and the Lite blocks)",
+            path.display()
+        )
+    })
 }
 
 /// Loads the backbone and computes (or reads cached) features in frozen
@@ -589,6 +619,7 @@ fn build_net(
         None => {
             let info = BackboneInfo {
                 id: BACKBONE_ID.to_string(),
+                arch: Architecture::MobileNetV2,
                 weights_path: None,
                 weights_sha256: None,
                 width_mult: cfg.width_mult,
