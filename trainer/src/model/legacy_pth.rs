@@ -298,10 +298,14 @@ fn tensor_record(name: &str, value: Object) -> Result<Option<TensorRecord>> {
         name: name.to_string(),
         storage,
         dtype,
-        storage_len: non_negative(storage_len).ok_or_else(|| bad("bad storage size"))?,
-        offset: non_negative(offset).ok_or_else(|| bad("bad storage offset"))?,
-        shape: int_list(size).ok_or_else(|| bad("bad shape"))?,
-        stride: int_list(stride).ok_or_else(|| bad("bad strides"))?,
+        storage_len: non_negative(storage_len)
+            .ok_or_else(|| bad(&format!("storage size {storage_len:?} is not a count")))?,
+        offset: non_negative(offset)
+            .ok_or_else(|| bad(&format!("storage offset {offset:?} is not a count")))?,
+        shape: int_list(size)
+            .ok_or_else(|| bad(&format!("shape {size:?} is not a tuple of counts")))?,
+        stride: int_list(stride)
+            .ok_or_else(|| bad(&format!("strides {stride:?} are not a tuple of counts")))?,
     }))
 }
 
