@@ -182,7 +182,10 @@ fn load(path: &Path) -> anyhow::Result<HashMap<String, Tensor>> {
 /// The error of loading `bytes`, which must name the file and `tensor`.
 fn assert_error_names(dir: &Path, file: &str, bytes: &[u8], tensor: &str) -> String {
     let path = write(dir, file, bytes);
-    let msg = format!("{:#}", load(&path).expect_err("a corrupt file must not load"));
+    let msg = format!(
+        "{:#}",
+        load(&path).expect_err("a corrupt file must not load")
+    );
     assert!(msg.contains(file), "no file name in: {msg}");
     assert!(msg.contains(&format!("`{tensor}`")), "no tensor in: {msg}");
     msg
@@ -192,10 +195,18 @@ fn assert_error_names(dir: &Path, file: &str, bytes: &[u8], tensor: &str) -> Str
 fn permuted_and_offset_views_load_to_row_major_values() {
     let dir = tempfile::tempdir().unwrap();
     let (views, storages) = lite_like();
-    let path = write(dir.path(), "lite_like.pth", &write_legacy(&views, &storages));
+    let path = write(
+        dir.path(),
+        "lite_like.pth",
+        &write_legacy(&views, &storages),
+    );
     let t = load(&path).unwrap();
     assert!(!t.contains_key("bn.num_batches_tracked"));
-    let w = t["conv.weight"].flatten_all().unwrap().to_vec1::<f32>().unwrap();
+    let w = t["conv.weight"]
+        .flatten_all()
+        .unwrap()
+        .to_vec1::<f32>()
+        .unwrap();
     let mut expected = Vec::new();
     for o in 0..3 {
         for i in 0..2 {
@@ -208,7 +219,10 @@ fn permuted_and_offset_views_load_to_row_major_values() {
     }
     assert_eq!(t["conv.weight"].dims(), &[3, 2, 2, 2]);
     assert_eq!(w, expected);
-    assert_eq!(t["bn.weight"].to_vec1::<f32>().unwrap(), vec![0.0, 1.0, 2.0]);
+    assert_eq!(
+        t["bn.weight"].to_vec1::<f32>().unwrap(),
+        vec![0.0, 1.0, 2.0]
+    );
     assert_eq!(t["bn.bias"].to_vec1::<f32>().unwrap(), vec![3.0, 4.0, 5.0]);
 }
 
@@ -219,7 +233,12 @@ fn corrupt_storage_counts_are_errors_naming_the_tensor() {
     // the count before the data: 2^61 elements (an 8 EiB allocation before)
     let mut s = storages.clone();
     s[0].count = 1 << 61;
-    let msg = assert_error_names(dir.path(), "count.pth", &write_legacy(&views, &s), "conv.weight");
+    let msg = assert_error_names(
+        dir.path(),
+        "count.pth",
+        &write_legacy(&views, &s),
+        "conv.weight",
+    );
     assert!(msg.contains("storage 0"), "{msg}");
     // the size in the persistent id, consistently with the data count
     let mut v = views.clone();
@@ -231,7 +250,12 @@ fn corrupt_storage_counts_are_errors_naming_the_tensor() {
     for declared in [1 << 61, 25, -1] {
         let mut v = views.clone();
         v[0].declared = declared;
-        assert_error_names(dir.path(), "pid.pth", &write_legacy(&v, &storages), "conv.weight");
+        assert_error_names(
+            dir.path(),
+            "pid.pth",
+            &write_legacy(&v, &storages),
+            "conv.weight",
+        );
     }
     // u64::MAX overflows any byte count
     let mut s = storages.clone();
@@ -248,7 +272,10 @@ fn corrupt_offsets_shapes_and_strides_are_errors_naming_the_tensor() {
         ("huge-offset", Box::new(|v| v.offset = i64::MAX)),
         ("negative-offset", Box::new(|v| v.offset = -3)),
         ("shape", Box::new(|v| v.shape[0] = 4)),
-        ("huge-shape", Box::new(|v| v.shape = vec![1 << 40, 1 << 40, 1, 1])),
+        (
+            "huge-shape",
+            Box::new(|v| v.shape = vec![1 << 40, 1 << 40, 1, 1]),
+        ),
         ("negative-shape", Box::new(|v| v.shape[1] = -2)),
         ("stride", Box::new(|v| v.stride[2] = 13)),
         ("huge-stride", Box::new(|v| v.stride[0] = i64::MAX / 2)),
@@ -258,12 +285,22 @@ fn corrupt_offsets_shapes_and_strides_are_errors_naming_the_tensor() {
         let mut v = views.clone();
         corrupt(&mut v[0]);
         let file = format!("{what}.pth");
-        assert_error_names(dir.path(), &file, &write_legacy(&v, &storages), "conv.weight");
+        assert_error_names(
+            dir.path(),
+            &file,
+            &write_legacy(&v, &storages),
+            "conv.weight",
+        );
     }
     // an offset view of the shared storage reaching past it
     let mut v = views.clone();
     v[2].offset = 4;
-    assert_error_names(dir.path(), "shared.pth", &write_legacy(&v, &storages), "bn.bias");
+    assert_error_names(
+        dir.path(),
+        "shared.pth",
+        &write_legacy(&v, &storages),
+        "bn.bias",
+    );
 }
 
 #[test]
@@ -276,7 +313,10 @@ fn every_truncation_is_an_error() {
     let data_start = bytes.len() - (8 + 24 * 4) - (8 + 6 * 4) - (8 + 8);
     for len in 0..bytes.len() {
         let path = write(dir.path(), "cut.pth", &bytes[..len]);
-        let msg = format!("{:#}", load(&path).expect_err("a truncated file must not load"));
+        let msg = format!(
+            "{:#}",
+            load(&path).expect_err("a truncated file must not load")
+        );
         assert!(msg.contains("cut.pth"), "cut at {len}: {msg}");
         if (data_start..data_start + 8 + 96).contains(&len) {
             assert!(msg.contains("`conv.weight`"), "cut at {len}: {msg}");
@@ -293,8 +333,8 @@ fn fixture(name: &str) -> PathBuf {
 /// Shapes of the tensors of `mnv2_w010_legacy.pth` (besides the ignored
 /// counter), from the safetensors copy of the same state dict.
 fn fixture_tensors() -> Vec<(String, usize)> {
-    let all = candle_core::safetensors::load(fixture("mnv2_w010.safetensors"), &Device::Cpu)
-        .unwrap();
+    let all =
+        candle_core::safetensors::load(fixture("mnv2_w010.safetensors"), &Device::Cpu).unwrap();
     [
         "features.0.0.weight",
         "features.0.1.running_var",

@@ -80,3 +80,38 @@ fn lite0_classifies_photographs_like_pytorch() {
     }
     assert!(wrong.is_empty(), "wrong top-1: {wrong:?}");
 }
+
+/// Lite1 and Lite2 come from the optional `backbones` extra: checked when
+/// installed (detection from the file, and the first two photographs at
+/// their native input sizes), skipped otherwise even under the test command.
+#[test]
+fn larger_variants_when_installed() {
+    let Ok((_, data)) = prerequisites() else {
+        eprintln!("skipping: no venv (see lite0_classifies_photographs_like_pytorch)");
+        return;
+    };
+    for variant in [
+        trainer::model::LiteVariant::Lite1,
+        trainer::model::LiteVariant::Lite2,
+    ] {
+        let Ok(weights) = trainer::backbone::venv_weights(variant) else {
+            eprintln!(
+                "skipping {}: not installed (the optional `backbones` extra)",
+                variant.name()
+            );
+            continue;
+        };
+        let arch = Architecture::from_lite(variant);
+        assert_eq!(trainer::train::detect_architecture(&weights).unwrap(), arch);
+        let info = BackboneInfo::pretrained(&weights, arch, 1.0).unwrap();
+        let pre = arch.preprocess(arch.native_input_size());
+        let bb = Backbone::load_pretrained(&info, pre, &Device::Cpu).unwrap();
+        for (name, expected, _) in &CASES[..2] {
+            let img = image::open(data.join(name)).unwrap().to_rgb8();
+            let logits = bb.net.logits(&bb.input(&[img]).unwrap()).unwrap();
+            let top = logits.argmax(D::Minus1).unwrap().to_vec1::<u32>().unwrap()[0];
+            println!("{} {name}: top-1 {top}", variant.name());
+            assert!(expected.contains(&top), "{} {name}: {top}", variant.name());
+        }
+    }
+}

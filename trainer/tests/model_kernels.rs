@@ -2,8 +2,10 @@
 //! convolution, on random shapes including odd sizes and tiny planes.
 
 use candle_core::{Device, Tensor, Var};
-use trainer::model::depthwise::{depthwise_conv3x3, depthwise_conv3x3_bias_act};
-use trainer::model::pointwise::{pointwise_conv, pointwise_conv_bias_act};
+use trainer::model::depthwise::{
+    depthwise_conv3x3, depthwise_conv3x3_bias_act, depthwise_conv_bias_act, Padding,
+};
+use trainer::model::pointwise::{im2col, pointwise_conv, pointwise_conv_bias_act};
 
 fn max_abs_diff(a: &Tensor, b: &Tensor) -> f32 {
     assert_eq!(a.dims(), b.dims());
@@ -197,5 +199,120 @@ fn pointwise_matches_conv2d() {
         assert!(max_abs_diff(&ours, &(&biased + &residual).unwrap()) < 1e-4);
         let ours = pointwise_conv_bias_act(&x, &k, &b, None, true).unwrap();
         assert!(max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap()) < 1e-4);
+    }
+}
+
+/// `x` zero-padded as TensorFlow's SAME padding does for a `k`x`k`,
+/// `stride` convolution (the extra pixel at the bottom/right), computed
+/// here independently of the kernels' own `Padding::resolve`.
+fn same_padded(x: &Tensor, k: usize, stride: usize) -> Tensor {
+    let (_, _, h, w) = x.dims4().unwrap();
+    let pads = |size: usize| {
+        let out = size.div_ceil(stride);
+        let total = ((out - 1) * stride + k).saturating_sub(size);
+        (total / 2, total - total / 2)
+    };
+    let (top, bottom) = pads(h);
+    let (left, right) = pads(w);
+    x.pad_with_zeros(2, top, bottom)
+        .unwrap()
+        .pad_with_zeros(3, left, right)
+        .unwrap()
+}
+
+#[test]
+fn depthwise_same_padding_matches_grouped_conv2d() {
+    // 3x3 and 5x5, stride 1 and 2, odd and even sides (asymmetric padding
+    // at stride 2 on even sides), planes smaller than the kernel
+    for &(n, c, h, w) in &SHAPES {
+        for k in [3, 5] {
+            for stride in [1, 2] {
+                let x = randn(&[n, c, h, w]);
+                let wt = randn(&[c, 1, k, k]);
+                let b = randn(&[c]);
+                let reference = same_padded(&x, k, stride)
+                    .conv2d(&wt, 0, stride, 1, c)
+                    .unwrap()
+                    .broadcast_add(&b.reshape((1, c, 1, 1)).unwrap())
+                    .unwrap();
+                assert_eq!(reference.dims()[2], h.div_ceil(stride));
+                let ours =
+                    depthwise_conv_bias_act(&x, &wt, &b, stride, Padding::Same, false).unwrap();
+                let d = max_abs_diff(&ours, &reference);
+                assert!(d < 1e-4, "{:?} k {k} s {stride}: diff {d}", (n, c, h, w));
+                let ours =
+                    depthwise_conv_bias_act(&x, &wt, &b, stride, Padding::Same, true).unwrap();
+                let d = max_abs_diff(&ours, &reference.clamp(0f32, 6f32).unwrap());
+                assert!(
+                    d < 1e-4,
+                    "{:?} k {k} s {stride} relu6: diff {d}",
+                    (n, c, h, w)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn depthwise_5x5_with_symmetric_padding_matches_grouped_conv2d() {
+    for &(n, c, h, w) in &[(2, 3, 9, 8), (1, 4, 14, 14), (1, 2, 7, 7), (1, 3, 28, 27)] {
+        for stride in [1, 2] {
+            let x = randn(&[n, c, h, w]);
+            let wt = randn(&[c, 1, 5, 5]);
+            let b = Tensor::zeros(c, candle_core::DType::F32, &Device::Cpu).unwrap();
+            let reference = x.conv2d(&wt, 2, stride, 1, c).unwrap();
+            let ours =
+                depthwise_conv_bias_act(&x, &wt, &b, stride, Padding::Symmetric(2), false).unwrap();
+            let d = max_abs_diff(&ours, &reference);
+            assert!(d < 1e-4, "{:?} stride {stride}: diff {d}", (n, c, h, w));
+        }
+    }
+}
+
+#[test]
+fn depthwise_rejects_unsupported_kernels() {
+    let x = randn(&[1, 2, 6, 6]);
+    let b = randn(&[2]);
+    for k in [1, 4, 7] {
+        let wt = randn(&[2, 1, k, k]);
+        assert!(depthwise_conv_bias_act(&x, &wt, &b, 1, Padding::Same, false).is_err());
+    }
+    let wt = randn(&[2, 1, 5, 5]);
+    assert!(depthwise_conv_bias_act(&x, &wt, &b, 3, Padding::Same, false).is_err());
+    assert!(depthwise_conv_bias_act(&x, &wt, &b, 1, Padding::Symmetric(0), false).is_ok());
+    let tiny = randn(&[1, 2, 3, 3]);
+    assert!(depthwise_conv_bias_act(&tiny, &wt, &b, 1, Padding::Symmetric(0), false).is_err());
+}
+
+#[test]
+fn stem_im2col_with_same_padding_matches_conv2d() {
+    // the EfficientNet-Lite stem: dense 3x3, stride 2, SAME, as im2col + 1x1
+    for &(n, h, w) in &[
+        (1, 224, 224),
+        (2, 37, 37),
+        (1, 48, 40),
+        (1, 1, 2),
+        (3, 9, 6),
+    ] {
+        let (cin, cout) = (3, 8);
+        let x = randn(&[n, cin, h, w]);
+        let wt = randn(&[cout, cin, 3, 3]);
+        let b = randn(&[cout]);
+        let reference = same_padded(&x, 3, 2)
+            .conv2d(&wt, 0, 2, 1, 1)
+            .unwrap()
+            .broadcast_add(&b.reshape((1, cout, 1, 1)).unwrap())
+            .unwrap();
+        let cols = im2col(&x, 3, 2, Padding::Same).unwrap();
+        let ours = pointwise_conv_bias_act(
+            &cols,
+            &wt.reshape((cout, cin * 9)).unwrap(),
+            &b,
+            None,
+            false,
+        )
+        .unwrap();
+        let d = max_abs_diff(&ours, &reference);
+        assert!(d < 1e-4, "{:?}: diff {d}", (n, h, w));
     }
 }
