@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use trainer::backbone::Architecture;
 
 /// Drive the Hannes hand from a wrist camera: classify the frames of each
 /// approach, pick the pre-shape by majority vote and send it over the
@@ -138,10 +139,15 @@ struct SimArgs {
 #[derive(Args)]
 struct BenchArgs {
     /// Trained checkpoint (from grasp-train). Without it, a stand-in with
-    /// the paper's architecture (random MobileNetV2 1.0 + FC head) is built
-    /// in a temporary directory: latency does not depend on weight values.
+    /// an FC head on --backbone is built in a temporary directory: latency
+    /// does not depend on weight values.
     #[arg(long)]
     checkpoint: Option<PathBuf>,
+    /// Backbone of the stand-in checkpoint: efficientnet-lite0 (the
+    /// trainer's default, ImageNet weights from the venv) or mobilenet-v2
+    /// (the paper's, random weights).
+    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
+    backbone: Architecture,
     /// Timed inference frames (224x224).
     #[arg(long, default_value_t = 200)]
     frames: usize,
@@ -488,8 +494,11 @@ fn bench(a: BenchArgs) -> Result<()> {
     let checkpoint = match &a.checkpoint {
         Some(c) => c.clone(),
         None => {
-            eprintln!("no --checkpoint: building a stand-in (MobileNetV2 1.0, FC head)");
-            bench::stand_in_checkpoint(scratch.path(), a.size)?
+            eprintln!(
+                "no --checkpoint: building a stand-in ({}, FC head)",
+                a.backbone.name()
+            );
+            bench::stand_in_checkpoint(scratch.path(), a.size, a.backbone)?
         }
     };
     let mut classifier = runtime::model::load(&checkpoint)?;

