@@ -7,7 +7,7 @@
 //!   candle's rayon pool) and applies the bias, the optional residual and
 //!   the optional ReLU6 while the tile is still in cache.
 
-use super::cpu::{alloc_uninit, par_chunks};
+use super::cpu::{alloc_uninit, par_chunks, simd_dispatch};
 use super::depthwise::Padding;
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
@@ -17,9 +17,11 @@ const MAX_TILE: usize = 1024;
 /// Fewest jobs per call, so that a single image still uses every thread.
 const MIN_JOBS: usize = 4;
 
-/// Splits each image's `cout x hw` output into column tiles and, when the
-/// image is too small for enough column tiles, into row blocks. Large tiles
-/// matter: `gemm` packs the weights once per call.
+/// Splits each image's `cout x hw` output into jobs: column tiles when the
+/// image has more pixels than output channels, row blocks otherwise (the
+/// 7x7 and 14x14 layers with hundreds of channels). A job packs its rows of
+/// the weights and its columns of the input, so splitting the larger side
+/// packs the least; large tiles matter.
 struct Tiling {
     cout: usize,
     hw: usize,
@@ -33,10 +35,13 @@ struct Tiling {
 
 impl Tiling {
     fn new(n: usize, cout: usize, hw: usize) -> Self {
-        let tile = hw
-            .div_ceil(MIN_JOBS)
-            .next_multiple_of(16)
-            .clamp(16, MAX_TILE);
+        let tile = if hw >= cout {
+            hw.div_ceil(MIN_JOBS)
+                .next_multiple_of(16)
+                .clamp(16, MAX_TILE)
+        } else {
+            hw.clamp(1, MAX_TILE)
+        };
         let col_tiles = hw.div_ceil(tile);
         let want_rows = MIN_JOBS.div_ceil(col_tiles).max(1);
         let row_block = cout
@@ -209,17 +214,15 @@ struct TileArgs<'a> {
     relu6: bool,
 }
 
-/// One output tile `dst[cout, cols]` (row stride `hw`).
+/// One output tile `dst[cout, cols]` (row stride `hw`): the product
+/// written by `gemm`, then bias, residual and ReLU6 in one pass per row
+/// while the tile is in cache.
 ///
 /// # Safety
 /// `dst` must point to a `cout x cols` tile with row stride `hw` that no one
 /// else touches during the call.
 unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
     let hw = a.hw as isize;
-    for co in 0..a.cout {
-        let row = std::slice::from_raw_parts_mut(dst.add(co * a.hw), a.cols);
-        row.fill(a.bias[co]);
-    }
     gemm::gemm(
         a.cout,
         a.cols,
@@ -227,14 +230,14 @@ unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
         dst,
         1,
         hw,
-        true,
+        false,
         a.wt.as_ptr(),
         1,
         a.cin as isize,
         a.x.as_ptr(),
         1,
         hw,
-        1.0,
+        0.0,
         1.0,
         false,
         false,
@@ -243,17 +246,28 @@ unsafe fn run_tile(a: TileArgs, dst: *mut f32) {
     );
     for co in 0..a.cout {
         let row = std::slice::from_raw_parts_mut(dst.add(co * a.hw), a.cols);
-        if let Some(r) = a.residual {
-            for (o, &v) in row.iter_mut().zip(&r[co * a.hw..co * a.hw + a.cols]) {
-                *o += v;
+        let residual = a.residual.map(|r| &r[co * a.hw..co * a.hw + a.cols]);
+        epilogue(row, a.bias[co], residual, a.relu6);
+    }
+}
+
+simd_dispatch! {
+/// `row = act(row + bias [+ residual])` on the widest vector unit.
+fn epilogue(row: &mut [f32], bias: f32, residual: Option<&[f32]>, relu6: bool) {
+    let (lo, hi) = if relu6 { (0.0, 6.0) } else { (f32::NEG_INFINITY, f32::INFINITY) };
+    match residual {
+        Some(r) => {
+            for (o, &v) in row.iter_mut().zip(r) {
+                *o = (*o + bias + v).clamp(lo, hi);
             }
         }
-        if a.relu6 {
+        None => {
             for o in row.iter_mut() {
-                *o = o.clamp(0.0, 6.0);
+                *o = (*o + bias).clamp(lo, hi);
             }
         }
     }
+}
 }
 
 /// im2col for a dense 3x3, padding 1 convolution: (N, C, H, W) ->
