@@ -169,41 +169,59 @@ fn check_weight(g: &Geom, l: &Layout) -> Result<()> {
     Ok(())
 }
 
-/// Splits a plane into its zero-padded polyphase components in `phases`.
+/// Splits a plane into its zero-padded polyphase components in `phases`
+/// (stride `S`, a constant so that the index arithmetic is shifts).
 #[inline(always)]
-fn pad_plane(g: &Geom, src: &[f32], phases: &mut [f32]) {
-    let s = g.stride;
+fn pad_plane<const S: usize>(g: &Geom, src: &[f32], phases: &mut [f32]) {
     let (sh, sw) = g.phase_dims();
     let plen = g.phase_len();
     phases.fill(0.0);
     for y in 0..g.h {
-        // padded row y + pt lives in row (y + pt) / s of phase row (y + pt) % s
+        // padded row y + pt lives in row (y + pt) / S of phase row (y + pt) % S
         let py = y + g.pt;
-        let (prow, row) = (py % s, py / s);
+        let (prow, row) = (py % S, py / S);
         if row >= sh {
-            continue; // below every tap (SAME padding may drop the last rows)
+            break; // below every tap (SAME padding may drop the last rows)
         }
         let src_row = &src[y * g.w..(y + 1) * g.w];
-        for px in 0..s {
-            let base = (prow * s + px) * plen + row * sw;
-            let dst = &mut phases[base..base + sw];
-            // input column x sits at padded column x + pl, which is in
-            // phase (x + pl) % s at (x + pl) / s
-            let first_x = (px + s - g.pl % s) % s;
-            if first_x >= g.w {
-                continue;
-            }
-            let j0 = (first_x + g.pl) / s;
-            let count = (g.w - first_x).div_ceil(s).min(sw.saturating_sub(j0));
-            let dst = &mut dst[j0..j0 + count];
-            if s == 1 {
-                dst.copy_from_slice(&src_row[first_x..first_x + count]);
-            } else {
-                let src = &src_row[first_x..];
-                for (t, d) in dst.iter_mut().enumerate() {
-                    *d = src[s * t];
-                }
-            }
+        if S == 1 {
+            // input column x sits at padded column x + pl
+            let count = g.w.min(sw.saturating_sub(g.pl));
+            let base = row * sw + g.pl;
+            phases[base..base + count].copy_from_slice(&src_row[..count]);
+            continue;
+        }
+        // stride 2: input column x sits at padded column x + pl, in phase
+        // (x + pl) % 2 at (x + pl) / 2; even and odd input columns go to
+        // the two column phases of this phase row
+        let (first, rest) = phases[prow * 2 * plen..(prow * 2 + 2) * plen].split_at_mut(plen);
+        let (even_x, odd_x) = if g.pl % 2 == 0 {
+            (
+                &mut first[row * sw..(row + 1) * sw],
+                &mut rest[row * sw..(row + 1) * sw],
+            )
+        } else {
+            (
+                &mut rest[row * sw..(row + 1) * sw],
+                &mut first[row * sw..(row + 1) * sw],
+            )
+        };
+        // x = 2t goes to index t + e0, x = 2t + 1 to t + o0
+        let e0 = g.pl / 2;
+        let o0 = (g.pl + 1) / 2;
+        let even_n = g.w.div_ceil(2).min(sw.saturating_sub(e0));
+        let odd_n = (g.w / 2).min(sw.saturating_sub(o0));
+        for (d, v) in even_x[e0..e0 + even_n]
+            .iter_mut()
+            .zip(src_row.iter().step_by(2))
+        {
+            *d = *v;
+        }
+        for (d, v) in odd_x[o0..o0 + odd_n]
+            .iter_mut()
+            .zip(src_row[1..].iter().step_by(2))
+        {
+            *d = *v;
         }
     }
 }
@@ -271,7 +289,11 @@ fn conv_plane_body(
 ) {
     let phases_len = g.stride * g.stride * g.phase_len() + BLOCK;
     let (phases, wide) = scratch.split_at_mut(phases_len);
-    pad_plane(g, src, &mut phases[..phases_len - BLOCK]);
+    if g.stride == 1 {
+        pad_plane::<1>(g, src, &mut phases[..phases_len - BLOCK]);
+    } else {
+        pad_plane::<2>(g, src, &mut phases[..phases_len - BLOCK]);
+    }
     let wide = &mut wide[..g.wide_len()];
     match g.k {
         3 => {
