@@ -5,8 +5,10 @@ of the per-pair ratios (PyTorch seconds / candle seconds; above 1 means candle
 is faster). Alternating pairs keeps a shared machine's drifting speed out of
 the ratio.
 
-Usage: python scripts/bench_heads_pairs.py --head lstm --rounds 5 \
-    --candle target/release/grasp-train --torch-python /path/to/venv/bin/python
+Usage (the PyTorch side runs in the environment scripts/bench-env.sh makes):
+  P=$(scripts/bench-env.sh | tail -n1)
+  $P scripts/bench_heads_pairs.py --head lstm --rounds 5 \
+      --candle target/release/grasp-train --torch-python $P
 """
 
 import argparse
@@ -32,7 +34,9 @@ def main():
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--candle", default="target/release/grasp-train")
-    p.add_argument("--torch-python", default="python")
+    p.add_argument(
+        "--torch-python", default=".venv-bench/bin/python", help="see scripts/bench-env.sh"
+    )
     args = p.parse_args()
     work = ["--head", args.head, *WORKLOADS[args.head]]
     torch_script = str(Path(__file__).with_name("bench_torch_heads.py"))

@@ -101,7 +101,9 @@ def ratios(t: dict, c: dict) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("--backbone", choices=["efficientnet-lite0", "mobilenet-v2"], default="efficientnet-lite0")
+    p.add_argument(
+        "--backbone", choices=["efficientnet-lite0", "mobilenet-v2"], default="efficientnet-lite0"
+    )
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--batch", type=int, default=32)
     p.add_argument("--size", type=int, default=224)
@@ -126,7 +128,9 @@ def main() -> None:
             + "  ".join(f"{k} torch {t[k]:.2f} candle {c[k]:.2f} ratio {r[k]:.2f}" for k in keys),
             flush=True,
         )
-    print(f"{args.backbone}, {args.threads} threads, {args.size}x{args.size}, batch {args.batch}, {args.rounds} pairs")
+    print(
+        f"{args.backbone}, {args.threads} threads, {args.size}x{args.size}, batch {args.batch}, {args.rounds} pairs"
+    )
     print(f"{'':24}{'torch':>10}{'candle':>10}{'ratio (median of pairs)':>26}{'range':>16}")
     for key, label in (
         ("images_per_s", f"images/s (batch {args.batch})"),
@@ -136,7 +140,9 @@ def main() -> None:
         tm = statistics.median(t[key] for t, _, _ in pairs)
         cm = statistics.median(c[key] for _, c, _ in pairs)
         rs = [r[key] for _, _, r in pairs]
-        print(f"{label:24}{tm:10.2f}{cm:10.2f}{statistics.median(rs):26.2f}{min(rs):8.2f} to {max(rs):.2f}")
+        print(
+            f"{label:24}{tm:10.2f}{cm:10.2f}{statistics.median(rs):26.2f}{min(rs):8.2f} to {max(rs):.2f}"
+        )
     summary = {
         "backbone": args.backbone,
         "threads": args.threads,
@@ -144,7 +150,10 @@ def main() -> None:
         "size": args.size,
         "rounds": args.rounds,
         "torch": torch.__version__,
-        **{f"median_ratio_{k}": round(statistics.median(r[k] for _, _, r in pairs), 3) for k in keys},
+        **{
+            f"median_ratio_{k}": round(statistics.median(r[k] for _, _, r in pairs), 3)
+            for k in keys
+        },
     }
     print(json.dumps(summary))
 

@@ -68,7 +68,9 @@ class SameConv(nn.Conv2d):
             total = max((out - 1) * s + k - size, 0)
             pads.append((total // 2, total - total // 2))
         (top, bottom), (left, right) = pads
-        return F.conv2d(F.pad(x, (left, right, top, bottom)), self.weight, None, self.stride, 0, 1, self.groups)
+        return F.conv2d(
+            F.pad(x, (left, right, top, bottom)), self.weight, None, self.stride, 0, 1, self.groups
+        )
 
 
 def conv(cin: int, cout: int, k: int = 1, stride: int = 1, groups: int = 1) -> SameConv:
@@ -171,7 +173,9 @@ def legacy_state(model: nn.Module) -> dict:
         prefix = name + "." if name else ""
         if isinstance(module, nn.BatchNorm2d):
             # one storage, four views at offsets 0, C, 2C, 3C
-            stacked = torch.stack([module.weight, module.bias, module.running_mean, module.running_var])
+            stacked = torch.stack(
+                [module.weight, module.bias, module.running_mean, module.running_var]
+            )
             stacked = stacked.detach().clone()
             for i, key in enumerate(["weight", "bias", "running_mean", "running_var"]):
                 state[prefix + key] = stacked[i]
@@ -228,9 +232,20 @@ def imagenet_check(model: EfficientNetLite) -> None:
     from PIL import Image
 
     data = pathlib.Path(skimage.__file__).parent / "data"
-    for name in ("chelsea.png", "coffee.png", "motorcycle_left.png", "camera.png", "rocket.jpg", "astronaut.png"):
+    for name in (
+        "chelsea.png",
+        "coffee.png",
+        "motorcycle_left.png",
+        "camera.png",
+        "rocket.jpg",
+        "astronaut.png",
+    ):
         img = Image.open(data / name).convert("RGB").resize((224, 224), Image.BICUBIC)
-        x = torch.frombuffer(bytearray(img.tobytes()), dtype=torch.uint8).float().reshape(224, 224, 3)
+        x = (
+            torch.frombuffer(bytearray(img.tobytes()), dtype=torch.uint8)
+            .float()
+            .reshape(224, 224, 3)
+        )
         x = ((x - 127.0) / 128.0).permute(2, 0, 1).unsqueeze(0)
         with torch.no_grad():
             p = model(x).softmax(-1)[0]

@@ -16,8 +16,10 @@ trainer/tests/fixtures/:
                          format, the format of torchvision's
                          mobilenet_v2-b0353104.pth
 
-Needs torch and torchvision (a separate venv; CI does not run this):
-  /work/.venv-torch/bin/python scripts/make_parity_fixture.py
+Needs the benchmark environment with torch and torchvision (CI does not run
+this):
+  P=$(scripts/bench-env.sh | tail -n1)
+  $P scripts/make_parity_fixture.py
 """
 
 import copy

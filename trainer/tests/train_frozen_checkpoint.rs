@@ -109,11 +109,11 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
     assert_eq!(report.mode, "frozen-pretrained");
     assert_eq!(
         report.backbone,
-        format!("frozen backbone from {}", seed0.display())
+        format!("frozen mobilenet-v2 from {}", seed0.display())
     );
     let md = std::fs::read_to_string(cfg.out.join("report/report.md")).unwrap();
     assert!(
-        md.contains(&format!("frozen backbone from {}", seed0.display())),
+        md.contains(&format!("frozen mobilenet-v2 from {}", seed0.display())),
         "{md}"
     );
     assert_eq!(cache_keys(root).len(), 1);

@@ -20,9 +20,9 @@ pub struct RunReport {
 pub struct Report {
     /// `frozen-pretrained` or `from-scratch` (every run of a report shares it).
     pub mode: String,
-    /// Which backbone produced the report: "frozen backbone from
-    /// runs/scratch/seed-0", "frozen backbone mobilenet_v2-b0353104.pth" or
-    /// "backbone trained from scratch".
+    /// Which backbone produced the report: "frozen mobilenet-v2 from
+    /// runs/scratch/seed-0", "frozen efficientnet-lite0 PATH" or
+    /// "mobilenet-v2 trained from scratch".
     #[serde(default)]
     pub backbone: String,
     pub head: String,
