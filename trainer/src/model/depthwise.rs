@@ -195,7 +195,7 @@ fn pad_plane<const S: usize>(g: &Geom, src: &[f32], phases: &mut [f32]) {
         // (x + pl) % 2 at (x + pl) / 2; even and odd input columns go to
         // the two column phases of this phase row
         let (first, rest) = phases[prow * 2 * plen..(prow * 2 + 2) * plen].split_at_mut(plen);
-        let (even_x, odd_x) = if g.pl % 2 == 0 {
+        let (even_x, odd_x) = if g.pl.is_multiple_of(2) {
             (
                 &mut first[row * sw..(row + 1) * sw],
                 &mut rest[row * sw..(row + 1) * sw],
@@ -208,7 +208,7 @@ fn pad_plane<const S: usize>(g: &Geom, src: &[f32], phases: &mut [f32]) {
         };
         // x = 2t goes to index t + e0, x = 2t + 1 to t + o0
         let e0 = g.pl / 2;
-        let o0 = (g.pl + 1) / 2;
+        let o0 = g.pl.div_ceil(2);
         let even_n = g.w.div_ceil(2).min(sw.saturating_sub(e0));
         let odd_n = (g.w / 2).min(sw.saturating_sub(o0));
         for (d, v) in even_x[e0..e0 + even_n]

@@ -194,7 +194,7 @@ mod tests {
             ..lin.clone()
         };
         let range = |p: &Preprocess| {
-            let v = values(&to_tensor(&[edge.clone()], p, &Device::Cpu).unwrap());
+            let v = values(&to_tensor(std::slice::from_ref(&edge), p, &Device::Cpu).unwrap());
             let lo = v.iter().copied().fold(f32::MAX, f32::min);
             let hi = v.iter().copied().fold(f32::MIN, f32::max);
             (lo, hi)
