@@ -2,6 +2,7 @@
 //! (IROS 2022, Table 1), sequence plans, and the dataset layout.
 
 pub mod appearance;
+pub mod cli;
 pub mod dataset;
 pub mod plan;
 pub mod taxonomy;

@@ -197,24 +197,26 @@ struct EvalArgs {
     on_bad_data: OnBadData,
 }
 
-fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    let cli = Cli::parse();
-    if let Some(n) = cli.threads {
-        std::env::set_var("RAYON_NUM_THREADS", n.to_string());
-    }
-    match cli.command {
-        Command::Train(a) => train(*a),
-        Command::Eval(a) => eval(a),
-        Command::Summarize(a) => summarize(a),
-        Command::BenchHeads(a) => bench(a),
-    }
+fn main() -> std::process::ExitCode {
+    grasp_schema::cli::main(|| {
+        tracing_subscriber::fmt()
+            .with_env_filter(
+                tracing_subscriber::EnvFilter::try_from_default_env()
+                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+            )
+            .with_writer(std::io::stderr)
+            .init();
+        let cli = Cli::parse();
+        if let Some(n) = cli.threads {
+            std::env::set_var("RAYON_NUM_THREADS", n.to_string());
+        }
+        match cli.command {
+            Command::Train(a) => train(*a),
+            Command::Eval(a) => eval(a),
+            Command::Summarize(a) => summarize(a),
+            Command::BenchHeads(a) => bench(a),
+        }
+    })
 }
 
 fn train(a: TrainArgs) -> Result<()> {
