@@ -177,9 +177,10 @@ impl SessionSummary {
     /// One line of counts.
     pub fn describe(&self) -> String {
         format!(
-            "{} approaches: {} commanded, {} without command, {} aborted, {} expired \
+            "{} approach{}: {} commanded, {} without command, {} aborted, {} expired \
              (stale decision), {} hand failures",
             self.approaches,
+            if self.approaches == 1 { "" } else { "es" },
             self.commanded,
             self.no_command,
             self.aborted,

@@ -18,8 +18,17 @@ const BIN: &str = env!("CARGO_BIN_EXE_hannes-run");
 fn checkpoint() -> &'static Path {
     static CKPT: OnceLock<PathBuf> = OnceLock::new();
     CKPT.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("hannes-run-cli-checkpoint-{}", std::process::id()));
+        let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
+        // Folders of earlier test processes that are gone.
+        for entry in std::fs::read_dir(tmp).into_iter().flatten().flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if let Some(pid) = name.strip_prefix("hannes-run-cli-checkpoint-") {
+                if !Path::new("/proc").join(pid).exists() {
+                    let _ = std::fs::remove_dir_all(entry.path());
+                }
+            }
+        }
+        let dir = tmp.join(format!("hannes-run-cli-checkpoint-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         runtime::bench::stand_in_checkpoint(&dir, 32).unwrap()
