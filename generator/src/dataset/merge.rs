@@ -2,7 +2,9 @@
 //! numbers come from the full key order, so shards never collide; a folder
 //! present in two inputs must hold the same record.
 
-use super::writer::{find_sequences, DatasetDir};
+use super::lock;
+use super::writer::{find_sequences, DatasetDir, WORK_DIR};
+use crate::render::Shard;
 use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::head_sequence_dir;
 use std::path::{Path, PathBuf};
@@ -15,11 +17,23 @@ pub struct MergeSummary {
 
 pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
     let dataset = DatasetDir::create(out)?;
+    let _lock = lock::acquire(&dataset.work_dir(), Shard::ALL, "merge", false)?;
     let mut existing = find_sequences(out)?;
     let mut summary = MergeSummary::default();
+    let mut damaged = Vec::new();
     for shard in shards {
+        for holder in lock::holders(&shard.join(WORK_DIR)) {
+            tracing::warn!(
+                "{} is still locked ({}): only its finished sequences are merged",
+                shard.display(),
+                holder.describe()
+            );
+        }
         let records = find_sequences(shard)
             .with_context(|| format!("cannot read shard {}", shard.display()))?;
+        let source = DatasetDir {
+            root: shard.clone(),
+        };
         for (rel, record) in records {
             if let Some(present) = existing.get(&rel) {
                 if present.plan != record.plan {
@@ -30,6 +44,10 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
                     );
                 }
                 summary.already_present += 1;
+                continue;
+            }
+            if let Err(reason) = source.check_finished(&rel) {
+                damaged.push(reason);
                 continue;
             }
             // The head folder first: the wrist folder marks the sequence done.
@@ -43,8 +61,16 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
             summary.copied += 1;
         }
     }
-    dataset.clean_partials()?;
+    dataset.clean_partials(Shard::ALL)?;
     dataset.rebuild_manifest()?;
+    if !damaged.is_empty() {
+        bail!(
+            "{} damaged sequence(s) left out of the merge (re-render their shard with \
+             --resume, then merge again): {}",
+            damaged.len(),
+            damaged.join("; ")
+        );
+    }
     Ok(summary)
 }
 

@@ -1,12 +1,16 @@
 //! `grasp-gen dataset verify`: checks a finished dataset. It counts sequences
-//! per (object, part) pair and condition, finds missing or corrupt frames,
-//! checks the manifest against the sequence folders, checks the head
-//! camera's folder of every sequence whose plan has head poses, and, given
-//! the plan source, checks each record against a fresh re-plan and its folder.
+//! per (object, part) pair and condition, finds missing, cut-short or
+//! corrupt files (every PNG's chunks and CRCs, every EXR's chunks; a full
+//! decode with `decode`), checks the manifest against the sequence folders,
+//! checks the head camera's folder of every sequence whose plan has head
+//! poses, and, given the plan source, checks that every configured sequence
+//! (of the shard) is there and each record against a fresh re-plan and its
+//! folder.
 
-use super::assign_folders;
-use super::writer::{find_head_sequences, find_sequences, manifest_entry, output_files, WORK_DIR};
-use crate::render::PlanSource;
+use super::integrity::check_image;
+use super::writer::{manifest_entry, output_files, scan_sequences_lenient, WORK_DIR};
+use super::{assign_folders, Assigned};
+use crate::render::{PlanSource, Shard};
 use anyhow::{Context, Result};
 use grasp_schema::dataset::{head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE};
 use grasp_schema::Condition;
@@ -81,27 +85,56 @@ impl VerifyReport {
     }
 }
 
-/// Verifies the dataset at `root`. With `source`, every record must equal a
-/// fresh plan and sit in the folder the key order gives it. `decode` reads
-/// every PNG fully (slower) instead of only its header.
+/// Missing sequences listed one by one before the rest are only counted.
+const LISTED_MISSING: usize = 20;
+
+/// Verifies the whole dataset at `root`. With `source`, every configured
+/// sequence must be there, and every record must equal a fresh plan and sit
+/// in the folder the key order gives it. `decode` decodes every image fully
+/// (slower) on top of the integrity check of its file structure.
 pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Result<VerifyReport> {
-    let records =
-        find_sequences(root).with_context(|| format!("cannot scan dataset {}", root.display()))?;
-    let heads = find_head_sequences(root)
-        .with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    verify_shard(root, source, decode, Shard::ALL)
+}
+
+/// [`verify`] for the output of one `render --shard`: only the shard's
+/// sequences are expected.
+pub fn verify_shard(
+    root: &Path,
+    source: Option<&dyn PlanSource>,
+    decode: bool,
+    shard: Shard,
+) -> Result<VerifyReport> {
+    let scan = |head| {
+        scan_sequences_lenient(root, head)
+            .with_context(|| format!("cannot scan dataset {}", root.display()))
+    };
+    let (records, unreadable) = scan(false)?;
+    let (heads, unreadable_heads) = scan(true)?;
     let mut report = VerifyReport::default();
+    for (rel, e) in unreadable.iter().chain(&unreadable_heads) {
+        report.problems.push(format!("{rel}: {e:#}"));
+    }
     check_manifest(root, &records, &mut report);
     check_head_folders(root, &records, &heads, decode, &mut report);
     report.stats = super::stats::DatasetStats::from_records(records.values());
     let expected_dirs = match source {
-        Some(s) => Some(
-            assign_folders(&s.keys()?)
-                .into_iter()
-                .map(|a| (a.planned.key.id(), a.rel_dir))
-                .collect::<BTreeMap<_, _>>(),
-        ),
+        Some(s) => {
+            let assigned = assign_folders(&s.keys()?);
+            check_complete(&assigned, &records, shard, &mut report);
+            Some(
+                assigned
+                    .into_iter()
+                    .map(|a| (a.planned.key.id(), a.rel_dir))
+                    .collect::<BTreeMap<_, _>>(),
+            )
+        }
         None => None,
     };
+    if records.is_empty() && unreadable.is_empty() {
+        report
+            .problems
+            .push(format!("{}: no finished sequence", root.display()));
+    }
     let mut ids = BTreeSet::new();
     for (rel, record) in &records {
         let plan = &record.plan;
@@ -133,6 +166,13 @@ pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Res
         if let (Some(source), Some(dirs)) = (source, &expected_dirs) {
             check_against_plan(source, dirs, rel, record, &mut report);
         }
+    }
+    for holder in super::lock::holders(&root.join(WORK_DIR)) {
+        report.problems.push(format!(
+            "{} is locked: {} (a run still writing, or killed: resume it with --resume)",
+            root.display(),
+            holder.describe()
+        ));
     }
     let partial = root.join(WORK_DIR).join("partial");
     if std::fs::read_dir(&partial)
@@ -247,14 +287,7 @@ fn check_frames(
     let k = &record.plan.intrinsics;
     for name in output_files(record) {
         let path = root.join(rel).join(&name);
-        let size = if decode {
-            image::open(&path)
-                .map(|i| (i.width(), i.height()))
-                .map_err(|e| e.to_string())
-        } else {
-            image::image_dimensions(&path).map_err(|e| e.to_string())
-        };
-        match size {
+        match check_image(&path, decode) {
             Err(e) => report.problems.push(format!("{}: {e}", path.display())),
             Ok((w, h)) if (w, h) != (k.width, k.height) => report.problems.push(format!(
                 "{}: {w}x{h} pixels, the intrinsics say {}x{}",
@@ -265,6 +298,46 @@ fn check_frames(
             Ok(_) => {}
         }
     }
+}
+
+/// Every configured sequence of `shard` is in the dataset; the missing ones
+/// are named (the first [`LISTED_MISSING`], then counted).
+fn check_complete(
+    assigned: &[Assigned],
+    records: &BTreeMap<String, SequenceRecord>,
+    shard: Shard,
+    report: &mut VerifyReport,
+) {
+    let in_shard: Vec<&Assigned> = assigned
+        .iter()
+        .filter(|a| shard.contains(a.position))
+        .collect();
+    let missing: Vec<String> = in_shard
+        .iter()
+        .filter(|a| !records.contains_key(&a.rel_dir))
+        .map(|a| format!("{} ({})", a.rel_dir, a.planned.key.id()))
+        .collect();
+    if missing.is_empty() {
+        return;
+    }
+    for m in missing.iter().take(LISTED_MISSING) {
+        report.problems.push(format!("missing sequence {m}"));
+    }
+    report.problems.push(format!(
+        "{} of the {} configured sequences{} {} missing{}; render with --resume to complete \
+         the dataset",
+        missing.len(),
+        in_shard.len(),
+        match shard == Shard::ALL {
+            true => String::new(),
+            false => format!(" of shard {shard}"),
+        },
+        if missing.len() == 1 { "is" } else { "are" },
+        match missing.len() > LISTED_MISSING {
+            true => format!(" ({} more not listed)", missing.len() - LISTED_MISSING),
+            false => String::new(),
+        }
+    ));
 }
 
 fn check_against_plan(

@@ -215,6 +215,7 @@ pub fn options(out: &Path, workers: usize) -> RenderOptions {
         progress: false,
         stop: Arc::new(AtomicBool::new(false)),
         worker_env: Vec::new(),
+        break_lock: false,
     }
 }
 
