@@ -49,10 +49,15 @@ fn train_tiny(work: &Path) -> PathBuf {
     work.join("run/seed-0")
 }
 
-fn report_dataset(report_dir: &Path) -> PathBuf {
+/// The dataset a report was made on, as an absolute path (a relative one is
+/// relative to `cwd`, where eval ran).
+fn report_dataset(cwd: &Path, report: &str) -> PathBuf {
     let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(report_dir.join("report.json")).unwrap()).unwrap();
-    PathBuf::from(json["dataset"].as_str().unwrap())
+        serde_json::from_slice(&std::fs::read(cwd.join(report).join("report.json")).unwrap())
+            .unwrap();
+    cwd.join(json["dataset"].as_str().unwrap())
+        .canonicalize()
+        .unwrap()
 }
 
 #[test]
@@ -69,13 +74,8 @@ fn eval_without_data_reads_the_runs_dataset_from_any_directory() {
     let ckpt_arg = ckpt.to_str().unwrap();
     let (ok, text) = grasp_train(&elsewhere, &["eval", "-c", ckpt_arg, "--out", "report"]);
     assert!(ok, "{text}");
-    let used = report_dataset(&elsewhere.join("report"));
-    assert_eq!(
-        used.canonicalize().unwrap(),
-        work.join("data").canonicalize().unwrap(),
-        "evaluated {}",
-        used.display()
-    );
+    let used = report_dataset(&elsewhere, "report");
+    assert_eq!(used, work.join("data").canonicalize().unwrap());
 
     // A run that recorded a relative path: resolved against the run folder.
     let meta_path = ckpt.join("best.json");
@@ -85,11 +85,8 @@ fn eval_without_data_reads_the_runs_dataset_from_any_directory() {
     std::fs::write(&meta_path, serde_json::to_vec(&meta).unwrap()).unwrap();
     let (ok, text) = grasp_train(&elsewhere, &["eval", "-c", ckpt_arg, "--out", "report2"]);
     assert!(ok, "{text}");
-    let used = report_dataset(&elsewhere.join("report2"));
-    assert_eq!(
-        used.canonicalize().unwrap(),
-        work.join("data").canonicalize().unwrap()
-    );
+    let used = report_dataset(&elsewhere, "report2");
+    assert_eq!(used, work.join("data").canonicalize().unwrap());
 
     // One that does not exist there is an error naming it, not a guess.
     meta["train_config"]["data"] = "data".into();
