@@ -242,14 +242,16 @@ impl DatasetDir {
     /// Rewrites `manifest.jsonl` from the finished sequence folders, sorted
     /// by path, so it is identical however the sequences were produced.
     pub fn rebuild_manifest(&self) -> Result<usize> {
-        let records = find_sequences(&self.root)?;
         let mut text = String::new();
-        for (rel, record) in &records {
-            text.push_str(&serde_json::to_string(&manifest_entry(rel, record))?);
+        let mut count = 0;
+        visit_sequences(&self.root, false, |rel, record| {
+            text.push_str(&serde_json::to_string(&manifest_entry(rel, &record?))?);
             text.push('\n');
-        }
+            count += 1;
+            Ok(())
+        })?;
         write_atomic(&self.root.join(MANIFEST_FILE), text.as_bytes())?;
-        Ok(records.len())
+        Ok(count)
     }
 }
 
@@ -336,37 +338,48 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Every finished sequence under `root` (folders holding `sequence.json`,
-/// outside the work folder and the head camera's folders), by relative path.
+/// outside the work folder and the head camera's folders), by relative
+/// path. This holds every record in memory: commands that go through a
+/// whole dataset use [`sequence_dirs`] and [`visit_sequences`] instead.
 pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
-    scan_sequences(root, false)
+    let mut out = BTreeMap::new();
+    visit_sequences(root, false, |rel, record| {
+        out.insert(rel.to_string(), record?);
+        Ok(())
+    })?;
+    Ok(out)
 }
 
 /// The head camera's sequence folders under `root` (holding `sequence.json`).
 pub fn find_head_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
-    scan_sequences(root, true)
-}
-
-fn scan_sequences(root: &Path, head: bool) -> Result<BTreeMap<String, SequenceRecord>> {
-    let (records, unreadable) = scan_sequences_lenient(root, head)?;
-    match unreadable.into_iter().next() {
-        Some((_, e)) => Err(e),
-        None => Ok(records),
-    }
-}
-
-/// Readable sequence records by relative folder, and the folders whose
-/// `sequence.json` could not be read, with the error.
-pub type Scan = (
-    BTreeMap<String, SequenceRecord>,
-    Vec<(String, anyhow::Error)>,
-);
-
-/// Like [`find_sequences`] (`head` false) or [`find_head_sequences`], but an
-/// unreadable `sequence.json` is returned with its error instead of ending
-/// the scan (`dataset verify` reports them all).
-pub fn scan_sequences_lenient(root: &Path, head: bool) -> Result<Scan> {
     let mut out = BTreeMap::new();
-    let mut unreadable = Vec::new();
+    visit_sequences(root, true, |rel, record| {
+        out.insert(rel.to_string(), record?);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `visit` with every sequence folder under `root` (wrist folders, or
+/// the head camera's with `head`), in path order, and its record or the
+/// error reading it. One record is in memory at a time.
+pub fn visit_sequences(
+    root: &Path,
+    head: bool,
+    mut visit: impl FnMut(&str, Result<SequenceRecord>) -> Result<()>,
+) -> Result<()> {
+    for rel in sequence_dirs(root, head)? {
+        let record = read_record(&root.join(&rel).join(SEQUENCE_FILE));
+        visit(&rel, record)?;
+    }
+    Ok(())
+}
+
+/// The sequence folders under `root` (relative, `/`-separated, sorted):
+/// folders holding `sequence.json`, outside hidden folders, in a head
+/// camera folder or not as `head` says. Nothing is parsed.
+pub fn sequence_dirs(root: &Path, head: bool) -> Result<Vec<String>> {
+    let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let entries =
@@ -385,16 +398,12 @@ pub fn scan_sequences_lenient(root: &Path, head: bool) -> Result<Scan> {
                     .and_then(|p| p.strip_prefix(root).ok())
                     .map(to_slash)
                     .unwrap_or_default();
-                match read_record(&path) {
-                    Ok(record) => {
-                        out.insert(rel, record);
-                    }
-                    Err(e) => unreadable.push((rel, e)),
-                }
+                out.push(rel);
             }
         }
     }
-    Ok((out, unreadable))
+    out.sort();
+    Ok(out)
 }
 
 /// Whether a `sequence.json` lies in a `Head_d435/rgbNNNNN` folder.
