@@ -156,8 +156,8 @@ pub fn liveness(holder: &Holder, me: &Holder) -> Liveness {
     if !holder.same_machine(me) {
         return Liveness::Unknown;
     }
-    if holder.pid == me.pid {
-        return Liveness::Dead(format!("pid {} is this process now", holder.pid));
+    if holder.pid == me.pid && holder.process_start == me.process_start {
+        return Liveness::Alive("this very process holds it".into());
     }
     match (process_start(holder.pid), holder.process_start) {
         (None, _) => Liveness::Dead(format!("no process {} on this machine", holder.pid)),
@@ -588,6 +588,12 @@ mod tests {
         // The same pid with another start time is a reused pid.
         live.process_start = live.process_start.map(|t| t + 1);
         assert!(matches!(liveness(&live, &me), Liveness::Dead(_)));
+        // This process itself (another of its runs) is alive.
+        let me_again = Holder {
+            token: "another".into(),
+            ..me.clone()
+        };
+        assert!(matches!(liveness(&me_again, &me), Liveness::Alive(_)));
         // Another machine cannot be judged from here.
         let far = holder("some-other-host", ppid);
         assert_eq!(liveness(&far, &me), Liveness::Unknown);

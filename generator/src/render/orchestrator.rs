@@ -183,6 +183,11 @@ pub fn render(
         });
         summary.interrupted = run_pool(&ctx, workers, total, opts.progress, &lock, &mut summary)?;
     }
+    if lock.lost() {
+        // The folder is another run's now: leave its partials and manifest.
+        summary.seconds = start.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
     dataset.clean_partials(opts.shard)?;
     finish_manifest(&dataset, opts.shard, lock)?;
     summary.seconds = start.elapsed().as_secs_f64();
