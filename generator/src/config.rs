@@ -26,4 +26,18 @@ impl GeneratorConfig {
             .with_context(|| format!("cannot read config file {}", path.display()))?;
         toml::from_str(&text).with_context(|| format!("invalid config file {}", path.display()))
     }
+
+    /// Every check before planning: each section's values, the selection
+    /// against the catalog (unknown object ids and parts, with near
+    /// matches) and the size limits of [`crate::plan::budget`]. `plan`,
+    /// `render` and `dataset verify --config` all run it, so they agree.
+    pub fn check(&self, catalog: &crate::catalog::Catalog) -> Result<()> {
+        self.plan
+            .validate()
+            .context("invalid [plan] section of the config")?;
+        self.appearance.validate()?;
+        self.render.validate()?;
+        crate::plan::selection::check_selection(self, catalog)?;
+        crate::plan::budget::check_size(self, crate::plan::selection::pair_count(self, catalog))
+    }
 }

@@ -2,7 +2,7 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::{BadData, OnBadData};
@@ -149,6 +149,10 @@ struct TrainArgs {
     /// What to do with unreadable images and missing labels.
     #[arg(long, value_enum)]
     on_bad_data: Option<OnBadData>,
+    /// Train even if a pre-shape has no training sequence (refused by
+    /// default: such a classifier can never predict it).
+    #[arg(long)]
+    allow_missing_classes: bool,
 }
 
 #[derive(Args)]
@@ -252,6 +256,7 @@ fn train(a: TrainArgs) -> Result<()> {
     set!(cfg.reader.camera, a.camera);
     set!(cfg.on_bad_data, a.on_bad_data);
     cfg.augment.hflip |= a.hflip;
+    cfg.allow_missing_classes |= a.allow_missing_classes;
     if a.no_augment {
         cfg.augment.enabled = false;
     }
@@ -286,8 +291,11 @@ fn eval(a: EvalArgs) -> Result<()> {
     if data.sequences.is_empty() {
         anyhow::bail!("no sequences to evaluate");
     }
-    let report = trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad)
+    let mut report = trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad)
         .context("evaluation failed")?;
+    // What was skipped is part of the result: listed next to the report.
+    report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
+    trainer::experiment::write_problems(&bad, &a.out)?;
     trainer::eval::write_report(&report, &a.out)?;
     print_headline(&report);
     println!("report: {}", a.out.join("report.md").display());

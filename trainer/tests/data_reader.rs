@@ -166,3 +166,38 @@ fn splits_are_by_sequence_stratified_and_seeded() {
     );
     assert_ne!(other.test, s.test);
 }
+
+/// Issue 15, item 10: an interrupted render leaves its partial sequences,
+/// mesh cache and logs in `.grasp-gen/`; the reader never walks into it (or
+/// any hidden folder), so even `--on-bad-data fail` reads the dataset.
+#[test]
+fn the_generators_bookkeeping_folders_are_not_read() {
+    let (dir, spec) = generated();
+    let work = dir.path().join(".grasp-gen");
+    let partial = work.join("partial/00000004-0-4242");
+    std::fs::create_dir_all(&partial).unwrap();
+    std::fs::copy(
+        read_dataset(
+            dir.path(),
+            &ReaderOptions::default(),
+            &BadData::new(OnBadData::Fail),
+        )
+        .unwrap()
+        .sequences[0]
+            .frames[0]
+            .clone(),
+        partial.join("00000.png"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(work.join("meshes")).unwrap();
+    std::fs::write(work.join("meshes/025_mug.vertices.f64"), [0u8; 24]).unwrap();
+    std::fs::create_dir_all(work.join("logs")).unwrap();
+    // A hidden folder among the real ones, as an editor or a sync tool leaves.
+    std::fs::create_dir_all(dir.path().join("mug/025_mug/.sync/Wrist_d435/rgb00009")).unwrap();
+
+    let bad = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
+    assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
+    assert!(data.sequences.iter().all(|s| !s.id.contains(".grasp-gen")));
+    assert!(bad.problems().is_empty());
+}

@@ -3,6 +3,7 @@
 //! chance at render time. See `docs/planning.md`.
 
 pub mod bench;
+pub mod budget;
 pub mod camera;
 pub mod cli;
 pub mod conditions;
@@ -10,6 +11,7 @@ pub mod draw;
 pub mod head_camera;
 mod planner;
 pub mod scene;
+pub mod selection;
 pub mod trajectory;
 pub mod validity;
 pub mod wrist;

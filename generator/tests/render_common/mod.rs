@@ -20,9 +20,17 @@ pub fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_grasp-gen"))
 }
 
-/// Whether the Python environment with bpy exists; tests skip without it.
+/// Whether the Python environment with bpy exists; tests skip without it,
+/// except under `scripts/test.sh` (`GRASP_REQUIRE_BLENDER=1`), where a
+/// missing environment fails them.
 pub fn have_blender() -> bool {
     let ok = generator::python::site_packages(&generator::python::venv_dir()).is_ok();
+    if !ok && std::env::var_os("GRASP_REQUIRE_BLENDER").is_some() {
+        panic!(
+            "no Python venv with bpy, which scripts/test.sh requires ({})",
+            generator::python::setup_hint()
+        );
+    }
     if !ok {
         eprintln!(
             "skipping: no Python venv with bpy ({})",
@@ -215,6 +223,7 @@ pub fn options(out: &Path, workers: usize) -> RenderOptions {
         progress: false,
         stop: Arc::new(AtomicBool::new(false)),
         worker_env: Vec::new(),
+        break_lock: false,
     }
 }
 

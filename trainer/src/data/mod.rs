@@ -3,6 +3,7 @@
 
 pub mod augment;
 pub mod bad;
+pub mod coverage;
 pub mod images;
 pub mod reader;
 pub mod split;

@@ -218,11 +218,14 @@ fn is_image(p: &Path) -> bool {
     )
 }
 
+/// The visible sub-folders of `dir`, sorted. Hidden ones are bookkeeping,
+/// never data: the generator's `.grasp-gen/` holds the partial sequences
+/// of an unfinished render, its mesh cache, logs and locks.
 fn subdirs(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out: Vec<PathBuf> = fs::read_dir(dir)
         .with_context(|| format!("cannot list {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir())
+        .filter(|p| p.is_dir() && !file_name(p).starts_with('.'))
         .collect();
     out.sort();
     Ok(out)

@@ -41,6 +41,17 @@ pub struct Report {
     pub time_bin_s: f64,
     pub time_single: Curve,
     pub time_multi: Curve,
+    /// Bad data left out (`--on-bad-data skip`): how much, and where listed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bad_data: Option<BadDataNote>,
+}
+
+/// Problems skipped while reading or evaluating the data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BadDataNote {
+    pub skipped: usize,
+    /// `problems.json`, relative to the report's folder.
+    pub listed_in: PathBuf,
 }
 
 impl Report {
@@ -80,6 +91,7 @@ impl Report {
             video_confusion: vc,
             time_single: single,
             time_multi: multi,
+            bad_data: None,
         }
     }
 }
@@ -148,6 +160,16 @@ pub fn markdown(r: &Report) -> String {
             .map(|k| format!(" (at most {k} per object-part pair)"))
             .unwrap_or_default();
         let _ = writeln!(s, "- Training set: {n} sequences{cap}\n");
+    }
+    if let Some(b) = &r.bad_data {
+        let _ = writeln!(
+            s,
+            "- **Bad data skipped: {} problem(s)** (unreadable images, missing labels or \
+             frames), listed in [`{}`]({}); the numbers below leave them out.\n",
+            b.skipped,
+            b.listed_in.display(),
+            b.listed_in.display()
+        );
     }
     let _ = writeln!(
         s,
