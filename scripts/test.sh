@@ -7,6 +7,8 @@ cd "$(dirname "$0")/.."
 scripts/setup.sh
 VENV=${GRASP_VENV:-$(pwd)/.venv}
 export PYO3_PYTHON="$VENV/bin/python"
+# Tests that need Blender fail, rather than skip, without the venv.
+export GRASP_REQUIRE_BLENDER=1
 
 echo "== lint"
 cargo fmt --all -- --check

@@ -215,6 +215,14 @@ fn render(
                 label_parts(l, settings, req, camera == "head", dir)
                     .with_context(|| format!("part labels of {} ({camera} camera)", req.id))?;
             }
+            let sensor = req.plan.appearance.as_ref().and_then(|a| a.sensor.as_ref());
+            if let Some(e) = sensor.filter(|e| e.is_active()) {
+                cost.effects_seconds +=
+                    super::effects::apply_to_frames(e, camera, dir, &req.frame_files)
+                        .with_context(|| {
+                            format!("camera effects of {} ({camera} camera)", req.id)
+                        })?;
+            }
             cost.camera_seconds
                 .insert(folder.to_string(), start.elapsed().as_secs_f64());
         }
