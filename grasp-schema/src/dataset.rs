@@ -108,6 +108,11 @@ pub struct RenderCost {
     /// balance, blur, noise, JPEG) over all cameras.
     #[serde(default)]
     pub effects_seconds: f64,
+    /// CPU seconds (user + system, every thread) the worker process spent
+    /// on the sequence: less sensitive than wall-clock time to other load on
+    /// the machine. 0 where the platform does not report it.
+    #[serde(default)]
+    pub cpu_seconds: f64,
 }
 
 impl SequenceRecord {

@@ -30,6 +30,13 @@ pub struct DatasetStats {
     /// Object swap and appearance, once per sequence whatever the cameras.
     pub setup_seconds: f64,
     pub setup_seconds_per_frame: f64,
+    /// Image-space camera effects (white balance, blur, noise, JPEG), part
+    /// of the cameras' seconds, over all cameras.
+    pub effects_seconds: f64,
+    pub effects_seconds_per_frame: f64,
+    /// CPU seconds of the workers (every thread), all cameras and setup.
+    pub cpu_seconds: f64,
+    pub cpu_seconds_per_frame: f64,
     /// Per camera folder (`Wrist_d435`, `Head_d435`).
     pub cameras: BTreeMap<String, CameraCost>,
     /// Sequences per render setting (`engine, samples, WxH`).
@@ -50,6 +57,8 @@ impl DatasetStats {
                 continue;
             };
             s.setup_seconds += cost.setup_seconds;
+            s.effects_seconds += cost.effects_seconds;
+            s.cpu_seconds += cost.cpu_seconds;
             setup_frames += frames;
             for (camera, seconds) in cost.camera_seconds {
                 let c = s.cameras.entry(camera).or_default();
@@ -62,6 +71,8 @@ impl DatasetStats {
             c.seconds_per_frame = per(c.seconds, c.frames);
         }
         s.setup_seconds_per_frame = per(s.setup_seconds, setup_frames);
+        s.effects_seconds_per_frame = per(s.effects_seconds, setup_frames);
+        s.cpu_seconds_per_frame = per(s.cpu_seconds, setup_frames);
         s
     }
 
@@ -90,6 +101,20 @@ impl DatasetStats {
             "setup (object, materials, lights): {:.2} s in all, {:.4} s per frame",
             self.setup_seconds, self.setup_seconds_per_frame
         );
+        if self.cpu_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "worker CPU time (every thread): {:.2} s in all, {:.4} s per frame",
+                self.cpu_seconds, self.cpu_seconds_per_frame
+            );
+        }
+        if self.effects_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "of the cameras' seconds, camera effects: {:.2} s in all, {:.4} s per frame",
+                self.effects_seconds, self.effects_seconds_per_frame
+            );
+        }
         if self.without_cost > 0 {
             let _ = writeln!(
                 out,
