@@ -232,7 +232,7 @@ mod tests {
             color: [0.5; 3],
             roughness: 0.5,
         };
-        assert_eq!(first_blocking(&[d.clone()], &k, 0.0), Some(0));
+        assert_eq!(first_blocking(std::slice::from_ref(&d), &k, 0.0), Some(0));
         let aside = Distractor {
             pose: Pose {
                 position: [-0.4, 0.3, 0.8],
