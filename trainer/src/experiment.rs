@@ -5,6 +5,7 @@
 use crate::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
+use crate::eval::metrics::FrameWindow;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
 use crate::features::FeatureCache;
@@ -64,6 +65,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
             &cfg.cache_dir,
             cfg.feature_batch,
             &bad,
+            &FrameWindow::default(),
         )?;
         r.bad_data = bad_data_note(&bad, Path::new("../problems.json"));
         write_report(&r, &cfg.out.join("report"))?;
@@ -94,15 +96,19 @@ pub fn bad_data_note(bad: &BadData, listed_in: &Path) -> Option<crate::eval::rep
     })
 }
 
-/// Evaluates checkpoints on `data` and aggregates them into one report.
-/// The checkpoints must share their mode, backbone and training-set cap.
+/// Evaluates checkpoints on `data` and aggregates them into one report,
+/// scoring only the frames in `window`. The checkpoints must share their
+/// mode, backbone and training-set cap.
 pub fn evaluate(
     checkpoints: &[PathBuf],
     data: &Dataset,
     cache_dir: &Path,
     batch: usize,
     bad: &BadData,
+    window: &FrameWindow,
 ) -> Result<Report> {
+    window.validate()?;
+    let mut outside = 0;
     let dev = Device::Cpu;
     let cache = FeatureCache::new(cache_dir, batch);
     let mut runs = Vec::new();
@@ -116,7 +122,15 @@ pub fn evaluate(
         same("sequences_per_pair", &mut cap, m.sequences_per_pair(), ckpt)?;
         head = m.head.kind.name().to_string();
         train_sequences = train_sequences.or(m.train_sequences);
-        let preds = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        let all = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        let preds: Vec<_> = all.iter().filter_map(|v| window.apply(v)).collect();
+        outside = all.len() - preds.len();
+        if preds.is_empty() {
+            anyhow::bail!(
+                "no video has a frame in the window ({}): nothing to score",
+                window.describe()
+            );
+        }
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
             seed: m.seed,
@@ -127,6 +141,8 @@ pub fn evaluate(
     report.backbone = backbone.unwrap_or_default();
     report.sequences_per_pair = cap.flatten();
     report.train_sequences = train_sequences;
+    report.window = *window;
+    report.videos_outside_window = outside;
     Ok(report)
 }
 

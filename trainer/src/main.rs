@@ -140,6 +140,10 @@ struct TrainArgs {
     /// Camera folder (Wrist_d435, or Head_d435 for egocentric data).
     #[arg(long)]
     camera: Option<String>,
+    /// Feed the backbone only the central square of this fraction (0-1] of
+    /// each frame's shorter side; evaluation then crops the same way.
+    #[arg(long, value_name = "FRACTION")]
+    center_crop: Option<f64>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
     #[arg(long)]
     hflip: bool,
@@ -199,6 +203,20 @@ struct EvalArgs {
     real_fps: f64,
     #[arg(long, value_enum, default_value_t = OnBadData::Skip)]
     on_bad_data: OnBadData,
+    /// Score only frames at or after this time (seconds since the start).
+    #[arg(long, value_name = "SECONDS")]
+    from_s: Option<f64>,
+    /// Score only frames before this time (seconds since the start).
+    #[arg(long, value_name = "SECONDS")]
+    to_s: Option<f64>,
+    /// Score only the last SECONDS before each video's final no_grasp
+    /// segment (where the part must be readable before the hand closes).
+    #[arg(long, value_name = "SECONDS")]
+    before_tail_s: Option<f64>,
+    /// Centre crop of the backbone input, a fraction (0-1] of the shorter
+    /// side (default: the checkpoint's training setting).
+    #[arg(long, value_name = "FRACTION")]
+    center_crop: Option<f64>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -254,6 +272,7 @@ fn train(a: TrainArgs) -> Result<()> {
     set!(cfg.tbptt, a.tbptt);
     set!(cfg.reader.real_fps, a.real_fps);
     set!(cfg.reader.camera, a.camera);
+    cfg.reader.center_crop = a.center_crop.or(cfg.reader.center_crop);
     set!(cfg.on_bad_data, a.on_bad_data);
     cfg.augment.hflip |= a.hflip;
     cfg.allow_missing_classes |= a.allow_missing_classes;
@@ -278,21 +297,38 @@ fn train(a: TrainArgs) -> Result<()> {
 
 fn eval(a: EvalArgs) -> Result<()> {
     let bad = BadData::new(a.on_bad_data);
-    let data = match &a.data {
+    let window = trainer::eval::metrics::FrameWindow {
+        from_s: a.from_s,
+        to_s: a.to_s,
+        before_tail_s: a.before_tail_s,
+    };
+    window.validate()?;
+    let mut data = match &a.data {
         Some(root) => {
             let opts = trainer::data::ReaderOptions {
                 real_fps: a.real_fps,
+                center_crop: a.center_crop.or(trained_center_crop(&a.checkpoints[0])?),
                 ..Default::default()
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
         None => trainer::experiment::test_split_of(&a.checkpoints[0], &bad)?,
     };
+    if let Some(c) = a.center_crop {
+        anyhow::ensure!(
+            c > 0.0 && c <= 1.0,
+            "--center-crop must be in (0, 1], got {c}"
+        );
+        for s in &mut data.sequences {
+            s.center_crop = Some(c);
+        }
+    }
     if data.sequences.is_empty() {
         anyhow::bail!("no sequences to evaluate");
     }
-    let mut report = trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad)
-        .context("evaluation failed")?;
+    let mut report =
+        trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad, &window)
+            .context("evaluation failed")?;
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
     trainer::experiment::write_problems(&bad, &a.out)?;
@@ -300,6 +336,12 @@ fn eval(a: EvalArgs) -> Result<()> {
     print_headline(&report);
     println!("report: {}", a.out.join("report.md").display());
     Ok(())
+}
+
+/// The centre crop a checkpoint was trained with (its reader options).
+fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
+    let (meta, _) = trainer::checkpoint::CheckpointMeta::load(checkpoint)?;
+    Ok(meta.train_config["reader"]["center_crop"].as_f64())
 }
 
 fn summarize(a: SummarizeArgs) -> Result<()> {

@@ -20,7 +20,11 @@ fn generated_layout_takes_labels_from_sequence_json() {
     let data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
     assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
     assert!(!data.is_real());
-    let handle = data.sequences.iter().find(|s| s.part == "handle").unwrap();
+    let handle = data
+        .sequences
+        .iter()
+        .find(|s| s.part.as_deref() == Some("handle"))
+        .unwrap();
     assert_eq!(handle.object, "025_mug");
     assert_eq!(handle.preshape, Preshape::Lateral);
     assert_eq!(handle.label_source, LabelSource::SequenceJson);
@@ -54,8 +58,13 @@ fn authors_layout_labels_the_last_half_second_no_grasp() {
     assert_eq!(ng, 4);
     assert_eq!(s.labels[7], Class::from(s.preshape));
     assert_eq!(s.labels[8], Class::NoGrasp);
-    // Without part annotations, the pre-shape folder stands for the part.
-    assert_eq!(s.part, s.preshape.authors_folder());
+    // Without part annotations there is no part; the pre-shape folder
+    // stands for it in the split's strata.
+    assert_eq!(s.part, None);
+    assert_eq!(
+        s.stratum(),
+        format!("{}/{}", s.object, s.preshape.authors_folder())
+    );
     assert_eq!(s.condition, "real");
 }
 

@@ -30,6 +30,13 @@ pub struct DatasetStats {
     /// Object swap and appearance, once per sequence whatever the cameras.
     pub setup_seconds: f64,
     pub setup_seconds_per_frame: f64,
+    /// Image-space camera effects (white balance, blur, noise, JPEG), part
+    /// of the cameras' seconds, over all cameras.
+    pub effects_seconds: f64,
+    pub effects_seconds_per_frame: f64,
+    /// CPU seconds of the workers (every thread), all cameras and setup.
+    pub cpu_seconds: f64,
+    pub cpu_seconds_per_frame: f64,
     /// Per camera folder (`Wrist_d435`, `Head_d435`).
     pub cameras: BTreeMap<String, CameraCost>,
     /// Sequences per render setting (`engine, samples, WxH`).
@@ -59,6 +66,8 @@ impl DatasetStats {
             return;
         };
         self.setup_seconds += cost.setup_seconds;
+        self.effects_seconds += cost.effects_seconds;
+        self.cpu_seconds += cost.cpu_seconds;
         self.setup_frames += frames;
         for (camera, seconds) in cost.camera_seconds {
             let c = self.cameras.entry(camera).or_default();
@@ -68,6 +77,8 @@ impl DatasetStats {
             c.seconds_per_frame = per(c.seconds, c.frames);
         }
         self.setup_seconds_per_frame = per(self.setup_seconds, self.setup_frames);
+        self.effects_seconds_per_frame = per(self.effects_seconds, self.setup_frames);
+        self.cpu_seconds_per_frame = per(self.cpu_seconds, self.setup_frames);
     }
 
     pub fn render_text(&self) -> String {
@@ -95,6 +106,20 @@ impl DatasetStats {
             "setup (object, materials, lights): {:.2} s in all, {:.4} s per frame",
             self.setup_seconds, self.setup_seconds_per_frame
         );
+        if self.cpu_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "worker CPU time (every thread): {:.2} s in all, {:.4} s per frame",
+                self.cpu_seconds, self.cpu_seconds_per_frame
+            );
+        }
+        if self.effects_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "of the cameras' seconds, camera effects: {:.2} s in all, {:.4} s per frame",
+                self.effects_seconds, self.effects_seconds_per_frame
+            );
+        }
         if self.without_cost > 0 {
             let _ = writeln!(
                 out,

@@ -87,7 +87,7 @@ pub fn check_size(config: &GeneratorConfig, pairs: usize) -> Result<()> {
 fn duration_field(config: &GeneratorConfig, condition: Condition) -> (&'static str, f64) {
     let c = &config.plan.conditions;
     match condition {
-        Condition::Default | Condition::Background => (
+        Condition::Default | Condition::Background | Condition::UnseenLook => (
             "plan.trajectory.duration_s",
             config.plan.trajectory.duration_s,
         ),

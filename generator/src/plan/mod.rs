@@ -7,6 +7,7 @@ pub mod budget;
 pub mod camera;
 pub mod cli;
 pub mod conditions;
+pub mod distractors;
 pub mod draw;
 pub mod head_camera;
 mod planner;

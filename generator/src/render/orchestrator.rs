@@ -78,7 +78,7 @@ struct Job {
 enum Event {
     Rendered {
         peak_rss_kib: u64,
-        cost: RenderCost,
+        cost: Box<RenderCost>,
         /// Part names in label order (the `part` pass), else empty.
         part_labels: Vec<String>,
         job: Job,
@@ -599,7 +599,7 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                 served += 1;
                 let _ = tx.send(Event::Rendered {
                     peak_rss_kib,
-                    cost,
+                    cost: Box::new(cost),
                     part_labels,
                     job,
                     plan: Box::new(plan),
