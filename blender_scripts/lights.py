@@ -1,21 +1,33 @@
 """A fixed pool of lights, switched on and set from the plan per sequence
-(creating and deleting lights would invalidate Cycles' persistent data)."""
+(creating and deleting lights would invalidate Cycles' persistent data).
+
+Training draws point, spot and area lamps; the `unseen_look` condition has
+a sun and a ring of small area lights (`ring`) of its own."""
 
 import bpy
 
-KINDS = ("point", "spot", "area")
-POOL_PER_KIND = 4
+# Kind -> (Blender light type, pool size).
+POOL = {
+    "point": ("POINT", 4),
+    "spot": ("SPOT", 4),
+    "area": ("AREA", 4),
+    "sun": ("SUN", 1),
+    "ring": ("AREA", 8),
+}
+KINDS = tuple(POOL)
 
 
 class LightPool:
     def __init__(self):
         self.pool = {kind: [] for kind in KINDS}
-        for kind in KINDS:
-            for i in range(POOL_PER_KIND):
-                data = bpy.data.lights.new(f"{kind}{i}", type=kind.upper())
+        for kind, (light_type, size) in POOL.items():
+            for i in range(size):
+                data = bpy.data.lights.new(f"{kind}{i}", type=light_type)
                 obj = bpy.data.objects.new(f"{kind}{i}", data)
                 bpy.context.scene.collection.objects.link(obj)
                 obj.hide_render = True
+                if kind == "ring":
+                    obj.visible_camera = False
                 self.pool[kind].append(obj)
 
     def apply(self, lights, aim_at):
@@ -27,8 +39,8 @@ class LightPool:
             kind = spec["kind"]
             if kind not in self.pool:
                 raise ValueError(f"unknown light kind '{kind}' (expected one of {KINDS})")
-            if used[kind] >= POOL_PER_KIND:
-                raise ValueError(f"more than {POOL_PER_KIND} '{kind}' lights in one plan")
+            if used[kind] >= len(self.pool[kind]):
+                raise ValueError(f"more than {len(self.pool[kind])} '{kind}' lights in one plan")
             obj = self.pool[kind][used[kind]]
             used[kind] += 1
             obj.hide_render = False
@@ -40,12 +52,19 @@ class LightPool:
             data.use_shadow = True
             if kind == "area":
                 data.size = 0.5
+            elif kind == "ring":
+                data.size = 0.12
+            elif kind == "sun":
+                data.angle = 0.02  # soft shadow edge, radians
             elif kind == "spot":
                 data.spot_size = 1.4
                 data.spot_blend = 0.5
                 data.shadow_soft_size = 0.1
             else:
                 data.shadow_soft_size = 0.15
+
+    def has_sun(self, lights):
+        return any(spec["kind"] == "sun" for spec in lights)
 
 
 def _aim(obj, target):

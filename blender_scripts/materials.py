@@ -9,7 +9,18 @@ import bpy
 # The held-out family: a gingham tablecloth, used only for the `background`
 # test condition (the paper's "different background" set varies the cloth).
 HELD_OUT_FAMILY = "gingham"
-FAMILIES = ("noise", "voronoi", "brick", "checker", "wave", "marble", "image", HELD_OUT_FAMILY)
+# Families only the `unseen_look` test condition draws (never training).
+UNSEEN_FAMILIES = ("dots", "gabor", "magic")
+FAMILIES = (
+    "noise",
+    "voronoi",
+    "brick",
+    "checker",
+    "wave",
+    "marble",
+    "image",
+    HELD_OUT_FAMILY,
+) + UNSEEN_FAMILIES
 
 
 def _rgba(c):
@@ -135,6 +146,54 @@ def _gingham(nodes, links, vec, spec):
     return _ramp(nodes, links, add.outputs[0], spec["color_a"], spec["color_b"])
 
 
+def _dots(nodes, links, vec, spec):
+    # Polka dots: the distance to the centre of each unit cell of the UV
+    # plane, thresholded at a radius set by `detail`.
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(vec, sep.inputs["Vector"])
+    flat = nodes.new("ShaderNodeCombineXYZ")
+    links.new(sep.outputs["X"], flat.inputs["X"])
+    links.new(sep.outputs["Y"], flat.inputs["Y"])
+    cell = nodes.new("ShaderNodeVectorMath")
+    cell.operation = "FRACTION"
+    links.new(flat.outputs["Vector"], cell.inputs[0])
+    centred = nodes.new("ShaderNodeVectorMath")
+    centred.operation = "SUBTRACT"
+    centred.inputs[1].default_value = (0.5, 0.5, 0.0)
+    links.new(cell.outputs["Vector"], centred.inputs[0])
+    length = nodes.new("ShaderNodeVectorMath")
+    length.operation = "LENGTH"
+    links.new(centred.outputs["Vector"], length.inputs[0])
+    inside = nodes.new("ShaderNodeMath")
+    inside.operation = "LESS_THAN"
+    inside.inputs[1].default_value = 0.15 + 0.25 * spec["detail"]
+    links.new(length.outputs["Value"], inside.inputs[0])
+    return _ramp(nodes, links, inside.outputs[0], spec["color_a"], spec["color_b"])
+
+
+def _gabor(nodes, links, vec, spec):
+    # Gabor noise: oriented, fibrous streaks (brushed metal, woven fabric).
+    tex = nodes.new("ShaderNodeTexGabor")
+    tex.inputs["Frequency"].default_value = 2.0 + 4.0 * spec["detail"]
+    tex.inputs["Anisotropy"].default_value = 0.6 + 0.4 * spec["detail"]
+    links.new(vec, tex.inputs["Vector"])
+    unit = nodes.new("ShaderNodeMath")
+    unit.operation = "MULTIPLY_ADD"
+    unit.inputs[1].default_value = 0.5
+    unit.inputs[2].default_value = 0.5
+    links.new(tex.outputs["Value"], unit.inputs[0])
+    return _ramp(nodes, links, unit.outputs[0], spec["color_a"], spec["color_b"])
+
+
+def _magic(nodes, links, vec, spec):
+    # Blender's "magic" texture: interfering sine bands, a swirling tile.
+    tex = nodes.new("ShaderNodeTexMagic")
+    tex.turbulence_depth = 2 + int(3 * spec["detail"])
+    tex.inputs["Distortion"].default_value = 1.0 + 2.0 * spec["detail"]
+    links.new(vec, tex.inputs["Vector"])
+    return _ramp(nodes, links, tex.outputs["Fac"], spec["color_a"], spec["color_b"])
+
+
 _BUILDERS = {
     "noise": _noise,
     "voronoi": _voronoi,
@@ -144,6 +203,9 @@ _BUILDERS = {
     "marble": _marble,
     "image": _image,
     HELD_OUT_FAMILY: _gingham,
+    "dots": _dots,
+    "gabor": _gabor,
+    "magic": _magic,
 }
 
 

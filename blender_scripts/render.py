@@ -109,6 +109,29 @@ def set_exposure(settings, stops):
         scene.view_settings.exposure = round(stops / EXPOSURE_STEP) * EXPOSURE_STEP
 
 
+def set_tone(settings, tone):
+    """The plan's view transform and look, or the render settings' view
+    transform with no look. Few distinct pairs exist, so Blender's cache of
+    colour-management processors stays small."""
+    view = bpy.context.scene.view_settings
+    if tone is None:
+        view.view_transform = settings.get("view_transform", "AgX")
+        view.look = "None"
+    else:
+        view.view_transform = tone["view_transform"]
+        view.look = tone["look"]
+
+
+def set_motion_blur(settings, blur):
+    """Camera motion blur along the keyframed path (`blur`: a MotionBlur
+    dict or None). Only Cycles and EEVEE blur; Workbench ignores it."""
+    r = bpy.context.scene.render
+    r.use_motion_blur = blur is not None and settings["engine"] != "workbench"
+    if r.use_motion_blur:
+        r.motion_blur_shutter = float(blur["shutter"])
+        r.motion_blur_position = "CENTER"
+
+
 def extra_passes(settings):
     return [p for p in settings.get("passes", ["rgb"]) if p != "rgb"]
 

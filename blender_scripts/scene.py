@@ -112,7 +112,7 @@ class Room:
             [(0, 1, 2, 3)],
             self.floor_mat,
         )
-        mesh_object(
+        self.ceiling = mesh_object(
             "ceiling",
             [(x0, y0, h), (x0, y1, h), (x1, y1, h), (x1, y0, h)],
             [(0, 1, 2, 3)],
@@ -129,6 +129,7 @@ class Room:
         cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
         lamp = cylinder("ceiling_lamp", 0.25, 0.04, segments=24, material=lamp_mat)
         lamp.location = (cx, cy, h - 0.04)
+        self.lamp = lamp
 
         (tx0, ty0), (tx1, ty1) = table["min_xy"], table["max_xy"]
         top, thick = table["height"], table["thickness"]
@@ -144,6 +145,11 @@ class Room:
             ]
         ):
             box(f"table_leg{i}", (lx, ly, 0.0), (lx + leg, ly + leg, top - thick), leg_mat)
+
+    def open_to_sky(self, is_open):
+        """Hides the ceiling and its lamp while world light or a sun shines."""
+        self.ceiling.hide_render = is_open
+        self.lamp.hide_render = is_open
 
 
 class Arm:

@@ -6,7 +6,7 @@ import os
 import bpy
 import numpy as np
 
-from blender_scripts import lights, materials, render, scene
+from blender_scripts import distractors, lights, materials, render, scene, world
 
 
 def _clear_animation(obj):
@@ -33,11 +33,8 @@ class Worker:
         self.room = scene.Room(geometry)
         self.arm = scene.Arm()
         self.lights = lights.LightPool()
-        world = bpy.data.worlds.new("world")
-        world.use_nodes = True
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
-        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
-        bpy.context.scene.world = world
+        self.world = world.World()
+        self.distractors = distractors.Distractors()
         self.object_mat = bpy.data.materials.new("object")
         self.meshes = {}
         self.target = None
@@ -94,11 +91,17 @@ class Worker:
         materials.apply_surface(self.room.floor_mat, a["floor"])
         materials.apply_surface(self.room.table_mat, a["table"])
         obj = a["object"]
-        color = obj["color"] if obj["randomized"] else object_color
+        own = not (obj["randomized"] or obj.get("plausible", False))
+        color = object_color if own else obj["color"]
         materials.apply_plain(self.object_mat, color, obj["roughness"])
         self.lights.apply(a["lights"], aim_at=plan["object"]["pose"]["position"])
+        self.world.apply(a.get("world"))
+        self.room.open_to_sky(a.get("world") is not None or self.lights.has_sun(a["lights"]))
         render.set_exposure(self.settings, float(a["exposure"]))
+        render.set_tone(self.settings, a.get("tone"))
+        render.set_motion_blur(self.settings, a.get("motion_blur"))
         self.arm.set_hand_visible(bool(a["hand_visible"]))
+        self.distractors.apply(plan.get("distractors", []))
 
     def prepare(self, plan, object_color):
         """Swaps in the sequence's object and applies its appearance."""
@@ -155,16 +158,27 @@ class Worker:
         if self.settings.get("one_call", True) and not extra:
             self._render_animation(plan, view, out_dir, frame_files)
             return
-        for i, (frame, name) in enumerate(zip(plan["frames"], frame_files)):
-            self.arm.set_pose(frame["camera"])
-            if view is not None:
-                view.set_pose(frame["head_camera"], frame["camera"], i)
-            render.render_still()
-            png = os.path.join(out_dir, name)
-            exr = os.path.splitext(png)[0] + ".exr" if extra else None
-            render.write_frame(png, exr)
+        # Motion blur needs the path keyframed around each frame.
+        keyed = bpy.context.scene.render.use_motion_blur
+        moving = self._keyframe(plan, view) if keyed else []
+        try:
+            for i, (frame, name) in enumerate(zip(plan["frames"], frame_files)):
+                if keyed:
+                    bpy.context.scene.frame_set(frame["index"])
+                else:
+                    self.arm.set_pose(frame["camera"])
+                    if view is not None:
+                        view.set_pose(frame["head_camera"], frame["camera"], i)
+                render.render_still()
+                png = os.path.join(out_dir, name)
+                exr = os.path.splitext(png)[0] + ".exr" if extra else None
+                render.write_frame(png, exr)
+        finally:
+            for obj in moving:
+                _clear_animation(obj)
 
-    def _render_animation(self, plan, view, out_dir, frame_files):
+    def _keyframe(self, plan, view):
+        """Keys every planned pose of the moving objects; returns them."""
         moving = [self.arm.camera] + ([] if view is None else view.moving())
         for obj in moving:
             _clear_animation(obj)
@@ -180,10 +194,18 @@ class Worker:
         first, last = frames[0]["index"], frames[-1]["index"]
         if [f["index"] for f in frames] != list(range(first, last + 1)):
             raise ValueError("frame indices are not consecutive")
+        return moving
+
+    def _render_animation(self, plan, view, out_dir, frame_files):
+        frames = plan["frames"]
+        moving = self._keyframe(plan, view)
+        first, last = frames[0]["index"], frames[-1]["index"]
         stem = os.path.splitext(frame_files[0])[0]
-        render.render_animation(out_dir, first, last, padding=len(stem))
-        for obj in moving:
-            _clear_animation(obj)
+        try:
+            render.render_animation(out_dir, first, last, padding=len(stem))
+        finally:
+            for obj in moving:
+                _clear_animation(obj)
         # Blender names files by frame number; rename if the plan's names differ.
         for frame, name in zip(frames, frame_files):
             made = os.path.join(out_dir, f"{frame['index']:0{len(stem)}d}.png")

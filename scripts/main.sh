@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job: set the machine up, then check the catalog, plan and render a
-# training set, a validation set and the five test conditions, verify and
+# training set, a validation set and the six test conditions (the paper's
+# five and unseen_look, an appearance training never draws), verify and
 # preview them, train a classifier, evaluate it on every test condition, and
 # replay one test sequence through the runtime against the simulated hand.
 #
@@ -66,7 +67,7 @@ $BIN/grasp-gen objects list | tail -6
 $BIN/grasp-gen objects check
 $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 
-echo "== render: train, validation, and the five test conditions"
+echo "== render: train, validation, and the six test conditions"
 derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
@@ -78,7 +79,7 @@ derived_config 1 "$TRAIN_SEQ" '"default"' train
 derived_config 2 1 '"default"' val
 render train
 render val
-for condition in default fast from_ground seated background; do
+for condition in default fast from_ground seated background unseen_look; do
   derived_config 3 "$TEST_SEQ" "\"$condition\"" "test-$condition"
   render "test-$condition"
 done
@@ -93,12 +94,12 @@ echo "== train and evaluate"
     "${TRAIN_FLAGS[@]}" --out "$OUT/model"
   touch "$OUT/model/seed-0/.done"
 }
-for condition in default fast from_ground seated background; do
+for condition in default fast from_ground seated background unseen_look; do
   $BIN/grasp-train eval -c "$OUT/model/seed-0" --data "$OUT/data/test-$condition" \
     --out "$OUT/report/$condition"
 done
 REPORTS=()
-for condition in default fast from_ground seated background; do
+for condition in default fast from_ground seated background unseen_look; do
   REPORTS+=(--report "model/$condition:$OUT/report/$condition")
 done
 $BIN/grasp-train summarize --by-condition --title "Per-video accuracy by test condition" \

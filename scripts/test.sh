@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Sets up (scripts/setup.sh) and runs every test: Rust (unit, integration and
-# cross-program tests), Python tests of blender_scripts, and the format/lint
-# checks.
+# cross-program tests), Python tests of blender_scripts, the format/lint
+# checks, and the cluster recipe on a real single-node Slurm
+# (scripts/slurm-test.sh: needs root, installs slurm-wlm and munge).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 VENV=${GRASP_VENV:-$(pwd)/.venv}
 export PYO3_PYTHON="$VENV/bin/python"
-# Tests that need the venv (bpy, the pip-installed ImageNet weights) fail
-# instead of skipping when it is missing.
+# Tests that need the venv (bpy, the pip-installed ImageNet weights) fail,
+# instead of skipping, when it is missing.
 export GRASP_REQUIRE_BLENDER=1
 
 echo "== lint"
@@ -22,3 +23,6 @@ echo "== python tests"
 
 echo "== rust tests"
 cargo test --release --workspace
+
+echo "== cluster recipe on Slurm (docs/cluster.md)"
+scripts/slurm-test.sh

@@ -112,7 +112,10 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
         .unwrap();
         assert_eq!(window.decision.frames, 10, "every frame classified");
         let mut closure = Timer(Duration::from_millis(10));
-        let report = actuate(&hand, window, Some(&mut closure), &stop, t0).unwrap();
+        // Not about the age limit (runtime/tests/faults.rs is): one no
+        // loaded machine reaches.
+        let max_age = Duration::from_secs(30);
+        let report = actuate(&hand, window, Some(&mut closure), &stop, t0, max_age).unwrap();
         let sent = report
             .preshape
             .unwrap_or_else(|| panic!("{label}: nothing sent: {:?}", report.window.decision));

@@ -5,7 +5,10 @@
 //!
 //! One texture family (`held_out_family`, a gingham cloth by default) is
 //! reserved for the table of the `background` test condition, after the
-//! paper's "different background" set; it is never drawn otherwise.
+//! paper's "different background" set; it is never drawn otherwise. The
+//! `unseen_look` condition has families, lights and more of its own
+//! ([`crate::unseen_look`]); training's further levers are in
+//! [`crate::randomize`].
 
 use anyhow::{bail, Context, Result};
 use grasp_schema::appearance::{Appearance, Light, ObjectMaterial, SurfaceMaterial};
@@ -16,8 +19,9 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The texture families the Blender side knows (`blender_scripts/materials.py`).
-pub const FAMILIES: [&str; 8] = [
-    "noise", "voronoi", "brick", "checker", "wave", "marble", "image", "gingham",
+pub const FAMILIES: [&str; 11] = [
+    "noise", "voronoi", "brick", "checker", "wave", "marble", "image", "gingham", "dots", "gabor",
+    "magic",
 ];
 pub const LIGHT_KINDS: [&str; 3] = ["point", "spot", "area"];
 
@@ -54,6 +58,8 @@ pub struct AppearanceConfig {
     pub exposure: [f64; 2],
     /// Probability that the hand is partly in view at the top of the frame.
     pub hand_visible: f64,
+    /// The `unseen_look` test condition's own appearance.
+    pub unseen_look: crate::unseen_look::UnseenLookConfig,
 }
 
 impl Default for AppearanceConfig {
@@ -78,6 +84,7 @@ impl Default for AppearanceConfig {
             color_temperature_k: [2700.0, 6500.0],
             exposure: [-0.5, 0.5],
             hand_visible: 0.7,
+            unseen_look: Default::default(),
         }
     }
 }
@@ -90,6 +97,9 @@ impl AppearanceConfig {
             bail!("[appearance] families: the list is empty");
         }
         for f in &self.families {
+            if crate::unseen_look::UNSEEN_FAMILIES.contains(&f.as_str()) {
+                bail!("[appearance] families: '{f}' is reserved for the unseen_look condition and may not be drawn in training");
+            }
             if !known(f) || f == "image" {
                 bail!("[appearance] families: unknown procedural family '{f}' (expected some of noise, voronoi, brick, checker, wave, marble, gingham)");
             }
@@ -97,7 +107,10 @@ impl AppearanceConfig {
                 bail!("[appearance] families: '{f}' is the held-out family and may only be used for the background condition");
             }
         }
-        if !known(&self.held_out_family) || self.held_out_family == "image" {
+        if !known(&self.held_out_family)
+            || self.held_out_family == "image"
+            || crate::unseen_look::UNSEEN_FAMILIES.contains(&self.held_out_family.as_str())
+        {
             bail!(
                 "[appearance] held_out_family: unknown family '{}'",
                 self.held_out_family
@@ -146,7 +159,7 @@ impl AppearanceConfig {
                 bail!("[appearance] {name}: a probability must be in [0, 1], got {p}");
             }
         }
-        Ok(())
+        self.unseen_look.validate()
     }
 
     /// The image textures, sorted by name so draws are reproducible.
@@ -202,6 +215,7 @@ pub fn sample_with_images(
         randomized,
         color: random_color(config, &mut rng),
         roughness: uniform(&mut rng, config.roughness),
+        plausible: false,
     };
     let count = rng.gen_range(config.lights[0]..=config.lights[1].max(config.lights[0]));
     let lights = (0..count).map(|_| light(config, &mut rng)).collect();
@@ -213,6 +227,10 @@ pub fn sample_with_images(
         lights,
         exposure: uniform(&mut rng, config.exposure),
         hand_visible: rng.gen_bool(config.hand_visible),
+        tone: None,
+        world: None,
+        motion_blur: None,
+        sensor: None,
     }
 }
 
@@ -224,7 +242,7 @@ fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     }
 }
 
-fn surface(
+pub(crate) fn surface(
     config: &AppearanceConfig,
     images: &[String],
     rng: &mut ChaCha8Rng,

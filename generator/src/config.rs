@@ -13,8 +13,10 @@ pub struct GeneratorConfig {
     pub dataset: crate::plan::DatasetConfig,
     /// Scene, camera and trajectory parameters of the planner.
     pub plan: crate::plan::PlanConfig,
-    /// Domain randomization ranges.
+    /// Domain randomization ranges, and the `unseen_look` condition's own.
     pub appearance: crate::appearance::AppearanceConfig,
+    /// Training's further randomisation levers, each switchable.
+    pub randomize: crate::randomize::RandomizeConfig,
     /// Engine and output settings of the Blender workers.
     pub render: crate::render::RenderConfig,
 }
@@ -24,6 +26,39 @@ impl GeneratorConfig {
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read config file {}", path.display()))?;
-        toml::from_str(&text).with_context(|| format!("invalid config file {}", path.display()))
+        let config: GeneratorConfig = toml::from_str(&text)
+            .with_context(|| format!("invalid config file {}", path.display()))?;
+        config
+            .validate()
+            .with_context(|| format!("invalid config file {}", path.display()))?;
+        Ok(config)
+    }
+
+    /// Checks every section, and that the `unseen_look` condition's values
+    /// stay out of training's reach.
+    pub fn validate(&self) -> Result<()> {
+        self.plan.validate()?;
+        self.appearance.validate()?;
+        self.randomize.validate()?;
+        self.render.validate()?;
+        self.appearance.unseen_look.check_disjoint(
+            &self.appearance,
+            &self.randomize,
+            &self.render.view_transform,
+        )
+    }
+
+    /// Every check before planning: each section's values, the selection
+    /// against the catalog (unknown object ids and parts, with near
+    /// matches) and the size limits of [`crate::plan::budget`]. `plan`,
+    /// `render` and `dataset verify --config` all run it, so they agree.
+    pub fn check(&self, catalog: &crate::catalog::Catalog) -> Result<()> {
+        self.plan
+            .validate()
+            .context("invalid [plan] section of the config")?;
+        self.appearance.validate()?;
+        self.render.validate()?;
+        crate::plan::selection::check_selection(self, catalog)?;
+        crate::plan::budget::check_size(self, crate::plan::selection::pair_count(self, catalog))
     }
 }

@@ -10,4 +10,6 @@ pub mod geometry;
 pub mod plan;
 pub mod preview;
 pub mod python;
+pub mod randomize;
 pub mod render;
+pub mod unseen_look;

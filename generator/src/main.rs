@@ -33,25 +33,28 @@ enum Command {
     Worker,
 }
 
-fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    let cli = Cli::parse();
-    match cli.command {
-        Command::Doctor => doctor(),
-        Command::Objects(cmd) => generator::catalog::cli::run(&cmd),
-        Command::Render(args) => generator::render::cli::run_render(&args),
-        Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
-        Command::Preview(args) => generator::preview::run(&args),
-        Command::Worker => generator::render::cli::run_worker(),
-        Command::Plan(args) => generator::plan::cli::run(&args),
-        Command::BenchPlan(args) => generator::plan::bench::run(&args),
-    }
+fn main() -> std::process::ExitCode {
+    grasp_schema::cli::main(|| {
+        tracing_subscriber::fmt()
+            .with_env_filter(
+                tracing_subscriber::EnvFilter::try_from_default_env()
+                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+            )
+            .with_writer(std::io::stderr)
+            .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .init();
+        let cli = Cli::parse();
+        match cli.command {
+            Command::Doctor => doctor(),
+            Command::Objects(cmd) => generator::catalog::cli::run(&cmd),
+            Command::Render(args) => generator::render::cli::run_render(&args),
+            Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
+            Command::Preview(args) => generator::preview::run(&args),
+            Command::Worker => generator::render::cli::run_worker(),
+            Command::Plan(args) => generator::plan::cli::run(&args),
+            Command::BenchPlan(args) => generator::plan::bench::run(&args),
+        }
+    })
 }
 
 fn doctor() -> Result<()> {

@@ -5,9 +5,9 @@
 //! reach; under each frame a strip in the colour of its label (legend in
 //! `contact_sheet.txt`, with the sequence of each row).
 
-use crate::dataset::writer::find_sequences;
+use crate::dataset::writer::{read_record, sequence_dirs};
 use anyhow::{bail, Context, Result};
-use grasp_schema::dataset::SequenceRecord;
+use grasp_schema::dataset::{SequenceRecord, SEQUENCE_FILE};
 use grasp_schema::Class;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::imageops::FilterType;
@@ -55,12 +55,25 @@ pub fn class_color(class: Class) -> Rgba<u8> {
 /// Writes `contact_sheet.png`, `contact_sheet.txt` and `preview.gif` into
 /// `out`; returns their paths.
 pub fn preview(dataset: &Path, out: &Path, opts: &PreviewOptions) -> Result<Vec<PathBuf>> {
-    let records: Vec<(String, SequenceRecord)> = find_sequences(dataset)?.into_iter().collect();
-    if records.is_empty() {
+    // Folder names only; the records of the shown sequences are read.
+    let dirs = sequence_dirs(dataset, false)?;
+    if dirs.is_empty() {
         bail!("{}: no finished sequences to preview", dataset.display());
     }
+    let load = |n: usize| -> Result<Vec<(String, SequenceRecord)>> {
+        evenly(&dirs, n)
+            .into_iter()
+            .map(|rel| {
+                Ok((
+                    rel.clone(),
+                    read_record(&dataset.join(rel).join(SEQUENCE_FILE))?,
+                ))
+            })
+            .collect()
+    };
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let chosen = evenly(&records, opts.sequences);
+    let sheet_records = load(opts.sequences)?;
+    let chosen: Vec<&(String, SequenceRecord)> = sheet_records.iter().collect();
     let (sheet, legend) = contact_sheet(dataset, &chosen, opts)?;
     let sheet_path = out.join("contact_sheet.png");
     sheet
@@ -69,12 +82,9 @@ pub fn preview(dataset: &Path, out: &Path, opts: &PreviewOptions) -> Result<Vec<
     let legend_path = out.join("contact_sheet.txt");
     std::fs::write(&legend_path, legend)?;
     let gif_path = out.join("preview.gif");
-    write_gif(
-        dataset,
-        &evenly(&records, opts.gif_sequences),
-        opts,
-        &gif_path,
-    )?;
+    let gif_records = load(opts.gif_sequences)?;
+    let chosen: Vec<&(String, SequenceRecord)> = gif_records.iter().collect();
+    write_gif(dataset, &chosen, opts, &gif_path)?;
     Ok(vec![sheet_path, legend_path, gif_path])
 }
 

@@ -35,10 +35,15 @@ fn plan_everything(config: &GeneratorConfig, catalog: &Catalog) -> Vec<SequenceP
             let last = p.frames.last().unwrap();
             assert_eq!(last.class, Class::NoGrasp);
             assert_eq!(p.frames[0].class, Class::from(p.preshape));
-            // The camera ends looking at the target, standoff away.
+            // The camera ends looking at the target, the sequence's
+            // standoff away (within the standoff lever's range).
             let end = Vector3::from(last.camera.position);
             let gap = (Vector3::from(p.target) - end).norm();
-            assert!((gap - config.plan.trajectory.standoff_m).abs() < 1e-9);
+            let standoff = p.sampled["standoff_m"].as_f64().unwrap();
+            assert!((gap - standoff).abs() < 1e-9, "{gap} {standoff}");
+            let [lo, hi] = config.randomize.standoff.scale;
+            let base = config.plan.trajectory.standoff_m;
+            assert!(standoff >= lo * base - 1e-12 && standoff <= hi * base + 1e-12);
             assert!(p.appearance.is_some());
             p
         })
@@ -51,12 +56,13 @@ fn builtin_catalog_every_pair_every_preset() {
     assert_eq!(catalog.pairs().len(), 31);
     let config = all_conditions(4);
     let plans = plan_everything(&config, &catalog);
-    assert_eq!(plans.len(), 31 * 4 * 5);
+    let conditions = Condition::ALL.len();
+    assert_eq!(plans.len(), 31 * 4 * conditions);
     let covered: BTreeSet<_> = plans
         .iter()
         .map(|p| (p.key.object.clone(), p.key.part.clone(), p.key.condition))
         .collect();
-    assert_eq!(covered.len(), 31 * 5);
+    assert_eq!(covered.len(), 31 * conditions);
     // Border parts sit at the border, must-upside-down parts upside down.
     for p in &plans {
         let part = &catalog.object(&p.key.object).unwrap().parts[p.part_index];
@@ -77,7 +83,9 @@ fn builtin_catalog_with_the_authors_camera() {
     for p in plan_everything(&config, &catalog) {
         let d = (Vector3::from(p.target) - Vector3::from(p.frames[0].camera.position)).norm();
         assert!((4.0..=5.0).contains(&d), "{d}");
-        assert!((p.intrinsics.fov_y_deg - 7.0).abs() < 1e-9);
+        // The lens lever scales tan(3.5 deg) by 0.85 to 1.2.
+        let t = (p.intrinsics.fov_y_deg.to_radians() / 2.0).tan() / 3.5f64.to_radians().tan();
+        assert!((0.85 - 1e-9..=1.2 + 1e-9).contains(&t), "{t}");
     }
 }
 
@@ -93,7 +101,7 @@ fn ycb_catalog_every_pair_every_preset() {
     let catalog = Catalog::load_dir(out.path()).unwrap();
     assert_eq!(catalog.pairs().len(), 31);
     let plans = plan_everything(&all_conditions(3), &catalog);
-    assert_eq!(plans.len(), 31 * 3 * 5);
+    assert_eq!(plans.len(), 31 * 3 * Condition::ALL.len());
     // The README's caveat: the chips can's side boxes sit under the mesh
     // surface, so their plans rely on the recorded tolerance.
     let tolerant = plans

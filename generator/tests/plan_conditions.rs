@@ -95,9 +95,11 @@ fn default_starts_lie_in_the_configured_region() {
         // The camera looks at the target at the start.
         let v = view_dir(p.frames[0].camera.rotation_wxyz);
         assert!((v - (target - start).normalize()).norm() < 1e-9);
-        // Standoff: the camera stops short of the target, on the line.
+        // Standoff: the camera stops short of the target, on the line, by
+        // the sequence's standoff (the standoff lever's draw).
         let end = Vector3::from(p.frames.last().unwrap().camera.position);
-        assert!(((target - end).norm() - c.plan.trajectory.standoff_m).abs() < 1e-9);
+        let standoff = p.sampled["standoff_m"].as_f64().unwrap();
+        assert!(((target - end).norm() - standoff).abs() < 1e-9);
     }
 }
 

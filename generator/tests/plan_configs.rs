@@ -17,6 +17,8 @@ fn default_toml_is_the_built_in_default() {
     let d = GeneratorConfig::default();
     assert_eq!(c.dataset, d.dataset);
     assert_eq!(c.plan, d.plan);
+    assert_eq!(c.appearance, d.appearance);
+    assert_eq!(c.randomize, d.randomize);
     c.plan.validate().unwrap();
 }
 
@@ -27,7 +29,7 @@ fn example_configs_parse_and_validate() {
     assert!((a.plan.camera.intrinsics().fov_y_deg - 7.0).abs() < 1e-9);
     a.plan.validate().unwrap();
     let t = load("test-sets.toml");
-    assert_eq!(t.dataset.conditions.len(), 5);
+    assert_eq!(t.dataset.conditions.len(), 6);
 }
 
 #[test]
@@ -44,8 +46,11 @@ fn a_bad_value_names_the_file_and_the_field() {
         err.contains("bad.toml") && err.contains("no_grasp_tail"),
         "{err}"
     );
+    // A value out of range is refused on load, naming the file and field.
     std::fs::write(&path, "[plan.trajectory]\nno_grasp_tail_s = 5.0\n").unwrap();
-    let c = GeneratorConfig::load(&path).unwrap();
-    let err = format!("{:#}", c.plan.validate().unwrap_err());
-    assert!(err.contains("plan.trajectory.no_grasp_tail_s"), "{err}");
+    let err = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    assert!(
+        err.contains("bad.toml") && err.contains("plan.trajectory.no_grasp_tail_s"),
+        "{err}"
+    );
 }

@@ -100,9 +100,19 @@ pub struct RenderCost {
     #[serde(default)]
     pub setup_seconds: f64,
     /// Seconds spent rendering and writing the frames, per camera folder
-    /// (`Wrist_d435`, `Head_d435`).
+    /// (`Wrist_d435`, `Head_d435`), including the part labels and the
+    /// image-space effects.
     #[serde(default)]
     pub camera_seconds: std::collections::BTreeMap<String, f64>,
+    /// Of those, the seconds spent on image-space camera effects (white
+    /// balance, blur, noise, JPEG) over all cameras.
+    #[serde(default)]
+    pub effects_seconds: f64,
+    /// CPU seconds (user + system, every thread) the worker process spent
+    /// on the sequence: less sensitive than wall-clock time to other load on
+    /// the machine. 0 where the platform does not report it.
+    #[serde(default)]
+    pub cpu_seconds: f64,
 }
 
 impl SequenceRecord {

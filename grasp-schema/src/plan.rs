@@ -31,15 +31,20 @@ pub enum Condition {
     Seated,
     /// Default trajectories rendered with the held-out texture family.
     Background,
+    /// Default trajectories rendered with an appearance training never
+    /// draws: texture families, lights, lens, tone mapping and sensor
+    /// effects of its own.
+    UnseenLook,
 }
 
 impl Condition {
-    pub const ALL: [Condition; 5] = [
+    pub const ALL: [Condition; 6] = [
         Condition::Default,
         Condition::Fast,
         Condition::FromGround,
         Condition::Seated,
         Condition::Background,
+        Condition::UnseenLook,
     ];
 
     pub fn name(self) -> &'static str {
@@ -49,6 +54,7 @@ impl Condition {
             Condition::FromGround => "from_ground",
             Condition::Seated => "seated",
             Condition::Background => "background",
+            Condition::UnseenLook => "unseen_look",
         }
     }
 }
@@ -188,6 +194,23 @@ pub struct ObjectPlacement {
     pub on_table_border: bool,
 }
 
+/// An object on the table that is not the target: it never holds the
+/// target part, never overlaps the target object or blocks the planned
+/// reach, and never carries a label.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Distractor {
+    /// `box`, `cylinder` (axis along its local Z) or `sphere`.
+    pub shape: String,
+    /// Full extents along the local X, Y, Z axes, metres (a sphere's are
+    /// equal; a cylinder's X and Y are its diameter).
+    pub size: [f64; 3],
+    /// Centre and orientation in the world; it rests on the table top.
+    pub pose: Pose,
+    /// Linear RGB.
+    pub color: [f64; 3],
+    pub roughness: f64,
+}
+
 /// Everything needed to render one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SequencePlan {
@@ -214,6 +237,9 @@ pub struct SequencePlan {
     /// Domain randomization (materials, lights, exposure, hand visibility).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub appearance: Option<Appearance>,
+    /// Distractor objects on the table (none unless the lever is on).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub distractors: Vec<Distractor>,
 }
 
 impl SequencePlan {

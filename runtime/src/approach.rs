@@ -2,12 +2,18 @@
 //! frames of the window, decide, send the pre-shape, then close the fingers
 //! after the closure trigger. Nothing is sent unless the decision names a
 //! pre-shape, and a command counts as done only once acknowledged.
+//!
+//! A decision has an age limit (`policy.max_decision_age_ms`): a pre-shape
+//! not acknowledged within it after the decision is never sent again (the
+//! link waits no longer, the hand refuses a late copy), no closure follows,
+//! and the hand is opened if a copy may have reached it. The closure has
+//! the same limit, counted from its trigger.
 
 use crate::classifier::{FrameClassifier, Probabilities};
 use crate::feed::{FeedItem, FeedMode, FeedStats, FrameFeed};
-use crate::link::Hand;
+use crate::link::{Hand, LinkError};
 use crate::policy::{Decision, PolicyConfig, Step, Vote};
-use crate::protocol::{preshape_command, Command, HandState};
+use crate::protocol::{preshape_command, Command, HandState, Status};
 use crate::source::FrameSource;
 use crate::trigger::Trigger;
 use anyhow::Result;
@@ -39,6 +45,9 @@ pub struct WindowReport {
     pub feed: FeedStats,
     /// From the trigger to the decision.
     pub decision_ms: f64,
+    /// When the decision was taken: the start of its age.
+    #[serde(skip)]
+    pub decided_at: Instant,
 }
 
 /// An acknowledged command.
@@ -53,6 +62,25 @@ pub struct CommandReport {
     pub link_ms: f64,
     /// From the trigger to the ACK.
     pub since_trigger_ms: f64,
+    /// From what the command acts on (the decision for PRESHAPE, the
+    /// closure trigger for CLOSE) to the ACK.
+    pub age_ms: f64,
+}
+
+/// A command dropped because it became older than the age limit.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExpiredCommand {
+    pub command: &'static str,
+    pub preshape: Option<Preshape>,
+    /// Its age when the host gave up (from the decision, or from the
+    /// closure trigger).
+    pub age_ms: f64,
+    pub limit_ms: f64,
+    /// Copies transmitted before it expired (0: never sent; at least 1
+    /// when the hand refused it).
+    pub transmissions: u32,
+    /// A copy reached the hand after the deadline and was refused.
+    pub refused_by_hand: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -60,6 +88,11 @@ pub struct ApproachReport {
     pub window: WindowReport,
     pub preshape: Option<CommandReport>,
     pub closure: Option<CommandReport>,
+    /// The pre-shape or closure that was too old to execute.
+    pub expired: Option<ExpiredCommand>,
+    /// OPEN sent after an expired pre-shape a copy of which may have been
+    /// executed in time (its ACK lost).
+    pub reopened: Option<CommandReport>,
     /// Link failure, if the hand could not be commanded.
     pub link_error: Option<String>,
 }
@@ -126,7 +159,8 @@ pub fn classify_window(
             }
         }
     };
-    let decision_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let decided_at = Instant::now();
+    let decision_ms = decided_at.duration_since(t0).as_secs_f64() * 1e3;
     let (source, feed) = feed.finish();
     if feed.dropped > 0 {
         tracing::info!(
@@ -140,60 +174,151 @@ pub fn classify_window(
         predictions,
         feed,
         decision_ms,
+        decided_at,
     };
     Ok((source, report))
 }
 
-/// Sends the decided pre-shape, then the closure once `closure` fires.
+/// Sends the decided pre-shape, then the closure once `closure` fires;
+/// neither is executed once older than `max_age` (see the module docs).
 pub fn actuate(
     hand: &Hand,
     window: WindowReport,
     closure: Option<&mut dyn Trigger>,
     stop: &AtomicBool,
     t0: Instant,
+    max_age: Duration,
 ) -> Result<ApproachReport> {
     let mut report = ApproachReport {
         window,
         preshape: None,
         closure: None,
+        expired: None,
+        reopened: None,
         link_error: None,
     };
     let Some(preshape) = report.window.decision.outcome.preshape() else {
         tracing::warn!("no pre-shape sent: {}", report.window.decision.outcome);
         return Ok(report);
     };
-    match send(hand, preshape_command(preshape), Some(preshape), t0) {
-        Ok(c) => report.preshape = Some(c),
-        Err(e) => {
+    let decided = report.window.decided_at;
+    let order = Order {
+        command: preshape_command(preshape),
+        preshape: Some(preshape),
+        since: decided,
+        max_age: Some(max_age),
+    };
+    match order.send(hand, t0) {
+        Sent::Acked(c) => report.preshape = Some(c),
+        Sent::Expired(e) => {
+            tracing::error!(
+                "stale decision: {preshape} was decided {:.0} ms ago, over the {:.0} ms limit; \
+                 not sent, no closure",
+                e.age_ms,
+                e.limit_ms
+            );
+            let may_have_reached = e.transmissions > 0 && !e.refused_by_hand;
+            report.expired = Some(e);
+            if may_have_reached {
+                reopen(hand, &mut report, t0);
+            }
+            return Ok(report);
+        }
+        Sent::Failed(e) => {
             report.link_error = Some(e);
             return Ok(report);
         }
     }
     if let Some(closure) = closure {
         if closure.wait(stop)? {
-            match send(hand, Command::Close, None, t0) {
-                Ok(c) => report.closure = Some(c),
-                Err(e) => report.link_error = Some(e),
+            let order = Order {
+                command: Command::Close,
+                preshape: None,
+                since: Instant::now(),
+                max_age: Some(max_age),
+            };
+            match order.send(hand, t0) {
+                Sent::Acked(c) => report.closure = Some(c),
+                Sent::Expired(e) => {
+                    tracing::error!(
+                        "closure not acknowledged within {:.0} ms of its trigger: not sent again",
+                        e.limit_ms
+                    );
+                    report.expired = Some(e);
+                }
+                Sent::Failed(e) => report.link_error = Some(e),
             }
         }
     }
     Ok(report)
 }
 
-fn send(
-    hand: &Hand,
+/// Opens the hand after an expired pre-shape that may have been executed.
+fn reopen(hand: &Hand, report: &mut ApproachReport, t0: Instant) {
+    let order = Order {
+        command: Command::Open,
+        preshape: None,
+        since: Instant::now(),
+        max_age: None, // opening is always safe
+    };
+    match order.send(hand, t0) {
+        Sent::Acked(c) => report.reopened = Some(c),
+        Sent::Expired(_) => unreachable!("OPEN has no age limit"),
+        Sent::Failed(e) => {
+            tracing::error!("cannot open the hand after the stale decision: {e}");
+            report.link_error = Some(e);
+        }
+    }
+}
+
+/// A command with what its age counts from.
+struct Order {
     command: Command,
     preshape: Option<Preshape>,
-    t0: Instant,
-) -> Result<CommandReport, String> {
-    let d = hand.send(command).map_err(|e| e.to_string())?;
-    Ok(CommandReport {
-        command: command.name(),
-        preshape,
-        seq: d.ack.seq,
-        attempts: d.attempts,
-        hand_state: d.ack.state,
-        link_ms: d.elapsed.as_secs_f64() * 1e3,
-        since_trigger_ms: t0.elapsed().as_secs_f64() * 1e3,
-    })
+    since: Instant,
+    max_age: Option<Duration>,
+}
+
+enum Sent {
+    Acked(CommandReport),
+    Expired(ExpiredCommand),
+    Failed(String),
+}
+
+impl Order {
+    fn send(&self, hand: &Hand, t0: Instant) -> Sent {
+        let expires = self.max_age.map(|a| self.since + a);
+        let expired = |transmissions, refused_by_hand| {
+            Sent::Expired(ExpiredCommand {
+                command: self.command.name(),
+                preshape: self.preshape,
+                age_ms: ms(self.since.elapsed()),
+                limit_ms: self.max_age.map_or(f64::INFINITY, ms),
+                transmissions,
+                refused_by_hand,
+            })
+        };
+        match hand.send_until(self.command, expires) {
+            Ok(d) => Sent::Acked(CommandReport {
+                command: self.command.name(),
+                preshape: self.preshape,
+                seq: d.ack.seq,
+                attempts: d.attempts,
+                hand_state: d.ack.state,
+                link_ms: ms(d.elapsed),
+                since_trigger_ms: ms(t0.elapsed()),
+                age_ms: ms(self.since.elapsed()),
+            }),
+            Err(LinkError::Expired { transmissions, .. }) => expired(transmissions, false),
+            Err(LinkError::Rejected {
+                status: Status::Expired,
+                ..
+            }) => expired(1, true),
+            Err(e) => Sent::Failed(e.to_string()),
+        }
+    }
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
 }

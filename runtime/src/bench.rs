@@ -156,9 +156,13 @@ pub fn approaches(
         source = s;
         classified += report.feed.delivered;
         dropped += report.feed.dropped;
-        let report = actuate(&hand, report, None, &stop, t0)?;
+        let report = actuate(&hand, report, None, &stop, t0, policy.max_decision_age())?;
         let acked = report.preshape.ok_or_else(|| {
-            anyhow::anyhow!("approach sent no pre-shape: {:?}", report.link_error)
+            anyhow::anyhow!(
+                "approach sent no pre-shape: {:?}, expired: {:?}",
+                report.link_error,
+                report.expired
+            )
         })?;
         let elapsed = Duration::from_secs_f64(acked.since_trigger_ms / 1e3);
         total.push(elapsed);

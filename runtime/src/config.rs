@@ -7,6 +7,7 @@
 //! early_margin = 8
 //! fallback = "power"      # omit the key to send nothing on low confidence
 //! on_invalid = "abort"
+//! max_decision_age_ms = 300   # older decisions are never executed
 //!
 //! [link]
 //! ack_timeout_ms = 100

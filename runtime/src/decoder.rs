@@ -119,7 +119,7 @@ fn valid_at(buf: &[u8], at: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::{preshape_command, Command};
+    use crate::protocol::{preshape_command, Command, HandTime};
     use grasp_schema::taxonomy::Preshape;
 
     fn decode_all(bytes: &[u8], chunk: usize) -> (Vec<Packet>, DecoderStats) {
@@ -136,8 +136,8 @@ mod tests {
 
     #[test]
     fn decodes_back_to_back_frames_in_any_chunking() {
-        let a = preshape_command(Preshape::Lateral).packet(1);
-        let b = Command::Close.packet(2);
+        let a = preshape_command(Preshape::Lateral).packet(1, HandTime(7000));
+        let b = Command::Close.packet(2, HandTime(7000));
         let mut bytes = a.encode();
         bytes.extend(b.encode());
         for chunk in [1, 2, 3, 7, 100] {
@@ -149,8 +149,8 @@ mod tests {
 
     #[test]
     fn resynchronises_after_noise_and_corruption() {
-        let good = preshape_command(Preshape::Pinch).packet(9);
-        let mut corrupt = Command::Open.packet(8).encode();
+        let good = preshape_command(Preshape::Pinch).packet(9, HandTime(7000));
+        let mut corrupt = Command::Open.packet(8, HandTime(7000)).encode();
         corrupt[3] ^= 0x40; // flipped bit in CMD: CRC fails
         let mut bytes = vec![0x00, START, 0xFF, START, START];
         bytes.extend(corrupt);
@@ -170,7 +170,7 @@ mod tests {
             let p = Command::Hello {
                 watchdog_ms: 0xA5A5,
             }
-            .packet(seq);
+            .packet(seq, HandTime(7000));
             let (got, _) = decode_all(&p.encode(), 1);
             assert_eq!(got, vec![p]);
         }
@@ -178,7 +178,7 @@ mod tests {
 
     #[test]
     fn a_noise_start_with_a_long_len_does_not_hold_back_a_frame() {
-        let good = Command::Close.packet(5);
+        let good = Command::Close.packet(5, HandTime(7000));
         let mut bytes = vec![START, MAX_PAYLOAD as u8];
         bytes.extend(good.encode());
         let (got, _) = decode_all(&bytes, 1);
@@ -187,11 +187,14 @@ mod tests {
 
     #[test]
     fn truncated_frame_waits_for_more_bytes() {
-        let bytes = Command::Heartbeat.packet(4).encode();
+        let bytes = Command::Heartbeat.packet(4, HandTime(7000)).encode();
         let mut d = Decoder::new();
         d.push(&bytes[..bytes.len() - 1]);
         assert_eq!(d.next_packet(), None);
         d.push(&bytes[bytes.len() - 1..]);
-        assert_eq!(d.next_packet(), Some(Command::Heartbeat.packet(4)));
+        assert_eq!(
+            d.next_packet(),
+            Some(Command::Heartbeat.packet(4, HandTime(7000)))
+        );
     }
 }

@@ -6,7 +6,10 @@
 //!   decision loop;
 //! - [`protocol`], [`decoder`], [`transport`], [`link`]: the wire protocol of
 //!   docs/hannes-protocol.md and its host side;
-//! - [`simhand`]: the device side, as a simulated hand;
+//! - [`simhand`]: the device side, as a simulated hand with injectable link
+//!   faults, and [`ptylink`]: its pseudo-terminal links and their owners;
+//! - [`session`]: the `run` loop (approach after approach) and its
+//!   outcome, [`signals`]: stopping on SIGINT, SIGTERM and SIGHUP;
 //! - [`model`]: the trained checkpoint as a [`classifier::FrameClassifier`];
 //! - [`bench`]: latency measurements.
 
@@ -22,6 +25,9 @@ pub mod link;
 pub mod model;
 pub mod policy;
 pub mod protocol;
+pub mod ptylink;
+pub mod session;
+pub mod signals;
 pub mod simhand;
 pub mod source;
 pub mod transport;

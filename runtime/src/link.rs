@@ -4,11 +4,18 @@
 //!
 //! A command counts as executed only once its ACK (same SEQ, same CMD,
 //! status OK) came back.
+//!
+//! A command may have an expiry ([`HandLink::send_until`]): it is never
+//! transmitted at or after it, no reconnect waits past it, and PRESHAPE and
+//! CLOSE carry it to the hand as a deadline on the hand's clock
+//! ([`HandClock`]), so a frame delayed on the way is refused by the hand
+//! instead of executed late.
 
 use crate::decoder::{Decoder, DecoderStats};
-use crate::protocol::{Ack, Command, Status};
+use crate::protocol::{Ack, Command, HandTime, Status};
 use crate::transport::{is_timeout, Connector, Duplex};
 use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -91,6 +98,16 @@ pub enum LinkError {
         waited_ms: u64,
         last_error: String,
     },
+    /// The command's expiry came before its ACK: it is not transmitted
+    /// again. If `transmissions` > 0 an earlier copy may have reached the
+    /// hand in time (its ACK lost); the hand refuses one that arrives late.
+    #[error("{command} (seq {seq}) expired before the hand on {device} acknowledged it ({transmissions} transmissions); not sent again")]
+    Expired {
+        command: &'static str,
+        seq: u8,
+        transmissions: u32,
+        device: String,
+    },
 }
 
 /// An acknowledged command.
@@ -110,6 +127,7 @@ pub struct LinkStats {
     pub heartbeats: u64,
     /// ACKs that did not match the frame in flight (late, duplicated).
     pub stale_acks: u64,
+    /// Sessions re-established after the device was lost.
     pub reconnects: u64,
     pub rx_crc_errors: u64,
     pub rx_discarded_bytes: u64,
@@ -119,6 +137,83 @@ enum Wait {
     Acked(Ack),
     TimedOut,
 }
+
+/// How many recent ACKs the clock estimate looks at (3 s of heartbeats at
+/// the default interval): recent enough that clock drift (tens of ppm) is
+/// negligible, enough that one ACK sent without delay is among them.
+const CLOCK_SAMPLES: usize = 16;
+
+/// The host's estimate of the hand's clock, from the hand time stamped in
+/// each ACK. An ACK stamped `h` (whole milliseconds, rounded down) and
+/// received at host time `r` bounds the offset (hand minus host) from
+/// below, by the ACK's travel time. The largest recent bound is the
+/// estimate, so a host instant converted with it lands at or before the
+/// true hand time: a deadline on the hand's clock can only come early.
+#[derive(Debug)]
+pub struct HandClock {
+    epoch: Instant,
+    /// The last sample's raw and unwrapped hand time (ms).
+    last: Option<(u32, i64)>,
+    /// Offsets, hand minus host, in microseconds.
+    offsets_us: VecDeque<i64>,
+}
+
+impl HandClock {
+    pub fn new() -> Self {
+        HandClock {
+            epoch: Instant::now(),
+            last: None,
+            offsets_us: VecDeque::with_capacity(CLOCK_SAMPLES),
+        }
+    }
+
+    /// Forgets the samples (a new session may be another hand).
+    pub fn reset(&mut self) {
+        self.last = None;
+        self.offsets_us.clear();
+    }
+
+    fn host_us(&self, t: Instant) -> i64 {
+        match t.checked_duration_since(self.epoch) {
+            Some(d) => d.as_micros() as i64,
+            None => -(self.epoch.duration_since(t).as_micros() as i64),
+        }
+    }
+
+    /// Records an ACK stamped `hand` and received at `received`.
+    pub fn observe(&mut self, hand: HandTime, received: Instant) {
+        // Unwrapped across the 32-bit wrap of the hand's clock.
+        let unwrapped = match self.last {
+            None => i64::from(hand.0),
+            Some((raw, prev)) => prev + hand.since(HandTime(raw)),
+        };
+        self.last = Some((hand.0, unwrapped));
+        if self.offsets_us.len() == CLOCK_SAMPLES {
+            self.offsets_us.pop_front();
+        }
+        self.offsets_us
+            .push_back(unwrapped * 1000 - self.host_us(received));
+    }
+
+    /// The hand time at host instant `t` (at or before the true one);
+    /// `None` before any sample.
+    pub fn to_hand(&self, t: Instant) -> Option<HandTime> {
+        let offset = *self.offsets_us.iter().max()?;
+        let ms = (self.host_us(t) + offset).div_euclid(1000);
+        // Reduced modulo 2^32: the hand's clock wraps.
+        Some(HandTime(ms.rem_euclid(1 << 32) as u32))
+    }
+}
+
+impl Default for HandClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Deadline sent with a command that has no expiry: as far ahead as the
+/// hand's wrapping clock can express (24.8 days).
+const NO_DEADLINE_MS: u32 = i32::MAX as u32;
 
 /// Single-threaded link. Wrap it in [`Hand`] for the heartbeat.
 pub struct HandLink {
@@ -130,6 +225,12 @@ pub struct HandLink {
     last_tx: Instant,
     stats: LinkStats,
     decoder_base: DecoderStats,
+    clock: HandClock,
+    /// Counts sessions (HELLOs acknowledged): frames are re-encoded for a
+    /// new one, whose hand clock may differ.
+    session: u64,
+    /// The loss of the device was logged (once per outage).
+    down_reported: bool,
 }
 
 impl HandLink {
@@ -143,6 +244,9 @@ impl HandLink {
             last_tx: Instant::now(),
             stats: LinkStats::default(),
             decoder_base: DecoderStats::default(),
+            clock: HandClock::new(),
+            session: 0,
+            down_reported: false,
         }
     }
 
@@ -175,21 +279,36 @@ impl HandLink {
     /// Opens the device (retrying until `reconnect_timeout_ms`) and starts a
     /// session with HELLO. A no-op while connected.
     pub fn connect(&mut self) -> Result<(), LinkError> {
+        self.connect_until(None).map_err(|e| match e {
+            Reconnect::Failed(e) => e,
+            Reconnect::Expired => unreachable!("no expiry given"),
+        })
+    }
+
+    /// [`HandLink::connect`], giving up at `expires` too.
+    fn connect_until(&mut self, expires: Option<Instant>) -> Result<(), Reconnect> {
         if self.conn.is_some() {
             return Ok(());
         }
         let started = Instant::now();
-        let budget = Duration::from_millis(self.cfg.reconnect_timeout_ms);
+        let budget = started + Duration::from_millis(self.cfg.reconnect_timeout_ms);
         loop {
+            if expires.is_some_and(|e| Instant::now() >= e) {
+                return Err(Reconnect::Expired);
+            }
             let last_error = match self.connector.open() {
                 Ok(conn) => {
                     self.conn = Some(conn);
                     self.reset_decoder();
+                    self.clock.reset();
                     match self.hello() {
-                        Ok(()) => return Ok(()),
+                        Ok(()) => {
+                            self.session += 1;
+                            return Ok(());
+                        }
                         Err(Some(e)) => {
                             self.conn = None;
-                            return Err(e);
+                            return Err(Reconnect::Failed(e));
                         }
                         Err(None) => {
                             self.conn = None;
@@ -199,37 +318,88 @@ impl HandLink {
                 }
                 Err(e) => e.to_string(),
             };
-            if started.elapsed() >= budget {
-                return Err(LinkError::Disconnected {
+            if Instant::now() >= budget {
+                return Err(Reconnect::Failed(LinkError::Disconnected {
                     device: self.device(),
                     waited_ms: started.elapsed().as_millis() as u64,
                     last_error,
-                });
+                }));
             }
-            std::thread::sleep(Duration::from_millis(self.cfg.reconnect_interval_ms));
+            let pause = Duration::from_millis(self.cfg.reconnect_interval_ms);
+            let wake = expires.map_or(Instant::now() + pause, |e| e.min(Instant::now() + pause));
+            std::thread::sleep(wake.saturating_duration_since(Instant::now()));
         }
     }
 
     /// Sends `command` and waits for its ACK, retransmitting with the same
     /// SEQ on timeout and re-opening the device if it disappeared.
     pub fn send(&mut self, command: Command) -> Result<Delivery, LinkError> {
+        self.send_until(command, None)
+    }
+
+    /// [`HandLink::send`] for a command that must not be executed at or
+    /// after `expires`: no transmission then, no reconnect waiting past it,
+    /// and PRESHAPE and CLOSE carry it to the hand as a deadline.
+    pub fn send_until(
+        &mut self,
+        command: Command,
+        expires: Option<Instant>,
+    ) -> Result<Delivery, LinkError> {
         let seq = self.alloc_seq();
-        let packet = command.packet(seq).encode();
         let started = Instant::now();
         let max_attempts = 1 + self.cfg.retries;
         let mut attempts = 0;
+        let transmitted_before = self.stats.transmissions;
+        let expired = |link: &HandLink| LinkError::Expired {
+            command: command.name(),
+            seq,
+            transmissions: (link.stats.transmissions - transmitted_before) as u32,
+            device: link.device(),
+        };
+        // The frame, encoded once per session so retransmissions are
+        // byte-identical (the hand's duplicate filter relies on it).
+        let mut packet: Option<(u64, Vec<u8>)> = None;
         while attempts < max_attempts {
-            if self.conn.is_none() {
-                self.stats.reconnects += 1;
-                tracing::warn!(device = %self.device(), "link down: re-opening");
-                self.connect()?;
-                tracing::info!(device = %self.device(), "link re-established");
+            if expires.is_some_and(|e| Instant::now() >= e) {
+                return Err(expired(self));
             }
+            if self.conn.is_none() {
+                if !self.down_reported {
+                    tracing::warn!(device = %self.device(), "link down: re-opening");
+                    self.down_reported = true;
+                }
+                match self.connect_until(expires) {
+                    Ok(()) => {
+                        self.stats.reconnects += 1;
+                        self.down_reported = false;
+                        tracing::info!(device = %self.device(), "link re-established");
+                    }
+                    Err(Reconnect::Failed(e)) => return Err(e),
+                    Err(Reconnect::Expired) => return Err(expired(self)),
+                }
+                continue; // the expiry is checked again after the wait
+            }
+            let bytes = match &packet {
+                Some((session, bytes)) if *session == self.session => bytes.clone(),
+                _ => {
+                    let deadline = match command.has_deadline() {
+                        true => self.deadline_on_hand(expires),
+                        false => Some(HandTime(0)), // not carried
+                    };
+                    let Some(deadline) = deadline else {
+                        self.drop_connection(); // no clock sample: start over
+                        continue;
+                    };
+                    let bytes = command.packet(seq, deadline).encode();
+                    packet = Some((self.session, bytes.clone()));
+                    bytes
+                }
+            };
             attempts += 1;
             if attempts > 1 {
                 self.stats.retransmissions += 1;
             }
-            match self.exchange(&packet, seq, command.code()) {
+            match self.exchange(&bytes, seq, command.code()) {
                 Ok(Wait::Acked(ack)) => return self.accept(command, ack, attempts, started),
                 Ok(Wait::TimedOut) => tracing::debug!(
                     command = command.name(),
@@ -251,6 +421,14 @@ impl HandLink {
             timeout_ms: self.cfg.ack_timeout_ms,
             device: self.device(),
         })
+    }
+
+    /// `expires` on the hand's clock (far ahead without an expiry).
+    fn deadline_on_hand(&self, expires: Option<Instant>) -> Option<HandTime> {
+        match expires {
+            Some(e) => self.clock.to_hand(e),
+            None => Some(self.clock.to_hand(Instant::now())?.plus_ms(NO_DEADLINE_MS)),
+        }
     }
 
     fn accept(
@@ -285,7 +463,7 @@ impl HandLink {
             watchdog_ms: self.cfg.watchdog_ms,
         };
         let seq = self.alloc_seq();
-        let packet = command.packet(seq).encode();
+        let packet = command.packet(seq, HandTime(0)).encode(); // HELLO has no deadline
         let attempts = 1 + self.cfg.retries;
         for attempt in 1..=attempts {
             if attempt > 1 {
@@ -322,7 +500,12 @@ impl HandLink {
         let mut buf = [0u8; 256];
         loop {
             while let Some(p) = self.decoder.next_packet() {
-                match Ack::parse(&p) {
+                let ack = Ack::parse(&p);
+                if let Some(a) = &ack {
+                    // Any ACK of this session stamps the hand's clock.
+                    self.clock.observe(a.hand_time, Instant::now());
+                }
+                match ack {
                     Some(ack) if ack.seq == seq && ack.cmd == code => return Ok(Wait::Acked(ack)),
                     _ => self.stats.stale_acks += 1,
                 }
@@ -366,6 +549,13 @@ impl HandLink {
     }
 }
 
+/// Why a reconnect ended without a session.
+enum Reconnect {
+    Failed(LinkError),
+    /// The command's expiry came first.
+    Expired,
+}
+
 /// A [`HandLink`] shared with a heartbeat thread.
 pub struct Hand {
     link: Arc<Mutex<HandLink>>,
@@ -396,7 +586,17 @@ impl Hand {
 
     /// Sends a command; returns once it is acknowledged.
     pub fn send(&self, command: Command) -> Result<Delivery, LinkError> {
-        let delivery = lock(&self.link).send(command);
+        self.send_until(command, None)
+    }
+
+    /// Sends a command that must not be executed at or after `expires`
+    /// ([`HandLink::send_until`]).
+    pub fn send_until(
+        &self,
+        command: Command,
+        expires: Option<Instant>,
+    ) -> Result<Delivery, LinkError> {
+        let delivery = lock(&self.link).send_until(command, expires);
         match &delivery {
             Ok(d) => tracing::info!(
                 command = command.name(),
@@ -443,8 +643,69 @@ fn heartbeat_loop(link: &Mutex<HandLink>, stop: &AtomicBool, interval: Duration)
         if link.idle() < interval || stop.load(Ordering::Relaxed) {
             continue;
         }
-        if let Err(e) = link.send(Command::Heartbeat) {
-            tracing::warn!("heartbeat failed: {e}");
+        // Bounded by the interval: while the device is gone, re-opening it
+        // goes on in slices, and a command waiting for the lock gets it
+        // within one interval instead of a whole reconnect timeout.
+        match link.send_until(Command::Heartbeat, Some(Instant::now() + interval)) {
+            Ok(_) => {}
+            Err(e @ LinkError::Expired { .. }) => tracing::debug!("heartbeat: {e}"),
+            Err(e) => tracing::warn!("heartbeat failed: {e}"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hand whose clock reads `hand_zero_ms` at the host clock's epoch.
+    fn sample(clock: &mut HandClock, hand_zero_ms: u32, sent_ms: u64, travel_us: u64) {
+        let stamped = HandTime(hand_zero_ms.wrapping_add(sent_ms as u32));
+        let received =
+            clock.epoch + Duration::from_millis(sent_ms) + Duration::from_micros(travel_us);
+        clock.observe(stamped, received);
+    }
+
+    #[test]
+    fn the_estimate_never_runs_ahead_of_the_hand() {
+        let mut clock = HandClock::new();
+        assert_eq!(clock.to_hand(clock.epoch), None, "no sample yet");
+        // ACKs sent at whole hand milliseconds, delayed 0.3 to 80 ms.
+        for (i, travel_us) in [80_000, 300, 5_000, 40_000].iter().enumerate() {
+            sample(&mut clock, 1_000, 100 * i as u64, *travel_us);
+        }
+        for at_ms in [0, 250, 10_000] {
+            let t = clock.epoch + Duration::from_millis(at_ms);
+            let estimate = clock.to_hand(t).unwrap();
+            let truth = HandTime(1_000 + at_ms as u32);
+            assert!(!truth.is_before(estimate), "{estimate:?} after {truth:?}");
+            // The quickest ACK (0.3 ms) makes it good to a millisecond.
+            assert!(truth.since(estimate) <= 1, "{estimate:?} vs {truth:?}");
+        }
+    }
+
+    #[test]
+    fn the_estimate_follows_the_hand_clock_across_its_wrap() {
+        let mut clock = HandClock::new();
+        let zero = u32::MAX - 150; // wraps 150 ms after the host's epoch
+        for i in 0..6 {
+            sample(&mut clock, zero, 100 * i, 200);
+        }
+        let t = clock.epoch + Duration::from_millis(700);
+        let truth = HandTime(zero.wrapping_add(700));
+        assert_eq!(truth, HandTime(549), "past the wrap");
+        // The 0.2 ms travel time rounds the estimate a millisecond early.
+        assert_eq!(clock.to_hand(t), Some(HandTime(548)));
+    }
+
+    #[test]
+    fn a_new_session_forgets_the_old_hand() {
+        let mut clock = HandClock::new();
+        sample(&mut clock, 50_000, 0, 100);
+        clock.reset();
+        sample(&mut clock, 7, 10, 100);
+        let t = clock.epoch + Duration::from_millis(20);
+        // The new hand reads 27 then; the 0.1 ms travel time rounds down.
+        assert_eq!(clock.to_hand(t), Some(HandTime(26)));
     }
 }

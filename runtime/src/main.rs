@@ -1,28 +1,41 @@
 //! `hannes-run`: the pre-shape classifier driving the Hannes hand.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_schema::cli::Failure;
 use grasp_schema::taxonomy::{Class, Preshape};
-use runtime::approach::{actuate, classify_window, FramePrediction};
+use runtime::approach::{classify_window, ApproachReport, FramePrediction};
 use runtime::config::RuntimeConfig;
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink};
 use runtime::policy::OnInvalid;
-use runtime::simhand::{HandEvent, PtyHand, RunningHand};
+use runtime::session::{ApproachResult, Session, SessionObserver};
+use runtime::simhand::{DevicePort, FaultSpec, HandEvent, Plug, PtyPlug, RunningHand};
 use runtime::source::{FrameSource, Pacing, SequenceFolder};
-use runtime::transport::{open_serial, SerialConnector};
+use runtime::transport::SerialConnector;
 use runtime::trigger::{parse_trigger, Trigger};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use trainer::backbone::Architecture;
+
+const RUN_EXIT_CODES: &str = "\
+Exit codes:
+  0  every approach ended as decided (pre-shape executed, or no command on a weak vote)
+  1  error outside the approaches (arguments, config, checkpoint, source, report file)
+  2  command-line usage error
+  3  an approach was aborted (frame source or classifier failed, invalid model output)
+  4  the hand could not be reached or did not acknowledge a command
+  5  a decision was older than --max-decision-age-ms before the hand acknowledged it
+     (not executed, no closure; the hand is opened if a copy may have reached it)
+With several approaches, the code of the first failed one. The last line on
+stderr says why.";
 
 /// Drive the Hannes hand from a wrist camera: classify the frames of each
 /// approach, pick the pre-shape by majority vote and send it over the
 /// serial link (protocol: docs/hannes-protocol.md).
 #[derive(Parser)]
-#[command(name = "hannes-run", version, about)]
+#[command(name = "hannes-run", version, about, after_help = RUN_EXIT_CODES)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -31,6 +44,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The demo: trigger, approach window, pre-shape, closure; repeated.
+    #[command(after_help = RUN_EXIT_CODES)]
     Run(RunArgs),
     /// Classify a recorded sequence; print per-frame predictions and the
     /// decision (no hand needed).
@@ -50,6 +64,11 @@ struct PolicyArgs {
     /// Approach window in seconds.
     #[arg(long)]
     window: Option<f64>,
+    /// A decision older than this (ms) is never executed: the pre-shape
+    /// must be acknowledged within it, the closure within it of its trigger
+    /// (default 300).
+    #[arg(long)]
+    max_decision_age_ms: Option<u64>,
     /// Decide early once the leading pre-shape is this many votes ahead.
     #[arg(long)]
     early_margin: Option<u32>,
@@ -104,7 +123,9 @@ struct RunArgs {
     /// Replay a recording as fast as possible instead of at its frame rate.
     #[arg(long)]
     as_fast: bool,
-    /// Append one JSON report per approach to this file.
+    /// Append one JSON report per approach to this file (with `approach`,
+    /// its number, and `result`: commanded, no_command, aborted, expired,
+    /// hand_failed).
     #[arg(long)]
     report: Option<PathBuf>,
 }
@@ -129,11 +150,22 @@ struct SimArgs {
     /// Serve an existing serial device.
     #[arg(long, conflicts_with = "pty", required_unless_present = "pty")]
     port: Option<PathBuf>,
-    /// Create a pseudo-terminal and link its host side at this path.
+    /// Create a pseudo-terminal and link its host side at this path (with
+    /// PATH.owner naming this process; both are removed when it stops).
     #[arg(long)]
     pty: Option<PathBuf>,
     #[arg(long, default_value_t = 115_200)]
     baud: u32,
+    /// Inject link faults, e.g. `drop=0.1,corrupt=0.05,duplicate=0.1,
+    /// delay=0.2:400,disconnect=0.05:1500,outage=1500:7500,after=1000,
+    /// until=20000,on=preshape+close,seed=7` (probabilities per frame, times
+    /// in ms; docs/hannes-protocol.md).
+    #[arg(long, value_parser = parse_faults)]
+    faults: Option<FaultSpec>,
+}
+
+fn parse_faults(s: &str) -> Result<FaultSpec, String> {
+    s.parse()
 }
 
 #[derive(Args)]
@@ -167,18 +199,17 @@ struct BenchArgs {
     size: u32,
 }
 
-fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    if let Err(e) = dispatch(Cli::parse()) {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
-    }
+fn main() -> std::process::ExitCode {
+    grasp_schema::cli::main(|| {
+        tracing_subscriber::fmt()
+            .with_env_filter(
+                tracing_subscriber::EnvFilter::try_from_default_env()
+                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+            )
+            .with_writer(std::io::stderr)
+            .init();
+        dispatch(Cli::parse())
+    })
 }
 
 fn dispatch(cli: Cli) -> Result<()> {
@@ -190,12 +221,8 @@ fn dispatch(cli: Cli) -> Result<()> {
     }
 }
 
-fn stop_flag() -> Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
-        .context("cannot install the Ctrl-C handler")?;
-    Ok(stop)
+fn stop_flag() -> Result<&'static std::sync::atomic::AtomicBool> {
+    runtime::signals::stop_flag().context("cannot install the signal handlers")
 }
 
 fn config(p: &PolicyArgs) -> Result<RuntimeConfig> {
@@ -221,6 +248,9 @@ fn config(p: &PolicyArgs) -> Result<RuntimeConfig> {
     }
     if let Some(o) = p.on_invalid {
         policy.on_invalid = o;
+    }
+    if let Some(ms) = p.max_decision_age_ms {
+        policy.max_decision_age_ms = ms;
     }
     cfg.validate()?;
     Ok(cfg)
@@ -261,7 +291,7 @@ fn run(a: RunArgs) -> Result<()> {
     } else {
         Pacing::RealTime
     };
-    let (mut source, live) = open_source(&a.source, pacing)?;
+    let (source, live) = open_source(&a.source, pacing)?;
     let mode = if a.as_fast && !live {
         FeedMode::Lockstep
     } else {
@@ -277,55 +307,26 @@ fn run(a: RunArgs) -> Result<()> {
         Box::new(SerialConnector::new(&a.port, a.baud)),
         cfg.link.clone(),
     );
-    let hand = Hand::start(link).context("cannot start the link to the hand")?;
+    let hand = match Hand::start(link) {
+        Ok(hand) => hand,
+        Err(e) => {
+            let code = runtime::session::exit_code_before_approaches(&e);
+            return Err(e.context(Failure::new(code, "cannot start the link to the hand")));
+        }
+    };
     let approaches = a.approaches.unwrap_or(if live { usize::MAX } else { 1 });
-    for n in 0..approaches {
-        eprintln!(
-            "approach {}: waiting for trigger ({})",
-            n + 1,
-            trigger.describe()
-        );
-        if !trigger.wait(&stop)? {
-            break;
-        }
-        let t0 = Instant::now();
-        let (s, window) = classify_window(
-            source,
-            mode,
-            &mut classifier,
-            &cfg.policy,
-            t0,
-            &mut |p| tracing::debug!(frame = p.index, class = ?p.class, "classified"),
-        )?;
-        source = s;
-        let closure = closure.as_mut().map(|c| c.as_mut() as &mut dyn Trigger);
-        let report = actuate(&hand, window, closure, &stop, t0)?;
-        let d = &report.window.decision;
-        println!(
-            "approach {}: {} | votes {} | {} frames, {} dropped{}",
-            n + 1,
-            d.outcome,
-            votes(&d.votes),
-            d.frames,
-            report.window.feed.dropped,
-            match &report.preshape {
-                Some(c) => format!(
-                    " | acknowledged {:.1} ms after the trigger ({} attempts)",
-                    c.since_trigger_ms, c.attempts
-                ),
-                None => String::new(),
-            }
-        );
-        if let Some(e) = &report.link_error {
-            eprintln!("error: {e}");
-        }
-        if let Some(path) = &a.report {
-            append_json_line(path, &report)?;
-        }
-        if stop.load(Ordering::Relaxed) {
-            break;
-        }
-    }
+    let mut session = Session {
+        hand: &hand,
+        classifier: &mut classifier,
+        policy: &cfg.policy,
+        mode,
+        stop,
+    };
+    let mut printer = RunPrinter {
+        report: a.report.as_deref(),
+    };
+    let closure = closure.as_mut().map(|c| c.as_mut() as &mut dyn Trigger);
+    let (_, summary) = session.run(source, approaches, trigger.as_mut(), closure, &mut printer)?;
     let stats = hand.stats();
     eprintln!(
         "link: {} transmissions, {} retransmissions, {} heartbeats, {} reconnects, {} CRC errors",
@@ -335,7 +336,69 @@ fn run(a: RunArgs) -> Result<()> {
         stats.reconnects,
         stats.rx_crc_errors
     );
-    Ok(())
+    eprintln!("{}", summary.describe());
+    match summary.failure_message() {
+        Some(reason) => Err(Failure::new(summary.exit_code(), reason).into()),
+        None => Ok(()),
+    }
+}
+
+/// One line of `--report`: the approach's report with its number and result.
+#[derive(serde::Serialize)]
+struct ReportLine<'a> {
+    approach: usize,
+    result: ApproachResult,
+    #[serde(flatten)]
+    report: &'a ApproachReport,
+}
+
+/// Prints each approach and appends it to the report file.
+struct RunPrinter<'a> {
+    report: Option<&'a Path>,
+}
+
+impl SessionObserver for RunPrinter<'_> {
+    fn waiting(&mut self, approach: usize, trigger: &str) {
+        eprintln!("approach {approach}: waiting for trigger ({trigger})");
+    }
+
+    fn frame(&mut self, p: &FramePrediction) {
+        tracing::debug!(frame = p.index, class = ?p.class, "classified");
+    }
+
+    fn approach(&mut self, n: usize, report: &ApproachReport) -> Result<()> {
+        let d = &report.window.decision;
+        println!(
+            "approach {n}: {} | votes {} | {} frames, {} dropped{}",
+            d.outcome,
+            votes(&d.votes),
+            d.frames,
+            report.window.feed.dropped,
+            match (&report.preshape, &report.expired) {
+                (Some(c), _) => format!(
+                    " | acknowledged {:.1} ms after the trigger ({} attempts)",
+                    c.since_trigger_ms, c.attempts
+                ),
+                (None, Some(e)) => format!(
+                    " | STALE: not acknowledged within {:.0} ms of the decision, not executed",
+                    e.limit_ms
+                ),
+                (None, None) => String::new(),
+            }
+        );
+        if let Some(e) = &report.link_error {
+            eprintln!("approach {n}: link error: {e}");
+        }
+        if let Some(path) = self.report {
+            let line = ReportLine {
+                approach: n,
+                result: ApproachResult::of(report),
+                report,
+            };
+            append_json_line(path, &line)?;
+        }
+        Ok(())
+    }
 }
 
 fn votes(v: &[u32; Class::COUNT]) -> String {
@@ -441,38 +504,35 @@ fn simulate_hand(a: SimArgs) -> Result<()> {
     let stop = stop_flag()?;
     let started = Instant::now();
     let sink = move |e: &HandEvent| print_event(started, e);
-    if let Some(link) = &a.pty {
-        let pty = PtyHand::plug(link, sink)?;
-        eprintln!(
-            "simulated hand listening; connect the host to {}",
-            pty.path().display()
-        );
-        while !stop.load(Ordering::Relaxed) && !pty.hand.is_finished() {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = std::fs::remove_file(link);
-        return pty.hand.stop().context("simulated hand failed");
+    let faults = a.faults.unwrap_or_default();
+    if faults.is_active() {
+        eprintln!("injecting link faults: {faults}");
     }
-    let port = a.port.expect("clap requires --port or --pty");
-    while !stop.load(Ordering::Relaxed) {
-        let conn = match open_serial(&port, a.baud, true) {
-            Ok(c) => c,
-            Err(e) => {
-                eprintln!("waiting for {}: {e}", port.display());
-                std::thread::sleep(Duration::from_millis(500));
-                continue;
-            }
-        };
-        eprintln!("simulated hand serving {}", port.display());
-        let hand = RunningHand::spawn(Box::new(conn), sink)?;
-        while !stop.load(Ordering::Relaxed) && !hand.is_finished() {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        if let Err(e) = hand.stop() {
-            eprintln!("{}: {e}; re-opening", port.display());
-        }
+    let (plug, ready): (Box<dyn Plug>, String) = match (&a.pty, &a.port) {
+        (Some(link), _) => (
+            Box::new(PtyPlug::new(link)?),
+            format!(
+                "simulated hand listening; connect the host to {}",
+                link.display()
+            ),
+        ),
+        (None, Some(port)) => (
+            Box::new(DevicePort {
+                path: port.clone(),
+                baud: a.baud,
+            }),
+            format!("simulated hand serving {}", port.display()),
+        ),
+        (None, None) => unreachable!("clap requires --port or --pty"),
+    };
+    let hand = RunningHand::start(plug, faults, sink)?;
+    eprintln!("{ready}");
+    while !stop.load(Ordering::Relaxed) && !hand.is_finished() {
+        std::thread::sleep(Duration::from_millis(50));
     }
-    Ok(())
+    // Stopping ends the serving thread, which unplugs: the link and its
+    // owner record are removed.
+    hand.stop().context("simulated hand failed")
 }
 
 fn print_event(started: Instant, e: &HandEvent) {

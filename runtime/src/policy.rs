@@ -39,7 +39,20 @@ pub struct PolicyConfig {
     /// Pre-shape sent on low confidence; `None` sends nothing.
     pub fallback: Option<Preshape>,
     pub on_invalid: OnInvalid,
+    /// A decision older than this is never sent: the pre-shape must be
+    /// acknowledged within it (the closure within it of its trigger).
+    pub max_decision_age_ms: u64,
 }
+
+/// Default age limit of a decision. The paper's approaches last about 2 s
+/// and its recordings end with 0.5 s of contact: a pre-shape decided at the
+/// end of the window has about half a second to be executed before the hand
+/// reaches the object, and the fingers need part of it to move. 300 ms
+/// leaves them the rest. A healthy link acknowledges in one round trip (2.3
+/// ms of wire time at 115200 baud), over a hundred times less, and 300 ms
+/// still covers the first transmission and two retransmissions at the
+/// default 100 ms ACK timeout.
+pub const DEFAULT_MAX_DECISION_AGE_MS: u64 = 300;
 
 impl Default for PolicyConfig {
     fn default() -> Self {
@@ -51,6 +64,7 @@ impl Default for PolicyConfig {
             min_confidence: 0.5,
             fallback: Some(Preshape::Power),
             on_invalid: OnInvalid::Abort,
+            max_decision_age_ms: DEFAULT_MAX_DECISION_AGE_MS,
         }
     }
 }
@@ -76,7 +90,17 @@ impl PolicyConfig {
             self.early_margin != Some(0),
             "policy.early_margin must be at least 1 vote"
         );
+        anyhow::ensure!(
+            (1..=60_000).contains(&self.max_decision_age_ms),
+            "policy.max_decision_age_ms must be in [1, 60000], got {}",
+            self.max_decision_age_ms
+        );
         Ok(())
+    }
+
+    /// [`PolicyConfig::max_decision_age_ms`] as a duration.
+    pub fn max_decision_age(&self) -> std::time::Duration {
+        std::time::Duration::from_millis(self.max_decision_age_ms)
     }
 }
 

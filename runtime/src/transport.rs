@@ -48,6 +48,8 @@ impl SerialConnector {
 
 impl Connector for SerialConnector {
     fn open(&mut self) -> io::Result<Box<dyn Duplex>> {
+        // A link left by a simulated hand that died may lead elsewhere.
+        crate::ptylink::check_link(&self.path)?;
         Ok(Box::new(open_serial(
             &self.path,
             self.baud,

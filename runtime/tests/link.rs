@@ -2,98 +2,25 @@
 //! whole approaches, corruption, missing ACKs, unplugging, NaN outputs,
 //! the watchdog and stale-frame dropping.
 
+mod common;
+
+use common::{eventually, fast_link, frames_of, start_hand, FakeModel};
 use grasp_schema::taxonomy::{Class, Preshape, Thumb};
 use image::RgbImage;
 use runtime::approach::{actuate, classify_window, ApproachReport};
-use runtime::classifier::FrameClassifier;
 use runtime::decoder::Decoder;
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink, LinkConfig, LinkError};
 use runtime::policy::{Outcome, PolicyConfig};
-use runtime::protocol::{cmd, preshape_command, Ack, Command, HandState, Packet, Status};
+use runtime::protocol::{cmd, preshape_command, Ack, Command, HandState, HandTime, Packet, Status};
 use runtime::simhand::{pty_pair, HandEvent, PtyHand};
 use runtime::source::{MemorySource, Pacing};
 use runtime::transport::{is_timeout, Connector, Duplex, SerialConnector};
 use runtime::trigger::Timer;
 use std::io::{self, Read, Write};
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// Small timeouts so failure paths run in milliseconds. The watchdog stays
-/// long: a loaded CI machine must not open the hand by accident.
-fn fast_link() -> LinkConfig {
-    LinkConfig {
-        ack_timeout_ms: 40,
-        retries: 2,
-        heartbeat_interval_ms: 30,
-        watchdog_ms: 2000,
-        reconnect_interval_ms: 20,
-        reconnect_timeout_ms: 3000,
-    }
-}
-
-fn start_hand(path: &Path, cfg: LinkConfig) -> Hand {
-    Hand::start(HandLink::new(
-        Box::new(SerialConnector::new(path, 115_200)),
-        cfg,
-    ))
-    .expect("link starts")
-}
-
-/// Polls `cond` for up to `limit` (a bound for a stuck test, not a timing
-/// assertion).
-fn eventually(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
-    let t = Instant::now();
-    while t.elapsed() < limit {
-        if cond() {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    cond()
-}
-
-/// Test frames: the red channel encodes the class the fake model sees.
-fn frames_of(classes: &[Class]) -> Vec<RgbImage> {
-    classes
-        .iter()
-        .map(|c| RgbImage::from_pixel(8, 8, image::Rgb([c.index() as u8 * 40, 0, 0])))
-        .collect()
-}
-
-/// Reads the class back from the frame; optionally NaN on one frame, and
-/// optionally slow.
-struct FakeModel {
-    nan_at: Option<usize>,
-    delay: Duration,
-    seen: usize,
-}
-
-impl FakeModel {
-    fn new() -> Self {
-        FakeModel {
-            nan_at: None,
-            delay: Duration::ZERO,
-            seen: 0,
-        }
-    }
-}
-
-impl FrameClassifier for FakeModel {
-    fn classify(&mut self, frame: &RgbImage) -> anyhow::Result<[f32; 5]> {
-        std::thread::sleep(self.delay);
-        let class = (frame.get_pixel(0, 0)[0] / 40) as usize;
-        let mut p = [0.05; 5];
-        p[class] = 0.8;
-        if self.nan_at == Some(self.seen) {
-            p[0] = f32::NAN;
-        }
-        self.seen += 1;
-        Ok(p)
-    }
-}
 
 fn approach(
     hand: &Hand,
@@ -115,7 +42,10 @@ fn approach(
     .unwrap();
     let mut closure = Timer(Duration::from_millis(20));
     let stop = AtomicBool::new(false);
-    actuate(hand, window, Some(&mut closure), &stop, t0).unwrap()
+    // An age limit no loaded machine reaches: these tests are not about it
+    // (tests/faults.rs is).
+    let max_age = Duration::from_secs(30);
+    actuate(hand, window, Some(&mut closure), &stop, t0, max_age).unwrap()
 }
 
 fn preshape_events(events: &[HandEvent]) -> Vec<Option<Preshape>> {
@@ -318,12 +248,16 @@ fn hand_resynchronises_on_raw_noise_and_acks_duplicates_idempotently() {
     let dir = tempfile::tempdir().unwrap();
     let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
     let mut port = runtime::transport::open_serial(pty.path(), 115_200, false).unwrap();
-    let preshape = preshape_command(Preshape::Lateral).packet(9).encode();
+    // A deadline days ahead on the fresh hand's clock.
+    let later = HandTime(1 << 30);
+    let preshape = preshape_command(Preshape::Lateral)
+        .packet(9, later)
+        .encode();
     let mut bytes = vec![0xA5, 0xFF, 0x13, 0xA5, 0x02, 0x09]; // noise, a bogus start
     bytes.extend(&preshape[..5]); // a truncated copy...
     bytes.extend(&preshape); // ...then the real frame
     bytes.extend(&preshape); // and a retransmission
-    bytes.extend(Command::Close.packet(10).encode());
+    bytes.extend(Command::Close.packet(10, later).encode());
     port.write_all(&bytes).unwrap();
     let acks = read_acks(&mut port, 3, Duration::from_secs(5));
     assert_eq!(
@@ -388,6 +322,7 @@ fn mute_for_preshape(mut port: serialport::TTYPort, received: Arc<Mutex<Vec<Pack
                 status: Status::Ok,
                 state: HandState::Open,
                 config: Preshape::Power.hand_configuration(),
+                hand_time: HandTime(0),
             };
             if port.write_all(&ack.packet().encode()).is_err() {
                 return;

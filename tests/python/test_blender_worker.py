@@ -1,5 +1,7 @@
 """The Blender side on its own: every texture family builds, the worker
-renders a tiny Workbench sequence, and bad meshes are refused."""
+renders a tiny Workbench sequence, and bad meshes are refused. With
+GRASP_REQUIRE_BLENDER=1 (scripts/test.sh) a missing bpy fails instead of
+skipping."""
 
 import json
 import os
@@ -7,9 +9,12 @@ import os
 import numpy as np
 import pytest
 
-bpy = pytest.importorskip("bpy")
+if os.environ.get("GRASP_REQUIRE_BLENDER") == "1":
+    import bpy
+else:
+    bpy = pytest.importorskip("bpy")
 
-from blender_scripts import materials  # noqa: E402
+from blender_scripts import materials, world  # noqa: E402
 from blender_scripts.worker import Worker  # noqa: E402
 
 GEOMETRY = {
@@ -115,3 +120,56 @@ def test_depth_and_instance_passes_write_an_exr(tmp_path):
     assert header[:4] == b"\x76\x2f\x31\x01"  # the OpenEXR magic number
     for channel in (b"ViewLayer.Depth.Z", b"ViewLayer.Object Index.X", b"ViewLayer.Combined.R"):
         assert channel in header, channel
+
+
+# The bundled studio-light worlds the generator's config may name
+# (generator/src/randomize.rs, BUNDLED_HDRIS).
+BUNDLED_HDRIS = ["city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"]
+
+
+@pytest.mark.parametrize("name", BUNDLED_HDRIS)
+def test_the_wheel_ships_the_studio_light_worlds(name):
+    assert os.path.getsize(world.hdri_path(name)) > 10_000
+
+
+def test_an_unknown_world_is_refused():
+    with pytest.raises(ValueError, match="world HDRI 'beach' not found"):
+        world.hdri_path("beach")
+
+
+def test_worker_applies_unseen_lights_world_tone_and_distractors(tmp_path):
+    settings = dict(SETTINGS, view_transform="AgX")
+    worker = Worker(GEOMETRY, settings)
+    worker.add_mesh("cube", *cube_bytes())
+    p = plan()
+    light = {"position": [0.5, 0.5, 1.5], "power_w": 20.0, "color_temperature_k": 9000.0}
+    light["tint"] = [0.8, 0.9, 1.0]
+    p["appearance"]["lights"] = [dict(light, kind="sun")] + [dict(light, kind="ring")] * 5
+    p["appearance"]["world"] = {"hdri": "courtyard", "rotation_deg": 30.0, "strength": 0.5}
+    p["appearance"]["tone"] = {"view_transform": "Khronos PBR Neutral", "look": "None"}
+    p["appearance"]["motion_blur"] = {"shutter": 0.5}
+    box = {"shape": "box", "size": [0.05, 0.05, 0.1], "color": [0.2, 0.6, 0.2], "roughness": 0.5}
+    p["distractors"] = [
+        dict(box, pose={"position": [0.2, 0.1, 0.8], "rotation_wxyz": [1, 0, 0, 0]}),
+        dict(
+            box, shape="sphere", pose={"position": [-0.2, 0.1, 0.8], "rotation_wxyz": [1, 0, 0, 0]}
+        ),
+    ]
+    worker.render(p, str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
+    scene = bpy.context.scene
+    assert scene.view_settings.view_transform == "Khronos PBR Neutral"
+    assert scene.world.name == "world_hdri"
+    assert bpy.data.objects["ceiling"].hide_render, "the room opens to the sky"
+    assert not bpy.data.objects["sun0"].hide_render
+    assert sum(not bpy.data.objects[f"ring{i}"].hide_render for i in range(8)) == 5
+    shown = [o for o in bpy.data.objects if o.name.startswith("distractor") and not o.hide_render]
+    assert len(shown) == 2 and all(o.pass_index == 0 for o in shown)
+    assert bpy.data.objects["distractor1"].data.name == "distractor_sphere"
+    # Workbench renders no motion blur.
+    assert not scene.render.use_motion_blur
+    # The next plan without them restores the closed room and the defaults.
+    worker.render(plan(), str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
+    assert scene.view_settings.view_transform == "AgX"
+    assert scene.world.name == "world"
+    assert not bpy.data.objects["ceiling"].hide_render
+    assert all(o.hide_render for o in bpy.data.objects if o.name.startswith("distractor"))

@@ -64,6 +64,9 @@ pub struct TrainConfig {
     /// Frames per backbone forward pass when extracting features.
     pub feature_batch: usize,
     pub on_bad_data: OnBadData,
+    /// Train even when a pre-shape has no training sequence (refused by
+    /// default: see [`crate::data::coverage`]).
+    pub allow_missing_classes: bool,
 }
 
 impl Default for TrainConfig {
@@ -96,6 +99,7 @@ impl Default for TrainConfig {
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
             on_bad_data: OnBadData::Skip,
+            allow_missing_classes: false,
         }
     }
 }

@@ -5,6 +5,7 @@
 use crate::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
+use crate::eval::metrics::FrameWindow;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
 use crate::features::FeatureCache;
@@ -26,10 +27,11 @@ pub struct ExperimentOutcome {
 /// `cfg.out/report/` when there is one.
 pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     cfg.validate()?;
-    let cfg = &resolve_backbone(cfg)?;
+    let cfg = &resolve_backbone(&absolute_data_paths(cfg))?;
     let dev = Device::Cpu;
     let bad = BadData::new(cfg.on_bad_data);
     let splits = train::load_splits(cfg, &bad)?;
+    crate::data::coverage::check_training_classes(&splits.train, cfg.allow_missing_classes)?;
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("cannot create {}", cfg.out.display()))?;
     splits.split.save(&cfg.out.join("split.json"))?;
@@ -57,13 +59,15 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
         None
     } else {
         let ckpts: Vec<PathBuf> = runs.iter().map(|r| r.checkpoint.clone()).collect();
-        let r = evaluate(
+        let mut r = evaluate(
             &ckpts,
             &splits.test,
             &cfg.cache_dir,
             cfg.feature_batch,
             &bad,
+            &FrameWindow::default(),
         )?;
+        r.bad_data = bad_data_note(&bad, Path::new("../problems.json"));
         write_report(&r, &cfg.out.join("report"))?;
         Some(r)
     };
@@ -71,15 +75,40 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     Ok(ExperimentOutcome { runs, report })
 }
 
-/// Evaluates checkpoints on `data` and aggregates them into one report.
-/// The checkpoints must share their mode, backbone and training-set cap.
+/// The dataset paths made absolute, so that the run's `config.toml` and its
+/// checkpoints name the data that was used whatever the directory `eval` is
+/// later run from.
+fn absolute_data_paths(cfg: &TrainConfig) -> TrainConfig {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let mut cfg = cfg.clone();
+    cfg.data = abs(&cfg.data);
+    cfg.val_data = cfg.val_data.as_deref().map(abs);
+    cfg.test_data = cfg.test_data.as_deref().map(abs);
+    cfg
+}
+
+/// A report's note of the skipped problems, if any.
+pub fn bad_data_note(bad: &BadData, listed_in: &Path) -> Option<crate::eval::report::BadDataNote> {
+    let n = bad.problems().len();
+    (n > 0).then(|| crate::eval::report::BadDataNote {
+        skipped: n,
+        listed_in: listed_in.to_path_buf(),
+    })
+}
+
+/// Evaluates checkpoints on `data` and aggregates them into one report,
+/// scoring only the frames in `window`. The checkpoints must share their
+/// mode, backbone and training-set cap.
 pub fn evaluate(
     checkpoints: &[PathBuf],
     data: &Dataset,
     cache_dir: &Path,
     batch: usize,
     bad: &BadData,
+    window: &FrameWindow,
 ) -> Result<Report> {
+    window.validate()?;
+    let mut outside = 0;
     let dev = Device::Cpu;
     let cache = FeatureCache::new(cache_dir, batch);
     let mut runs = Vec::new();
@@ -93,7 +122,15 @@ pub fn evaluate(
         same("sequences_per_pair", &mut cap, m.sequences_per_pair(), ckpt)?;
         head = m.head.kind.name().to_string();
         train_sequences = train_sequences.or(m.train_sequences);
-        let preds = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        let all = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        let preds: Vec<_> = all.iter().filter_map(|v| window.apply(v)).collect();
+        outside = all.len() - preds.len();
+        if preds.is_empty() {
+            anyhow::bail!(
+                "no video has a frame in the window ({}): nothing to score",
+                window.describe()
+            );
+        }
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
             seed: m.seed,
@@ -104,6 +141,8 @@ pub fn evaluate(
     report.backbone = backbone.unwrap_or_default();
     report.sequences_per_pair = cap.flatten();
     report.train_sequences = train_sequences;
+    report.window = *window;
+    report.videos_outside_window = outside;
     Ok(report)
 }
 
@@ -162,22 +201,63 @@ fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
 
 /// The test split of the run a checkpoint belongs to: its training config's
 /// data root, and `split.json` next to the `seed-N` folder.
+/// A relative data path recorded by a run (before paths were recorded
+/// absolute) is resolved against the run folder, never the current one.
 pub fn test_split_of(checkpoint: &Path, bad: &BadData) -> Result<Dataset> {
     let (meta, dir) = CheckpointMeta::load(checkpoint)?;
     let cfg: TrainConfig = serde_json::from_value(meta.train_config.clone())
         .context("the checkpoint's train_config is not readable")?;
-    let split_file = dir.parent().unwrap_or(&dir).join("split.json");
-    let root = cfg.test_data.clone().unwrap_or(cfg.data.clone());
+    let run_dir = dir.parent().unwrap_or(&dir);
+    let split_file = run_dir.join("split.json");
+    let recorded = cfg.test_data.clone().unwrap_or(cfg.data.clone());
+    let root = match recorded.is_absolute() {
+        true => recorded.clone(),
+        false => run_dir.join(&recorded),
+    };
+    if !root.is_dir() {
+        anyhow::bail!(
+            "the run {} was trained on {}{}, which does not exist; pass --data to choose the \
+             dataset to evaluate",
+            run_dir.display(),
+            recorded.display(),
+            match recorded.is_absolute() {
+                true => String::new(),
+                false => format!(" (relative to the run folder: {})", root.display()),
+            }
+        );
+    }
     let data = crate::data::read_dataset(&root, &cfg.reader, bad)?;
     if cfg.test_data.is_some() {
         return Ok(data);
     }
     let s = split::Split::load(&split_file)
         .with_context(|| "pass --data to evaluate on a dataset of your choice")?;
-    Ok(split::select(&data, &s.test))
+    let test = split::select(&data, &s.test);
+    // Test sequences left out as bad data are listed in problems.json; any
+    // other absence means another dataset.
+    let present: std::collections::BTreeSet<&str> =
+        test.sequences.iter().map(|q| q.id.as_str()).collect();
+    let problems = bad.problems();
+    let missing = s
+        .test
+        .iter()
+        .filter(|id| !present.contains(id.as_str()))
+        .filter(|id| !problems.iter().any(|p| p.path.starts_with(root.join(id))))
+        .count();
+    if missing > 0 {
+        anyhow::bail!(
+            "{missing} of the {} test sequences of {} are not in {}: not the dataset the run \
+             was trained on? Pass --data to evaluate on a dataset of your choice",
+            s.test.len(),
+            split_file.display(),
+            root.display()
+        );
+    }
+    Ok(test)
 }
 
-fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
+/// Writes the skipped problems to `out/problems.json` (when there are any).
+pub fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
     let problems = bad.problems();
     if !problems.is_empty() {
         tracing::warn!(
@@ -185,6 +265,7 @@ fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
             problems.len(),
             out.join("problems.json").display()
         );
+        std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
         crate::checkpoint::write_atomic(
             &out.join("problems.json"),
             serde_json::to_string_pretty(&problems)?.as_bytes(),

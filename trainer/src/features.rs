@@ -120,9 +120,14 @@ impl FeatureCache {
     }
 }
 
-/// Hash of the frame files' absolute paths, sizes and modification times.
+/// Hash of the frame files' absolute paths, sizes and modification times,
+/// and of the centre crop the backbone sees.
 fn sequence_hash(seq: &Sequence) -> Result<String> {
     let mut h = Sha256::new();
+    if let Some(c) = seq.center_crop {
+        h.update(b"center_crop");
+        h.update(c.to_le_bytes());
+    }
     for f in &seq.frames {
         let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());
         h.update(abs.to_string_lossy().as_bytes());
@@ -150,7 +155,7 @@ fn compute(
     for chunk in seq.frames.chunks(batch) {
         let mut images = Vec::with_capacity(chunk.len());
         for path in chunk {
-            let img = crate::data::images::load_frame(path, bad)?;
+            let img = crate::data::images::load_frame_cropped(path, seq.center_crop, bad)?;
             valid.push(img.is_some());
             images.extend(img);
         }

@@ -2,7 +2,7 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use trainer::backbone::Architecture;
 use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
@@ -191,6 +191,10 @@ struct TrainArgs {
     /// Camera folder (Wrist_d435, or Head_d435 for egocentric data).
     #[arg(long)]
     camera: Option<String>,
+    /// Feed the backbone only the central square of this fraction (0-1] of
+    /// each frame's shorter side; evaluation then crops the same way.
+    #[arg(long, value_name = "FRACTION")]
+    center_crop: Option<f64>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
     #[arg(long)]
     hflip: bool,
@@ -200,6 +204,10 @@ struct TrainArgs {
     /// What to do with unreadable images and missing labels.
     #[arg(long, value_enum)]
     on_bad_data: Option<OnBadData>,
+    /// Train even if a pre-shape has no training sequence (refused by
+    /// default: such a classifier can never predict it).
+    #[arg(long)]
+    allow_missing_classes: bool,
 }
 
 #[derive(Args)]
@@ -246,28 +254,44 @@ struct EvalArgs {
     real_fps: f64,
     #[arg(long, value_enum, default_value_t = OnBadData::Skip)]
     on_bad_data: OnBadData,
+    /// Score only frames at or after this time (seconds since the start).
+    #[arg(long, value_name = "SECONDS")]
+    from_s: Option<f64>,
+    /// Score only frames before this time (seconds since the start).
+    #[arg(long, value_name = "SECONDS")]
+    to_s: Option<f64>,
+    /// Score only the last SECONDS before each video's final no_grasp
+    /// segment (where the part must be readable before the hand closes).
+    #[arg(long, value_name = "SECONDS")]
+    before_tail_s: Option<f64>,
+    /// Centre crop of the backbone input, a fraction (0-1] of the shorter
+    /// side (default: the checkpoint's training setting).
+    #[arg(long, value_name = "FRACTION")]
+    center_crop: Option<f64>,
 }
 
-fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    let cli = Cli::parse();
-    if let Some(n) = cli.threads {
-        std::env::set_var("RAYON_NUM_THREADS", n.to_string());
-    }
-    match cli.command {
-        Command::Train(a) => train(*a),
-        Command::Eval(a) => eval(a),
-        Command::Summarize(a) => summarize(a),
-        Command::BenchHeads(a) => bench(a),
-        Command::BenchBackbone(a) => bench_backbone(a),
-        Command::Doctor => doctor(),
-    }
+fn main() -> std::process::ExitCode {
+    grasp_schema::cli::main(|| {
+        tracing_subscriber::fmt()
+            .with_env_filter(
+                tracing_subscriber::EnvFilter::try_from_default_env()
+                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+            )
+            .with_writer(std::io::stderr)
+            .init();
+        let cli = Cli::parse();
+        if let Some(n) = cli.threads {
+            std::env::set_var("RAYON_NUM_THREADS", n.to_string());
+        }
+        match cli.command {
+            Command::Train(a) => train(*a),
+            Command::Eval(a) => eval(a),
+            Command::Summarize(a) => summarize(a),
+            Command::BenchHeads(a) => bench(a),
+            Command::BenchBackbone(a) => bench_backbone(a),
+            Command::Doctor => doctor(),
+        }
+    })
 }
 
 fn train(a: TrainArgs) -> Result<()> {
@@ -302,8 +326,10 @@ fn train(a: TrainArgs) -> Result<()> {
     set!(cfg.tbptt, a.tbptt);
     set!(cfg.reader.real_fps, a.real_fps);
     set!(cfg.reader.camera, a.camera);
+    cfg.reader.center_crop = a.center_crop.or(cfg.reader.center_crop);
     set!(cfg.on_bad_data, a.on_bad_data);
     cfg.augment.hflip |= a.hflip;
+    cfg.allow_missing_classes |= a.allow_missing_classes;
     if a.no_augment {
         cfg.augment.enabled = false;
     }
@@ -325,25 +351,51 @@ fn train(a: TrainArgs) -> Result<()> {
 
 fn eval(a: EvalArgs) -> Result<()> {
     let bad = BadData::new(a.on_bad_data);
-    let data = match &a.data {
+    let window = trainer::eval::metrics::FrameWindow {
+        from_s: a.from_s,
+        to_s: a.to_s,
+        before_tail_s: a.before_tail_s,
+    };
+    window.validate()?;
+    let mut data = match &a.data {
         Some(root) => {
             let opts = trainer::data::ReaderOptions {
                 real_fps: a.real_fps,
+                center_crop: a.center_crop.or(trained_center_crop(&a.checkpoints[0])?),
                 ..Default::default()
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
         None => trainer::experiment::test_split_of(&a.checkpoints[0], &bad)?,
     };
+    if let Some(c) = a.center_crop {
+        anyhow::ensure!(
+            c > 0.0 && c <= 1.0,
+            "--center-crop must be in (0, 1], got {c}"
+        );
+        for s in &mut data.sequences {
+            s.center_crop = Some(c);
+        }
+    }
     if data.sequences.is_empty() {
         anyhow::bail!("no sequences to evaluate");
     }
-    let report = trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad)
-        .context("evaluation failed")?;
+    let mut report =
+        trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad, &window)
+            .context("evaluation failed")?;
+    // What was skipped is part of the result: listed next to the report.
+    report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
+    trainer::experiment::write_problems(&bad, &a.out)?;
     trainer::eval::write_report(&report, &a.out)?;
     print_headline(&report);
     println!("report: {}", a.out.join("report.md").display());
     Ok(())
+}
+
+/// The centre crop a checkpoint was trained with (its reader options).
+fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
+    let (meta, _) = trainer::checkpoint::CheckpointMeta::load(checkpoint)?;
+    Ok(meta.train_config["reader"]["center_crop"].as_f64())
 }
 
 fn summarize(a: SummarizeArgs) -> Result<()> {

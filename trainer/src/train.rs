@@ -160,7 +160,7 @@ impl SplitFrames {
         for seq in &data.sequences {
             let mut v = Vec::with_capacity(seq.frames.len());
             for f in &seq.frames {
-                let img = data::images::load_frame(f, bad)?;
+                let img = data::images::load_frame_cropped(f, seq.center_crop, bad)?;
                 v.push(img.is_some());
                 images.extend(img.map(|i| data::augment::resize(&i, size)));
             }

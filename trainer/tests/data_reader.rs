@@ -20,7 +20,11 @@ fn generated_layout_takes_labels_from_sequence_json() {
     let data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
     assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
     assert!(!data.is_real());
-    let handle = data.sequences.iter().find(|s| s.part == "handle").unwrap();
+    let handle = data
+        .sequences
+        .iter()
+        .find(|s| s.part.as_deref() == Some("handle"))
+        .unwrap();
     assert_eq!(handle.object, "025_mug");
     assert_eq!(handle.preshape, Preshape::Lateral);
     assert_eq!(handle.label_source, LabelSource::SequenceJson);
@@ -54,8 +58,13 @@ fn authors_layout_labels_the_last_half_second_no_grasp() {
     assert_eq!(ng, 4);
     assert_eq!(s.labels[7], Class::from(s.preshape));
     assert_eq!(s.labels[8], Class::NoGrasp);
-    // Without part annotations, the pre-shape folder stands for the part.
-    assert_eq!(s.part, s.preshape.authors_folder());
+    // Without part annotations there is no part; the pre-shape folder
+    // stands for it in the split's strata.
+    assert_eq!(s.part, None);
+    assert_eq!(
+        s.stratum(),
+        format!("{}/{}", s.object, s.preshape.authors_folder())
+    );
     assert_eq!(s.condition, "real");
 }
 
@@ -165,4 +174,39 @@ fn splits_are_by_sequence_stratified_and_seeded() {
         },
     );
     assert_ne!(other.test, s.test);
+}
+
+/// Issue 15, item 10: an interrupted render leaves its partial sequences,
+/// mesh cache and logs in `.grasp-gen/`; the reader never walks into it (or
+/// any hidden folder), so even `--on-bad-data fail` reads the dataset.
+#[test]
+fn the_generators_bookkeeping_folders_are_not_read() {
+    let (dir, spec) = generated();
+    let work = dir.path().join(".grasp-gen");
+    let partial = work.join("partial/00000004-0-4242");
+    std::fs::create_dir_all(&partial).unwrap();
+    std::fs::copy(
+        read_dataset(
+            dir.path(),
+            &ReaderOptions::default(),
+            &BadData::new(OnBadData::Fail),
+        )
+        .unwrap()
+        .sequences[0]
+            .frames[0]
+            .clone(),
+        partial.join("00000.png"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(work.join("meshes")).unwrap();
+    std::fs::write(work.join("meshes/025_mug.vertices.f64"), [0u8; 24]).unwrap();
+    std::fs::create_dir_all(work.join("logs")).unwrap();
+    // A hidden folder among the real ones, as an editor or a sync tool leaves.
+    std::fs::create_dir_all(dir.path().join("mug/025_mug/.sync/Wrist_d435/rgb00009")).unwrap();
+
+    let bad = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
+    assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
+    assert!(data.sequences.iter().all(|s| !s.id.contains(".grasp-gen")));
+    assert!(bad.problems().is_empty());
 }

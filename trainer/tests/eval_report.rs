@@ -2,6 +2,7 @@
 //! hand, expected accuracies computed by hand below.
 
 use grasp_schema::taxonomy::{Class, Preshape};
+use trainer::eval::metrics::FrameWindow;
 use trainer::eval::report::RunReport;
 use trainer::eval::{compute_metrics, write_report, Report, VideoPrediction};
 
@@ -31,7 +32,7 @@ fn video(
     VideoPrediction {
         id: id.into(),
         object: object.into(),
-        part: "p".into(),
+        part: Some(format!("{object}-{}", preshape.name())),
         preshape,
         multi_grasp: multi,
         labels,
@@ -142,4 +143,111 @@ fn report_aggregates_seeds_and_writes_its_files() {
         let img = image::open(dir.path().join(png)).unwrap();
         assert!(img.width() > 100);
     }
+}
+
+#[test]
+fn per_part_accuracy_of_the_multi_grasp_objects() {
+    // Mug parts: "mug-power" holds a (right); "mug-lateral" holds b (wrong)
+    // and c (right). The marker is single-grasp: no per-part row.
+    let m = compute_metrics(&videos(), 0.5);
+    let parts: Vec<(&str, &str, usize, f64)> = m
+        .per_part
+        .iter()
+        .map(|p| {
+            (
+                p.object.as_str(),
+                p.part.as_str(),
+                p.videos,
+                p.video_accuracy,
+            )
+        })
+        .collect();
+    assert_eq!(
+        parts,
+        vec![("mug", "mug-lateral", 2, 0.5), ("mug", "mug-power", 1, 1.0)]
+    );
+    // Frames of the pre-shape: lateral b (P P L) 1/3 and c (L N N) 1/3.
+    assert!((m.per_part[0].frame_accuracy.unwrap() - 2.0 / 6.0).abs() < 1e-12);
+    // Videos without a part (the authors' real layout) give no rows.
+    let mut real = videos();
+    for v in &mut real {
+        v.part = None;
+    }
+    assert!(compute_metrics(&real, 0.5).per_part.is_empty());
+    // In the report: mean ± std over runs, and a Markdown section.
+    let mut v2 = videos();
+    v2[1].probs = vec![L, L, L, N]; // b right in the second run
+    let runs = [videos(), v2]
+        .iter()
+        .enumerate()
+        .map(|(seed, v)| RunReport {
+            checkpoint: format!("s{seed}").into(),
+            seed: seed as u64,
+            metrics: compute_metrics(v, 0.5),
+        })
+        .collect();
+    let r = Report::new("frozen-pretrained", "fc", std::path::Path::new("d"), runs);
+    let lateral = &r.per_part[0];
+    assert_eq!(lateral.part, "mug-lateral");
+    assert!((lateral.video_accuracy.mean - 0.75).abs() < 1e-12);
+    assert!((lateral.video_accuracy.std - 0.25).abs() < 1e-12);
+    let md = trainer::eval::report::markdown(&r);
+    assert!(
+        md.contains("| mug | mug-lateral | lateral | 2 | 75.0 ± 25.0 |"),
+        "{md}"
+    );
+}
+
+#[test]
+fn a_frame_window_scores_only_its_frames() {
+    // Video b: frames at 0, 0.5, 1.0 (P P L) then the no_grasp tail at 1.5.
+    let b = &videos()[1];
+    // The last 0.5 s before the tail: the frame at 1.0 s only (L: right).
+    let w = FrameWindow {
+        before_tail_s: Some(0.5),
+        ..Default::default()
+    };
+    let kept = w.apply(b).unwrap();
+    assert_eq!(kept.times_s, vec![1.0]);
+    assert_eq!(kept.probs, vec![L]);
+    // Absolute bounds: [0.5, 1.5) keeps 0.5 and 1.0.
+    let w = FrameWindow {
+        from_s: Some(0.5),
+        to_s: Some(1.5),
+        ..Default::default()
+    };
+    assert_eq!(w.apply(b).unwrap().times_s, vec![0.5, 1.0]);
+    // A window past the end keeps nothing.
+    let late = FrameWindow {
+        from_s: Some(9.0),
+        ..Default::default()
+    };
+    assert!(late.apply(b).is_none());
+    assert!(FrameWindow::default().apply(b).unwrap() == *b);
+    // Scored over the last 0.5 s before the tail (the frame at 1.0 s):
+    let windowed: Vec<_> = videos()
+        .iter()
+        .filter_map(|v| {
+            FrameWindow {
+                before_tail_s: Some(0.5),
+                ..Default::default()
+            }
+            .apply(v)
+        })
+        .collect();
+    let m = compute_metrics(&windowed, 0.5);
+    // a: L (wrong for power), b: L (right), c: N, no pre-shape vote, the
+    // most mass goes to pinch (wrong), d: Q (right) -> 2/4.
+    assert_eq!(m.videos, 4);
+    assert!(
+        (m.video_accuracy - 0.5).abs() < 1e-12,
+        "{}",
+        m.video_accuracy
+    );
+    let bad = FrameWindow {
+        from_s: Some(2.0),
+        to_s: Some(1.0),
+        ..Default::default()
+    };
+    assert!(bad.validate().is_err());
 }

@@ -255,3 +255,94 @@ fn command_line_and_toml_list() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("typo.toml") && err.contains("pth"), "{err}");
 }
+
+/// A one-run report whose per-part accuracies are `(part, accuracy)`, on
+/// the mug (a multi-grasp object).
+fn write_part_report(dir: &Path, video: f64, parts: &[(&str, f64)]) -> PathBuf {
+    use grasp_schema::taxonomy::Preshape;
+    use trainer::eval::metrics::PartAccuracy;
+    let per_part = parts
+        .iter()
+        .map(|(part, acc)| PartAccuracy {
+            object: "025_mug".into(),
+            part: part.to_string(),
+            preshape: if *part == "handle" {
+                Preshape::Pinch3
+            } else {
+                Preshape::Power
+            },
+            videos: 4,
+            correct_videos: (acc * 4.0) as usize,
+            video_accuracy: *acc,
+            grasp_frames: 40,
+            frame_accuracy: Some(*acc),
+        })
+        .collect();
+    let run = RunReport {
+        checkpoint: "run/seed-0".into(),
+        seed: 0,
+        metrics: Metrics {
+            videos: 8,
+            video_accuracy: video,
+            per_part,
+            ..Default::default()
+        },
+    };
+    let r = Report::new("frozen-pretrained", "fc", Path::new("data/test"), vec![run]);
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(
+        dir.join("report.json"),
+        serde_json::to_string_pretty(&r).unwrap(),
+    )
+    .unwrap();
+    dir.to_path_buf()
+}
+
+#[test]
+fn per_part_accuracy_by_condition_with_unseen_look_as_a_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = write_part_report(
+        &dir.path().join("d"),
+        0.75,
+        &[("body", 1.0), ("handle", 0.5)],
+    );
+    let u = write_part_report(
+        &dir.path().join("u"),
+        0.5,
+        &[("body", 0.75), ("handle", 0.25)],
+    );
+    let spec = SummarySpec {
+        by_condition: true,
+        reports: vec![
+            entry("fc/unseen_look", None, &u),
+            entry("fc/default", None, &d),
+        ],
+        ..Default::default()
+    };
+    let md = Summary::load(spec).unwrap().markdown();
+    assert!(md.contains("| model | default | unseen_look |"), "{md}");
+    assert!(md.contains("| fc | 75.0 ± 0.0 | 50.0 ± 0.0 |"), "{md}");
+    assert!(
+        md.contains("| model | object | part | pre-shape | default | unseen_look |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| fc | 025_mug | handle | pinch3 | 50.0 ± 0.0 | 25.0 ± 0.0 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| fc | 025_mug | body | power | 100.0 ± 0.0 | 75.0 ± 0.0 |"),
+        "{md}"
+    );
+    // Without by-condition: the reports as columns.
+    let flat = SummarySpec {
+        reports: vec![entry("a", None, &d), entry("b", None, &u)],
+        ..Default::default()
+    };
+    let md = Summary::load(flat).unwrap().markdown();
+    assert!(md.contains("| object | part | pre-shape | a | b |"), "{md}");
+    assert!(
+        md.contains("| 025_mug | handle | pinch3 | 50.0 ± 0.0 | 25.0 ± 0.0 |"),
+        "{md}"
+    );
+}

@@ -152,6 +152,7 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
         &root.join("cache"),
         8,
         &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
+        &Default::default(),
     )
     .err()
     .unwrap();

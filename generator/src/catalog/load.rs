@@ -54,6 +54,9 @@ pub struct ObjectFile {
     pub size: [f64; 3],
     pub mesh: MeshSource,
     pub parts: Vec<PartFile>,
+    /// Plausible colours of the real object (HSV ranges of its sRGB colour).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub color: Option<ColorRange>,
 }
 
 impl Catalog {
@@ -284,6 +287,10 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
     if raw.parts.is_empty() {
         bail!("{}: an object needs at least one grasp part", at("parts"));
     }
+    if let Some(c) = &raw.color {
+        c.check()
+            .map_err(|e| anyhow::anyhow!("{}: object '{}': field {e}", file.display(), raw.id))?;
+    }
     let mut names = HashSet::new();
     let mut parts = Vec::new();
     for (i, p) in raw.parts.iter().enumerate() {
@@ -317,6 +324,7 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
         size: raw.size,
         mesh,
         parts,
+        color: raw.color,
         source: Some(file.to_path_buf()),
         mesh_cache: Default::default(),
     })

@@ -87,6 +87,49 @@ pub fn identity_wxyz() -> [f64; 4] {
     [1.0, 0.0, 0.0, 0.0]
 }
 
+/// A plausible colour range of an object, in HSV of its sRGB colour: a
+/// real mustard bottle is yellow, a plum purple. Hue is in turns and may
+/// wrap (`[-0.03, 0.03]` is red on both sides of 0).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColorRange {
+    pub hue: [f64; 2],
+    pub saturation: [f64; 2],
+    pub value: [f64; 2],
+}
+
+impl ColorRange {
+    /// The range around a colour given as HSV: hue +- `hue`, saturation and
+    /// value scaled by the given factors (clamped to [0, 1]).
+    pub fn around(hsv: [f64; 3], hue: f64, saturation: [f64; 2], value: [f64; 2]) -> ColorRange {
+        let [h, s, v] = hsv;
+        ColorRange {
+            hue: [h - hue, h + hue],
+            saturation: saturation.map(|f| (s * f).clamp(0.0, 1.0)),
+            value: value.map(|f| (v * f).clamp(0.0, 1.0)),
+        }
+    }
+
+    /// Checks the ranges; the error names the offending field.
+    pub fn check(&self) -> Result<(), String> {
+        let [h0, h1] = self.hue;
+        if !(h0.is_finite() && h1.is_finite() && h0 <= h1 && h1 - h0 <= 1.0) {
+            return Err(format!(
+                "color.hue: need a finite range [min, max] at most one turn wide, got {:?}",
+                self.hue
+            ));
+        }
+        for (name, [lo, hi]) in [("saturation", self.saturation), ("value", self.value)] {
+            if !(0.0..=1.0).contains(&lo) || !(0.0..=1.0).contains(&hi) || lo > hi {
+                return Err(format!(
+                    "color.{name}: need a range [min, max] within [0, 1], got [{lo}, {hi}]"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// One catalog object.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectSpec {
@@ -100,6 +143,10 @@ pub struct ObjectSpec {
     pub size: [f64; 3],
     pub mesh: MeshSource,
     pub parts: Vec<GraspPart>,
+    /// Plausible colours of the real object (optional; without one the
+    /// range is derived from the object's own colour).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub color: Option<ColorRange>,
     /// The file the object was read from (for error messages).
     #[serde(skip)]
     pub source: Option<PathBuf>,

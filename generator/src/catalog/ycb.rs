@@ -109,6 +109,9 @@ fn import_object(ycb: &Path, out: &Path, id: &str, obj: &Value) -> Result<PathBu
             translation: [t.x, t.y, t.z].map(round9),
         },
         parts,
+        // The real objects' colours are not in the annotations: the
+        // plausible range is derived from the object's own colour.
+        color: None,
     };
     let text = format!(
         "# Imported by `grasp-gen objects import-ycb` from the YCB annotations.\n{}",

@@ -7,16 +7,22 @@ use std::path::PathBuf;
 
 #[derive(Debug, Subcommand)]
 pub enum DatasetCommand {
-    /// Check a finished dataset: counts per pair and condition, missing or
-    /// corrupt frames, manifest, and (with --config) records against fresh plans.
+    /// Check a finished dataset: counts per pair and condition, missing,
+    /// truncated or corrupt files, manifest, and (with --config) that every
+    /// configured sequence is there and each record equals a fresh plan.
     Verify {
         dir: PathBuf,
         /// The config the dataset was made with; enables the re-plan check.
         #[arg(long)]
         config: Option<PathBuf>,
-        /// Decode every frame fully instead of reading PNG headers.
+        /// Also decode every image fully (by default each file's structure
+        /// and checksums are checked: PNG chunk CRCs up to IEND, EXR chunks).
         #[arg(long)]
         decode: bool,
+        /// With --config: the folder is the output of `render --shard K/N`;
+        /// only that shard's sequences are expected.
+        #[arg(long, default_value = "0/1")]
+        shard: crate::render::Shard,
     },
     /// Join shard outputs into OUT (copies, or hard links where possible).
     Merge { out: PathBuf, shards: Vec<PathBuf> },
@@ -35,6 +41,7 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             dir,
             config,
             decode,
+            shard,
         } => {
             let source = match config {
                 Some(p) => Some(crate::render::planner_source::from_config(
@@ -42,7 +49,7 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
                 )?),
                 None => None,
             };
-            let report = super::verify::verify(dir, source.as_deref(), *decode)?;
+            let report = super::verify::verify_shard(dir, source.as_deref(), *decode, *shard)?;
             print!("{}", report.render_text());
             if !report.ok() {
                 bail!("{}: {} problems", dir.display(), report.problems.len());

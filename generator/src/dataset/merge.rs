@@ -2,9 +2,12 @@
 //! numbers come from the full key order, so shards never collide; a folder
 //! present in two inputs must hold the same record.
 
-use super::writer::{find_sequences, DatasetDir};
+use super::lock;
+use super::writer::{read_record, sequence_dirs, visit_sequences, DatasetDir, WORK_DIR};
+use crate::render::Shard;
 use anyhow::{bail, Context, Result};
-use grasp_schema::dataset::head_sequence_dir;
+use grasp_schema::dataset::{head_sequence_dir, SEQUENCE_FILE};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Default)]
@@ -15,13 +18,26 @@ pub struct MergeSummary {
 
 pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
     let dataset = DatasetDir::create(out)?;
-    let mut existing = find_sequences(out)?;
+    let _lock = lock::acquire(&dataset.work_dir(), Shard::ALL, "merge", false)?;
+    // Folder names only: records are read one at a time.
+    let mut existing: BTreeSet<String> = sequence_dirs(out, false)?.into_iter().collect();
     let mut summary = MergeSummary::default();
+    let mut damaged = Vec::new();
     for shard in shards {
-        let records = find_sequences(shard)
-            .with_context(|| format!("cannot read shard {}", shard.display()))?;
-        for (rel, record) in records {
-            if let Some(present) = existing.get(&rel) {
+        for holder in lock::holders(&shard.join(WORK_DIR)) {
+            tracing::warn!(
+                "{} is still locked ({}): only its finished sequences are merged",
+                shard.display(),
+                holder.describe()
+            );
+        }
+        let source = DatasetDir {
+            root: shard.clone(),
+        };
+        visit_sequences(shard, false, |rel, record| {
+            let record = record?;
+            if existing.contains(rel) {
+                let present = read_record(&out.join(rel).join(SEQUENCE_FILE))?;
                 if present.plan != record.plan {
                     bail!(
                         "{rel} differs between {} and {}: were the shards made with the same config?",
@@ -30,21 +46,35 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
                     );
                 }
                 summary.already_present += 1;
-                continue;
+                return Ok(());
+            }
+            if let Err(reason) = source.check_finished(rel) {
+                damaged.push(reason);
+                return Ok(());
             }
             // The head folder first: the wrist folder marks the sequence done.
             if record.has_head_camera() {
-                let head = head_sequence_dir(&rel)
+                let head = head_sequence_dir(rel)
                     .with_context(|| format!("{rel}: head camera poses outside Wrist_d435"))?;
                 copy_sequence(&dataset, &shard.join(&head), &out.join(&head))?;
             }
-            copy_sequence(&dataset, &shard.join(&rel), &out.join(&rel))?;
-            existing.insert(rel, record);
+            copy_sequence(&dataset, &shard.join(rel), &out.join(rel))?;
+            existing.insert(rel.to_string());
             summary.copied += 1;
-        }
+            Ok(())
+        })
+        .with_context(|| format!("cannot read shard {}", shard.display()))?;
     }
-    dataset.clean_partials()?;
+    dataset.clean_partials(Shard::ALL)?;
     dataset.rebuild_manifest()?;
+    if !damaged.is_empty() {
+        bail!(
+            "{} damaged sequence(s) left out of the merge (re-render their shard with \
+             --resume, then merge again): {}",
+            damaged.len(),
+            damaged.join("; ")
+        );
+    }
     Ok(summary)
 }
 

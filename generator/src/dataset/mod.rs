@@ -3,8 +3,11 @@
 //! [`grasp_schema::dataset`].
 
 pub mod cli;
+pub mod integrity;
+pub mod lock;
 pub mod merge;
 pub mod stats;
+pub mod storage;
 pub mod verify;
 pub mod writer;
 

@@ -2,7 +2,7 @@
 //! per frame (worker wall-clock seconds from each record's `render.cost`),
 //! per camera, so users can weigh render quality against accuracy.
 
-use super::writer::find_sequences;
+use super::writer::visit_sequences;
 use anyhow::{Context, Result};
 use grasp_schema::dataset::SequenceRecord;
 use serde::Serialize;
@@ -30,39 +30,55 @@ pub struct DatasetStats {
     /// Object swap and appearance, once per sequence whatever the cameras.
     pub setup_seconds: f64,
     pub setup_seconds_per_frame: f64,
+    /// Image-space camera effects (white balance, blur, noise, JPEG), part
+    /// of the cameras' seconds, over all cameras.
+    pub effects_seconds: f64,
+    pub effects_seconds_per_frame: f64,
+    /// CPU seconds of the workers (every thread), all cameras and setup.
+    pub cpu_seconds: f64,
+    pub cpu_seconds_per_frame: f64,
     /// Per camera folder (`Wrist_d435`, `Head_d435`).
     pub cameras: BTreeMap<String, CameraCost>,
     /// Sequences per render setting (`engine, samples, WxH`).
     pub settings: BTreeMap<String, usize>,
+    /// Frames of the sequences with a cost (the setup's denominator).
+    #[serde(skip)]
+    setup_frames: usize,
 }
 
 impl DatasetStats {
     pub fn from_records<'a>(records: impl IntoIterator<Item = &'a SequenceRecord>) -> Self {
         let mut s = DatasetStats::default();
-        let mut setup_frames = 0;
         for r in records {
-            let frames = r.frame_files.len();
-            s.sequences += 1;
-            s.frames += frames;
-            *s.settings.entry(setting_label(r)).or_default() += 1;
-            let Some(cost) = r.render_cost() else {
-                s.without_cost += 1;
-                continue;
-            };
-            s.setup_seconds += cost.setup_seconds;
-            setup_frames += frames;
-            for (camera, seconds) in cost.camera_seconds {
-                let c = s.cameras.entry(camera).or_default();
-                c.sequences += 1;
-                c.frames += frames;
-                c.seconds += seconds;
-            }
+            s.add(r);
         }
-        for c in s.cameras.values_mut() {
+        s
+    }
+
+    /// Counts one more sequence (the per-frame means stay current).
+    pub fn add(&mut self, r: &SequenceRecord) {
+        let frames = r.frame_files.len();
+        self.sequences += 1;
+        self.frames += frames;
+        *self.settings.entry(setting_label(r)).or_default() += 1;
+        let Some(cost) = r.render_cost() else {
+            self.without_cost += 1;
+            return;
+        };
+        self.setup_seconds += cost.setup_seconds;
+        self.effects_seconds += cost.effects_seconds;
+        self.cpu_seconds += cost.cpu_seconds;
+        self.setup_frames += frames;
+        for (camera, seconds) in cost.camera_seconds {
+            let c = self.cameras.entry(camera).or_default();
+            c.sequences += 1;
+            c.frames += frames;
+            c.seconds += seconds;
             c.seconds_per_frame = per(c.seconds, c.frames);
         }
-        s.setup_seconds_per_frame = per(s.setup_seconds, setup_frames);
-        s
+        self.setup_seconds_per_frame = per(self.setup_seconds, self.setup_frames);
+        self.effects_seconds_per_frame = per(self.effects_seconds, self.setup_frames);
+        self.cpu_seconds_per_frame = per(self.cpu_seconds, self.setup_frames);
     }
 
     pub fn render_text(&self) -> String {
@@ -90,6 +106,20 @@ impl DatasetStats {
             "setup (object, materials, lights): {:.2} s in all, {:.4} s per frame",
             self.setup_seconds, self.setup_seconds_per_frame
         );
+        if self.cpu_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "worker CPU time (every thread): {:.2} s in all, {:.4} s per frame",
+                self.cpu_seconds, self.cpu_seconds_per_frame
+            );
+        }
+        if self.effects_seconds > 0.0 {
+            let _ = writeln!(
+                out,
+                "of the cameras' seconds, camera effects: {:.2} s in all, {:.4} s per frame",
+                self.effects_seconds, self.effects_seconds_per_frame
+            );
+        }
         if self.without_cost > 0 {
             let _ = writeln!(
                 out,
@@ -118,9 +148,13 @@ fn setting_label(r: &SequenceRecord) -> String {
 
 /// Reads every finished sequence under `root`.
 pub fn stats(root: &Path) -> Result<DatasetStats> {
-    let records =
-        find_sequences(root).with_context(|| format!("cannot scan dataset {}", root.display()))?;
-    Ok(DatasetStats::from_records(records.values()))
+    let mut s = DatasetStats::default();
+    visit_sequences(root, false, |_, record| {
+        s.add(&record?);
+        Ok(())
+    })
+    .with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    Ok(s)
 }
 
 #[cfg(test)]

@@ -1,14 +1,22 @@
 //! `grasp-gen dataset verify`: checks a finished dataset. It counts sequences
-//! per (object, part) pair and condition, finds missing or corrupt frames,
-//! checks the manifest against the sequence folders, checks the head
-//! camera's folder of every sequence whose plan has head poses, and, given
-//! the plan source, checks each record against a fresh re-plan and its folder.
+//! per (object, part) pair and condition, finds missing, cut-short or
+//! corrupt files (every PNG's chunks and CRCs, every EXR's chunks; a full
+//! decode with `decode`), checks the manifest against the sequence folders,
+//! checks the head camera's folder of every sequence whose plan has head
+//! poses, and, given the plan source, checks that every configured sequence
+//! (of the shard) is there and each record against a fresh re-plan and its
+//! folder.
 
-use super::assign_folders;
-use super::writer::{find_head_sequences, find_sequences, manifest_entry, output_files, WORK_DIR};
-use crate::render::PlanSource;
+use super::integrity::check_image;
+use super::writer::{
+    manifest_entry, output_files, read_record, sequence_dirs, visit_sequences, WORK_DIR,
+};
+use super::{assign_folders, Assigned};
+use crate::render::{PlanSource, Shard};
 use anyhow::{Context, Result};
-use grasp_schema::dataset::{head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE};
+use grasp_schema::dataset::{
+    head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,
+};
 use grasp_schema::Condition;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -81,29 +89,61 @@ impl VerifyReport {
     }
 }
 
-/// Verifies the dataset at `root`. With `source`, every record must equal a
-/// fresh plan and sit in the folder the key order gives it. `decode` reads
-/// every PNG fully (slower) instead of only its header.
+/// Missing sequences listed one by one before the rest are only counted.
+const LISTED_MISSING: usize = 20;
+
+/// Verifies the whole dataset at `root`. With `source`, every configured
+/// sequence must be there, and every record must equal a fresh plan and sit
+/// in the folder the key order gives it. `decode` decodes every image fully
+/// (slower) on top of the integrity check of its file structure.
 pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Result<VerifyReport> {
-    let records =
-        find_sequences(root).with_context(|| format!("cannot scan dataset {}", root.display()))?;
-    let heads = find_head_sequences(root)
-        .with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    verify_shard(root, source, decode, Shard::ALL)
+}
+
+/// [`verify`] for the output of one `render --shard`: only the shard's
+/// sequences are expected.
+pub fn verify_shard(
+    root: &Path,
+    source: Option<&dyn PlanSource>,
+    decode: bool,
+    shard: Shard,
+) -> Result<VerifyReport> {
+    let scan_error = || format!("cannot scan dataset {}", root.display());
+    // Folder lists only: records are read and checked one at a time, so a
+    // dataset of any size verifies in little memory.
+    let dirs = sequence_dirs(root, false).with_context(scan_error)?;
+    let head_dirs: BTreeSet<String> = sequence_dirs(root, true)
+        .with_context(scan_error)?
+        .into_iter()
+        .collect();
     let mut report = VerifyReport::default();
-    check_manifest(root, &records, &mut report);
-    check_head_folders(root, &records, &heads, decode, &mut report);
-    report.stats = super::stats::DatasetStats::from_records(records.values());
-    let expected_dirs = match source {
-        Some(s) => Some(
-            assign_folders(&s.keys()?)
-                .into_iter()
-                .map(|a| (a.planned.key.id(), a.rel_dir))
-                .collect::<BTreeMap<_, _>>(),
-        ),
+    let mut listed = read_manifest(root, &mut report);
+    let assigned = match source {
+        Some(s) => Some(assign_folders(&s.keys()?)),
         None => None,
     };
+    let expected_dirs: Option<BTreeMap<String, String>> = assigned.as_ref().map(|a| {
+        a.iter()
+            .map(|a| (a.planned.key.id(), a.rel_dir.clone()))
+            .collect()
+    });
     let mut ids = BTreeSet::new();
-    for (rel, record) in &records {
+    let mut present = BTreeSet::new();
+    let mut expected_heads = BTreeSet::new();
+    visit_sequences(root, false, |rel, record| {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                report.problems.push(format!("{rel}: {e:#}"));
+                return Ok(());
+            }
+        };
+        present.insert(rel.to_string());
+        check_listed(rel, &record, listed.as_mut(), &mut report);
+        if let Some(h) = check_head_folder(root, rel, &record, &head_dirs, decode, &mut report) {
+            expected_heads.insert(h);
+        }
+        report.stats.add(&record);
         let plan = &record.plan;
         report.sequences += 1;
         report.frames += record.frame_files.len();
@@ -118,7 +158,7 @@ pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Res
                 .problems
                 .push(format!("{rel}: sequence {} appears twice", plan.key.id()));
         }
-        check_frames(root, rel, record, decode, &mut report);
+        check_frames(root, rel, &record, decode, &mut report);
         let prefix = format!(
             "{}/{}/{}/",
             plan.category,
@@ -131,8 +171,37 @@ pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Res
             ));
         }
         if let (Some(source), Some(dirs)) = (source, &expected_dirs) {
-            check_against_plan(source, dirs, rel, record, &mut report);
+            check_against_plan(source, dirs, rel, &record, &mut report);
         }
+        Ok(())
+    })
+    .with_context(scan_error)?;
+    if let Some(listed) = listed {
+        for rel in listed.keys().filter(|r| !present.contains(*r)) {
+            report.problems.push(format!(
+                "{MANIFEST_FILE} lists {rel}, which has no sequence.json"
+            ));
+        }
+    }
+    for rel in head_dirs.iter().filter(|r| !expected_heads.contains(*r)) {
+        report.problems.push(format!(
+            "{rel}: head camera folder without a finished wrist sequence (resume the run)"
+        ));
+    }
+    if let Some(assigned) = &assigned {
+        check_complete(assigned, &present, shard, &mut report);
+    }
+    if dirs.is_empty() {
+        report
+            .problems
+            .push(format!("{}: no finished sequence", root.display()));
+    }
+    for holder in super::lock::holders(&root.join(WORK_DIR)) {
+        report.problems.push(format!(
+            "{} is locked: {} (a run still writing, or killed: resume it with --resume)",
+            root.display(),
+            holder.describe()
+        ));
     }
     let partial = root.join(WORK_DIR).join("partial");
     if std::fs::read_dir(&partial)
@@ -147,15 +216,15 @@ pub fn verify(root: &Path, source: Option<&dyn PlanSource>, decode: bool) -> Res
     Ok(report)
 }
 
-fn check_manifest(
+/// The manifest's entries by path (`None` when it is missing, a problem).
+fn read_manifest(
     root: &Path,
-    records: &BTreeMap<String, SequenceRecord>,
     report: &mut VerifyReport,
-) {
+) -> Option<BTreeMap<String, ManifestEntry>> {
     let path = root.join(MANIFEST_FILE);
     let Ok(text) = std::fs::read_to_string(&path) else {
         report.problems.push(format!("{}: missing", path.display()));
-        return;
+        return None;
     };
     let mut listed = BTreeMap::new();
     for (n, line) in text
@@ -172,62 +241,71 @@ fn check_manifest(
                 .push(format!("{} line {}: {e}", path.display(), n + 1)),
         }
     }
-    for (rel, record) in records {
-        match listed.get(rel) {
-            None => report
-                .problems
-                .push(format!("{rel}: not listed in {MANIFEST_FILE}")),
-            Some(e) if *e != manifest_entry(rel, record) => report.problems.push(format!(
-                "{rel}: {MANIFEST_FILE} entry differs from sequence.json"
-            )),
-            Some(_) => {}
-        }
-    }
-    for rel in listed.keys().filter(|r| !records.contains_key(*r)) {
-        report.problems.push(format!(
-            "{MANIFEST_FILE} lists {rel}, which has no sequence.json"
-        ));
+    Some(listed)
+}
+
+/// The sequence's manifest line exists and agrees with its record.
+fn check_listed(
+    rel: &str,
+    record: &SequenceRecord,
+    listed: Option<&mut BTreeMap<String, ManifestEntry>>,
+    report: &mut VerifyReport,
+) {
+    let Some(listed) = listed else {
+        return;
+    };
+    match listed.get(rel) {
+        None => report
+            .problems
+            .push(format!("{rel}: not listed in {MANIFEST_FILE}")),
+        Some(e) if *e != manifest_entry(rel, record) => report.problems.push(format!(
+            "{rel}: {MANIFEST_FILE} entry differs from sequence.json"
+        )),
+        Some(_) => {}
     }
 }
 
-/// Every sequence with head poses has a head folder with the same record and
-/// its frames; every head folder belongs to such a sequence.
-fn check_head_folders(
+/// A sequence with head poses has a head folder with the same record and
+/// its frames; returns that folder (expected whether present or not).
+fn check_head_folder(
     root: &Path,
-    records: &BTreeMap<String, SequenceRecord>,
-    heads: &BTreeMap<String, SequenceRecord>,
+    rel: &str,
+    record: &SequenceRecord,
+    head_dirs: &BTreeSet<String>,
     decode: bool,
     report: &mut VerifyReport,
-) {
-    let mut expected = BTreeSet::new();
-    for (rel, record) in records.iter().filter(|(_, r)| r.has_head_camera()) {
-        let Some(head_rel) = head_sequence_dir(rel) else {
-            report.problems.push(format!(
-                "{rel}: has head camera poses but is not a Wrist_d435 folder"
-            ));
-            continue;
-        };
-        expected.insert(head_rel.clone());
-        let Some(head) = heads.get(&head_rel) else {
-            report.problems.push(format!(
-                "{head_rel}: missing (the plan of {rel} has head camera poses)"
-            ));
-            continue;
-        };
-        if head.plan != record.plan || head.frame_files != record.frame_files {
-            report.problems.push(format!(
-                "{head_rel}: sequence.json differs from the wrist camera's {rel}"
-            ));
-        }
-        report.head_sequences += 1;
-        report.head_frames += head.frame_files.len();
-        check_frames(root, &head_rel, head, decode, report);
+) -> Option<String> {
+    if !record.has_head_camera() {
+        return None;
     }
-    for rel in heads.keys().filter(|r| !expected.contains(*r)) {
+    let Some(head_rel) = head_sequence_dir(rel) else {
         report.problems.push(format!(
-            "{rel}: head camera folder without a finished wrist sequence (resume the run)"
+            "{rel}: has head camera poses but is not a Wrist_d435 folder"
+        ));
+        return None;
+    };
+    if !head_dirs.contains(&head_rel) {
+        report.problems.push(format!(
+            "{head_rel}: missing (the plan of {rel} has head camera poses)"
+        ));
+        return Some(head_rel);
+    }
+    let head = match read_record(&root.join(&head_rel).join(SEQUENCE_FILE)) {
+        Ok(h) => h,
+        Err(e) => {
+            report.problems.push(format!("{head_rel}: {e:#}"));
+            return Some(head_rel);
+        }
+    };
+    if head.plan != record.plan || head.frame_files != record.frame_files {
+        report.problems.push(format!(
+            "{head_rel}: sequence.json differs from the wrist camera's {rel}"
         ));
     }
+    report.head_sequences += 1;
+    report.head_frames += head.frame_files.len();
+    check_frames(root, &head_rel, &head, decode, report);
+    Some(head_rel)
 }
 
 fn check_frames(
@@ -247,14 +325,7 @@ fn check_frames(
     let k = &record.plan.intrinsics;
     for name in output_files(record) {
         let path = root.join(rel).join(&name);
-        let size = if decode {
-            image::open(&path)
-                .map(|i| (i.width(), i.height()))
-                .map_err(|e| e.to_string())
-        } else {
-            image::image_dimensions(&path).map_err(|e| e.to_string())
-        };
-        match size {
+        match check_image(&path, decode) {
             Err(e) => report.problems.push(format!("{}: {e}", path.display())),
             Ok((w, h)) if (w, h) != (k.width, k.height) => report.problems.push(format!(
                 "{}: {w}x{h} pixels, the intrinsics say {}x{}",
@@ -265,6 +336,46 @@ fn check_frames(
             Ok(_) => {}
         }
     }
+}
+
+/// Every configured sequence of `shard` is in the dataset; the missing ones
+/// are named (the first [`LISTED_MISSING`], then counted).
+fn check_complete(
+    assigned: &[Assigned],
+    present: &BTreeSet<String>,
+    shard: Shard,
+    report: &mut VerifyReport,
+) {
+    let in_shard: Vec<&Assigned> = assigned
+        .iter()
+        .filter(|a| shard.contains(a.position))
+        .collect();
+    let missing: Vec<String> = in_shard
+        .iter()
+        .filter(|a| !present.contains(&a.rel_dir))
+        .map(|a| format!("{} ({})", a.rel_dir, a.planned.key.id()))
+        .collect();
+    if missing.is_empty() {
+        return;
+    }
+    for m in missing.iter().take(LISTED_MISSING) {
+        report.problems.push(format!("missing sequence {m}"));
+    }
+    report.problems.push(format!(
+        "{} of the {} configured sequences{} {} missing{}; render with --resume to complete \
+         the dataset",
+        missing.len(),
+        in_shard.len(),
+        match shard == Shard::ALL {
+            true => String::new(),
+            false => format!(" of shard {shard}"),
+        },
+        if missing.len() == 1 { "is" } else { "are" },
+        match missing.len() > LISTED_MISSING {
+            true => format!(" ({} more not listed)", missing.len() - LISTED_MISSING),
+            false => String::new(),
+        }
+    ));
 }
 
 fn check_against_plan(

@@ -7,7 +7,7 @@
 //! temporary folder and moved into `Head_d435` first; the wrist folder moves
 //! last, so a sequence is finished only when both cameras are complete.
 
-use crate::render::PlannedKey;
+use crate::render::{PlannedKey, Shard};
 use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{
     camera_dir, frame_file_name, head_sequence_dir, padding_for, part_file_name, sequence_dir_name,
@@ -138,14 +138,54 @@ impl DatasetDir {
         Ok(dir)
     }
 
-    /// Removes partial sequences left by a killed run.
-    pub fn clean_partials(&self) -> Result<()> {
+    /// Removes the partial sequences of `shard` left by a killed run (the
+    /// caller holds its lock). Other shards writing into the same folder
+    /// keep theirs: a partial folder's name starts with its position.
+    pub fn clean_partials(&self, shard: Shard) -> Result<()> {
         let dir = self.work_dir().join("partial");
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir)
-                .with_context(|| format!("cannot clear {}", dir.display()))?;
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        for entry in
+            std::fs::read_dir(&dir).with_context(|| format!("cannot read {}", dir.display()))?
+        {
+            let path = entry?.path();
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            let position = name.split('-').next().and_then(|p| p.parse::<usize>().ok());
+            if shard == Shard::ALL || position.is_some_and(|p| shard.contains(p)) {
+                let removed = if path.is_dir() {
+                    std::fs::remove_dir_all(&path)
+                } else {
+                    std::fs::remove_file(&path)
+                };
+                removed.with_context(|| format!("cannot clear {}", path.display()))?;
+            }
         }
-        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))
+        Ok(())
+    }
+
+    /// Whether a finished sequence's files are all there and whole (the
+    /// integrity check of [`super::integrity`], no decoding): the reason
+    /// when not. `--resume` re-renders such sequences.
+    pub fn check_finished(&self, rel_dir: &str) -> std::result::Result<(), String> {
+        let record_path = self.root.join(rel_dir).join(SEQUENCE_FILE);
+        let record = read_record(&record_path).map_err(|e| format!("{e:#}"))?;
+        let mut dirs = vec![rel_dir.to_string()];
+        if record.has_head_camera() {
+            let head = head_sequence_dir(rel_dir)
+                .ok_or_else(|| format!("{rel_dir}: head camera poses outside Wrist_d435"))?;
+            let head_record = self.root.join(&head).join(SEQUENCE_FILE);
+            super::integrity::check_json(&head_record)
+                .map_err(|e| format!("{}: {e}", head_record.display()))?;
+            dirs.push(head);
+        }
+        for dir in dirs {
+            for name in output_files(&record) {
+                let path = self.root.join(&dir).join(&name);
+                super::integrity::check_image(&path, false)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+            }
+        }
+        Ok(())
     }
 
     /// Completes a rendered sequence: checks its frames, writes
@@ -202,42 +242,64 @@ impl DatasetDir {
     /// Rewrites `manifest.jsonl` from the finished sequence folders, sorted
     /// by path, so it is identical however the sequences were produced.
     pub fn rebuild_manifest(&self) -> Result<usize> {
-        let records = find_sequences(&self.root)?;
         let mut text = String::new();
-        for (rel, record) in &records {
-            text.push_str(&serde_json::to_string(&manifest_entry(rel, record))?);
+        let mut count = 0;
+        visit_sequences(&self.root, false, |rel, record| {
+            text.push_str(&serde_json::to_string(&manifest_entry(rel, &record?))?);
             text.push('\n');
-        }
+            count += 1;
+            Ok(())
+        })?;
         write_atomic(&self.root.join(MANIFEST_FILE), text.as_bytes())?;
-        Ok(records.len())
+        Ok(count)
     }
 }
 
-/// Every frame of `record` (and its part labels, with the `part` pass) is a
-/// non-empty file in `dir`.
+/// Every file of `record` in `dir` passes the integrity check (whole PNGs
+/// and EXRs). When one does not, a probe write tells whether the disk is
+/// full, and that OS error is what the failure reports.
 fn check_frames(dir: &Path, record: &SequenceRecord) -> Result<()> {
     for name in output_files(record) {
         let f = dir.join(&name);
-        let len = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
-        if len == 0 {
-            bail!(
-                "sequence {}: frame {} is missing or empty",
+        if let Err(damage) = super::integrity::check_image(&f, false) {
+            let what = format!(
+                "sequence {}: frame {}: {damage}",
                 record.plan.key.id(),
                 f.display()
             );
+            if let Some(full) = super::storage::probe(dir) {
+                return Err(anyhow::Error::new(full).context(what));
+            }
+            bail!(what);
         }
     }
     Ok(())
 }
 
 /// The files a sequence folder must hold besides `sequence.json`: the
-/// frames, then the part label images when the record has part labels.
+/// frames, the part label images when the record has part labels, and the
+/// EXRs when the depth or instance pass was rendered.
 pub fn output_files(record: &SequenceRecord) -> Vec<String> {
     let mut files = record.frame_files.clone();
     if record.part_labels().is_some() {
         files.extend(record.frame_files.iter().map(|f| part_file_name(f)));
     }
+    if keeps_exr(record) {
+        files.extend(record.frame_files.iter().map(|f| {
+            Path::new(f)
+                .with_extension("exr")
+                .to_string_lossy()
+                .into_owned()
+        }));
+    }
     files
+}
+
+/// Whether the record's passes leave an EXR next to each frame.
+fn keeps_exr(record: &SequenceRecord) -> bool {
+    record.render["passes"]
+        .as_array()
+        .is_some_and(|p| p.iter().any(|p| p == "depth" || p == "instance"))
 }
 
 pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {
@@ -254,26 +316,70 @@ pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {
     }
 }
 
-/// Writes a file through a temporary sibling and a rename.
+/// Writes a file through a temporary sibling and a rename. The temporary
+/// name is unique to this process, so shards writing the same file (a mesh,
+/// the manifest) into one folder never mix their bytes.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let tmp = path.with_file_name(format!(".{name}.{}-{nanos}.tmp", std::process::id()));
+    let written = std::fs::write(&tmp, bytes)
+        .with_context(|| format!("cannot write {}", tmp.display()))
+        .and_then(|_| {
+            std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+        });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// Every finished sequence under `root` (folders holding `sequence.json`,
-/// outside the work folder and the head camera's folders), by relative path.
+/// outside the work folder and the head camera's folders), by relative
+/// path. This holds every record in memory: commands that go through a
+/// whole dataset use [`sequence_dirs`] and [`visit_sequences`] instead.
 pub fn find_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
-    scan_sequences(root, false)
+    let mut out = BTreeMap::new();
+    visit_sequences(root, false, |rel, record| {
+        out.insert(rel.to_string(), record?);
+        Ok(())
+    })?;
+    Ok(out)
 }
 
 /// The head camera's sequence folders under `root` (holding `sequence.json`).
 pub fn find_head_sequences(root: &Path) -> Result<BTreeMap<String, SequenceRecord>> {
-    scan_sequences(root, true)
+    let mut out = BTreeMap::new();
+    visit_sequences(root, true, |rel, record| {
+        out.insert(rel.to_string(), record?);
+        Ok(())
+    })?;
+    Ok(out)
 }
 
-fn scan_sequences(root: &Path, head: bool) -> Result<BTreeMap<String, SequenceRecord>> {
-    let mut out = BTreeMap::new();
+/// Calls `visit` with every sequence folder under `root` (wrist folders, or
+/// the head camera's with `head`), in path order, and its record or the
+/// error reading it. One record is in memory at a time.
+pub fn visit_sequences(
+    root: &Path,
+    head: bool,
+    mut visit: impl FnMut(&str, Result<SequenceRecord>) -> Result<()>,
+) -> Result<()> {
+    for rel in sequence_dirs(root, head)? {
+        let record = read_record(&root.join(&rel).join(SEQUENCE_FILE));
+        visit(&rel, record)?;
+    }
+    Ok(())
+}
+
+/// The sequence folders under `root` (relative, `/`-separated, sorted):
+/// folders holding `sequence.json`, outside hidden folders, in a head
+/// camera folder or not as `head` says. Nothing is parsed.
+pub fn sequence_dirs(root: &Path, head: bool) -> Result<Vec<String>> {
+    let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let entries =
@@ -287,16 +393,16 @@ fn scan_sequences(root: &Path, head: bool) -> Result<BTreeMap<String, SequenceRe
             if path.is_dir() {
                 stack.push(path);
             } else if name == SEQUENCE_FILE && in_head_folder(&path) == head {
-                let record = read_record(&path)?;
                 let rel = path
                     .parent()
                     .and_then(|p| p.strip_prefix(root).ok())
                     .map(to_slash)
                     .unwrap_or_default();
-                out.insert(rel, record);
+                out.push(rel);
             }
         }
     }
+    out.sort();
     Ok(out)
 }
 

@@ -49,6 +49,7 @@ pub fn load_inputs(
             .with_context(|| format!("loading the catalog {}", dir.display()))?,
         None => Catalog::builtin().context("loading the built-in catalog")?,
     };
+    config.check(&catalog)?;
     Ok((config, catalog))
 }
 
@@ -66,26 +67,100 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     }
     let planner = Planner::new(&config, &catalog)?;
     let started = Instant::now();
-    let plans = plan_all(&planner, &keys, args.quiet)?;
+    // Plans are written as they are made and only the drawn ones are kept:
+    // memory does not grow with the number of sequences.
+    let mut sink = args.out.as_deref().map(JsonlWriter::create).transpose()?;
+    let mut shown = Vec::new();
+    let bar = progress_bar(keys.len(), args.quiet);
+    for key in &keys {
+        let plan = planner.plan(key)?;
+        bar.inc(1);
+        if let Some(w) = sink.as_mut() {
+            w.push(&plan)?;
+        }
+        if args.show.is_some() && plan.key.index < args.show_per_pair {
+            shown.push(plan);
+        }
+    }
+    bar.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     eprintln!(
         "planned {} sequences in {secs:.2} s ({:.2} ms per sequence)",
-        plans.len(),
-        1e3 * secs / plans.len() as f64
+        keys.len(),
+        1e3 * secs / keys.len() as f64
     );
-    if let Some(out) = &args.out {
-        write_jsonl(out, &plans)?;
+    if let (Some(w), Some(out)) = (sink, &args.out) {
+        w.finish()?;
         eprintln!("wrote {}", out.display());
     }
     if let Some(png) = &args.show {
-        let shown: Vec<&SequencePlan> = plans
-            .iter()
-            .filter(|p| p.key.index < args.show_per_pair)
-            .collect();
+        let shown: Vec<&SequencePlan> = shown.iter().collect();
         super::draw::draw_paths(&shown, &planner, png)?;
         eprintln!("drew {} paths into {}", shown.len(), png.display());
     }
     Ok(())
+}
+
+fn progress_bar(len: usize, quiet: bool) -> indicatif::ProgressBar {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(len as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "planning {bar:40} {pos}/{len} [{elapsed} < {eta}] {msg}",
+        )
+        .expect("valid template"),
+    );
+    bar
+}
+
+/// A JSON-lines file written plan by plan into a temporary file, renamed
+/// into place by [`JsonlWriter::finish`] (removed if dropped before).
+struct JsonlWriter {
+    path: PathBuf,
+    tmp: PathBuf,
+    out: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+impl JsonlWriter {
+    fn create(path: &Path) -> Result<Self> {
+        let tmp = tmp_path(path);
+        let file = std::fs::File::create(&tmp)
+            .with_context(|| format!("cannot create {}", tmp.display()))?;
+        Ok(JsonlWriter {
+            path: path.to_path_buf(),
+            tmp,
+            out: Some(std::io::BufWriter::new(file)),
+        })
+    }
+
+    fn push(&mut self, plan: &SequencePlan) -> Result<()> {
+        let w = self.out.as_mut().context("writer already finished")?;
+        serde_json::to_writer(&mut *w, plan)
+            .map_err(anyhow::Error::from)
+            .and_then(|_| Ok(w.write_all(b"\n")?))
+            .with_context(|| format!("writing {}", self.tmp.display()))
+    }
+
+    fn finish(mut self) -> Result<()> {
+        let w = self.out.take().context("writer already finished")?;
+        w.into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|f| f.sync_all())
+            .with_context(|| format!("writing {}", self.tmp.display()))?;
+        std::fs::rename(&self.tmp, &self.path)
+            .with_context(|| format!("renaming {} to {}", self.tmp.display(), self.path.display()))
+    }
+}
+
+impl Drop for JsonlWriter {
+    fn drop(&mut self) {
+        if self.out.is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 /// Plans every key in order, with a progress bar.
@@ -94,17 +169,7 @@ pub fn plan_all(
     keys: &[grasp_schema::SequenceKey],
     quiet: bool,
 ) -> Result<Vec<SequencePlan>> {
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(keys.len() as u64)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "planning {bar:40} {pos}/{len} [{elapsed} < {eta}] {msg}",
-        )
-        .expect("valid template"),
-    );
+    let bar = progress_bar(keys.len(), quiet);
     let plans = keys
         .iter()
         .map(|k| {

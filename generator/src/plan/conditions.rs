@@ -1,7 +1,8 @@
 //! Test-condition presets and the camera path each one draws.
 //!
-//! - `default` and `background`: a straight minimum-jerk reach from a start
-//!   on the vertical start plane (background differs only at render time);
+//! - `default`, `background` and `unseen_look`: a straight minimum-jerk
+//!   reach from a start on the vertical start plane (the other two differ
+//!   only in appearance);
 //! - `fast`: the same start distances, completed in `fast.duration_s`;
 //! - `seated`: a lower, closer start and a curved (quadratic Bezier) path
 //!   that rises and then comes down onto the target;
@@ -100,7 +101,7 @@ impl ConditionsConfig {
     /// Sequence length of a condition.
     pub fn duration_s(&self, condition: Condition, default_s: f64) -> f64 {
         match condition {
-            Condition::Default | Condition::Background => default_s,
+            Condition::Default | Condition::Background | Condition::UnseenLook => default_s,
             Condition::Fast => self.fast.duration_s,
             Condition::Seated => self.seated.duration_s,
             Condition::FromGround => self.from_ground.duration_s,
@@ -227,7 +228,7 @@ pub fn sample_path<R: Rng>(
 ) -> Option<PathSample> {
     use serde_json::json;
     match ctx.condition {
-        Condition::Default | Condition::Background | Condition::Fast => {
+        Condition::Default | Condition::Background | Condition::UnseenLook | Condition::Fast => {
             let start = sample_start(ctx.region, ctx.scene, target, 1.0, 1.0, rng);
             let path = straight_approach(&start, target, ctx.standoff).ok()?;
             Some(PathSample {

@@ -3,13 +3,16 @@
 //! chance at render time. See `docs/planning.md`.
 
 pub mod bench;
+pub mod budget;
 pub mod camera;
 pub mod cli;
 pub mod conditions;
+pub mod distractors;
 pub mod draw;
 pub mod head_camera;
 mod planner;
 pub mod scene;
+pub mod selection;
 pub mod trajectory;
 pub mod validity;
 pub mod wrist;

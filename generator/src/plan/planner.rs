@@ -9,9 +9,10 @@ use super::validity::{
 use super::wrist::{self, look_at, RollRule};
 use crate::catalog::{Catalog, GraspPart, ObjectSpec, Pronation, TriMesh};
 use crate::config::GeneratorConfig;
+use crate::randomize::{self, ApproachDraw};
 use anyhow::{bail, Context, Result};
 use grasp_schema::plan::{
-    substream_seed, FramePlan, ObjectPlacement, Pose, SequenceKey, SequencePlan,
+    substream_seed, CameraIntrinsics, FramePlan, ObjectPlacement, Pose, SequenceKey, SequencePlan,
     PLAN_SCHEMA_VERSION,
 };
 use grasp_schema::{Class, Condition};
@@ -105,6 +106,10 @@ fn part_box(object: &str, p: &GraspPart) -> Result<Obb> {
 pub struct Planner {
     config: GeneratorConfig,
     objects: BTreeMap<String, ObjectGeometry>,
+    /// `[appearance] image_dir`'s textures, listed once.
+    images: Vec<String>,
+    /// `[randomize]` as it acts (every lever off with its master switch off).
+    levers: crate::randomize::RandomizeConfig,
 }
 
 /// Every sequence the config asks for, in a deterministic order (pair,
@@ -160,6 +165,15 @@ struct Candidate {
     sample: Option<PathSample>,
 }
 
+/// The values of a sequence drawn before its search: the lens and the
+/// approach levers.
+struct SequenceDraws {
+    intrinsics: CameraIntrinsics,
+    fov_scale: f64,
+    principal_point_shift: [f64; 2],
+    approach: ApproachDraw,
+}
+
 struct Accepted {
     candidate: Candidate,
     acceptance: Acceptance,
@@ -192,13 +206,15 @@ impl Planner {
         config: &GeneratorConfig,
         objects: Vec<ObjectGeometry>,
     ) -> Result<Planner> {
-        config.plan.validate()?;
+        config.validate()?;
         Ok(Planner {
             config: config.clone(),
             objects: objects
                 .into_iter()
                 .map(|g| (g.spec.id.clone(), g))
                 .collect(),
+            images: config.appearance.images()?,
+            levers: config.randomize.effective(),
         })
     }
 
@@ -240,38 +256,76 @@ impl Planner {
                 )
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
+        let draws = self.sequence_draws(key.condition, stream);
         let accepted = self
-            .search(geo, part_index, key.condition, stream)
+            .search(geo, part_index, key.condition, stream, &draws)
             .with_context(|| format!("planning {}", key.id()))?;
-        self.build_plan(key, geo, part_index, part, stream, accepted)
+        self.build_plan(key, geo, part_index, part, stream, &draws, accepted)
     }
 
-    fn path_context(&self, condition: Condition) -> PathContext<'_> {
+    /// The lens (`[randomize.fov]`, or `unseen_look`'s own, and the
+    /// principal point) and the approach levers of a sequence, each from its
+    /// own sub-stream.
+    fn sequence_draws(&self, condition: Condition, stream: u64) -> SequenceDraws {
+        let r = &self.levers;
+        let fov = if condition == Condition::UnseenLook {
+            Some(self.config.appearance.unseen_look.fov_scale)
+        } else {
+            r.fov.enabled.then_some(r.fov.scale)
+        };
+        let shift = r
+            .principal_point
+            .enabled
+            .then_some(r.principal_point.max_shift);
+        let base = self.config.plan.camera.intrinsics();
+        let (intrinsics, fov_scale, principal_point_shift) =
+            randomize::intrinsics(&base, fov, shift, stream);
+        SequenceDraws {
+            intrinsics,
+            fov_scale,
+            principal_point_shift,
+            approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
+        }
+    }
+
+    fn path_context(&self, condition: Condition, standoff: f64) -> PathContext<'_> {
         let p = &self.config.plan;
         PathContext {
             condition,
             presets: &p.conditions,
             region: &p.camera.start,
             scene: &p.scene,
-            standoff: p.trajectory.standoff_m,
+            standoff,
             curve_segments: p.validity.curve_segments,
         }
     }
 
+    /// Candidate number `attempt` (0-based) of the search.
     fn draw(
         &self,
         geo: &ObjectGeometry,
         part_index: usize,
         ctx: &PathContext<'_>,
+        approach: &ApproachDraw,
+        attempt: u32,
         rng: &mut ChaCha8Rng,
     ) -> Candidate {
         let part = &geo.spec.parts[part_index];
         let placement = sample_placement(&self.config.plan.scene, part, geo.z_range, rng);
-        let target_sign = if rng.gen::<bool>() { 1.0 } else { -1.0 };
+        // Always drawn, so the stream is the same whether or not the
+        // approach_ends lever forces the end.
+        let random_sign = if rng.gen::<bool>() { 1.0 } else { -1.0 };
+        let target_sign = match approach.end {
+            Some((sign, forced)) if attempt < forced => sign,
+            _ => random_sign,
+        };
         let bx = &geo.boxes[part_index];
-        let axis = bx.rotation * Vector3::new(0.0, 0.0, bx.half.z);
-        let target = placement.to_world(&(bx.center + axis * target_sign));
-        let other_end = placement.to_world(&(bx.center - axis * target_sign));
+        let [u, v] = approach.aim;
+        let end = |sign: f64| {
+            bx.center + bx.rotation * Vector3::new(u * bx.half.x, v * bx.half.y, sign * bx.half.z)
+        };
+        let target = placement.to_world(&end(target_sign));
+        let other_end = placement.to_world(&end(-target_sign));
         let sample = sample_path(ctx, &target, rng);
         Candidate {
             placement,
@@ -288,6 +342,7 @@ impl Planner {
         geo: &ObjectGeometry,
         c: &Candidate,
         condition: Condition,
+        k: &CameraIntrinsics,
     ) -> Result<(), Rejection> {
         let cfg = &self.config.plan;
         let s = c.sample.as_ref().ok_or(Rejection::StartDistance)?;
@@ -300,27 +355,10 @@ impl Planner {
         if s.view_distance < lo * scale || s.view_distance > hi * scale {
             return Err(Rejection::StartDistance);
         }
-        if cfg.validity.require_object_in_view && !self.object_in_view(geo, c, s) {
+        if cfg.validity.require_object_in_view && !object_in_view(geo, c, s, k) {
             return Err(Rejection::NotInView);
         }
         Ok(())
-    }
-
-    /// The object's bounding-sphere centre lies inside the image and the
-    /// sphere does not fill it, seen from the view point looking at the target.
-    fn object_in_view(&self, geo: &ObjectGeometry, c: &Candidate, s: &PathSample) -> bool {
-        let k = self.config.plan.camera.intrinsics();
-        let half = k.fov_x_deg.min(k.fov_y_deg).to_radians() / 2.0;
-        let center = c.placement.to_world(&geo.sphere_center);
-        let to_center = center - s.view_point;
-        let dist = to_center.norm();
-        if dist <= geo.sphere_radius {
-            return false;
-        }
-        let view = c.target - s.view_point;
-        let off_axis = view.angle(&to_center);
-        let angular_radius = (geo.sphere_radius / dist).asin();
-        off_axis < 0.9 * half && angular_radius < half
     }
 
     fn polyline(&self, c: &Candidate) -> Vec<Vector3<f64>> {
@@ -340,9 +378,10 @@ impl Planner {
         part_index: usize,
         condition: Condition,
         stream: u64,
+        draws: &SequenceDraws,
     ) -> Result<Accepted> {
         let cfg = &self.config.plan;
-        let ctx = self.path_context(condition);
+        let ctx = self.path_context(condition, draws.approach.standoff_m);
         let mut rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "scene"));
         let (slab_min, slab_max) = cfg.scene.table_slab();
         let table_world = aabb(slab_min, slab_max);
@@ -359,11 +398,11 @@ impl Planner {
         while drawn < max {
             let count = batch.min(max - drawn);
             let candidates: Vec<Candidate> = (0..count)
-                .map(|_| self.draw(geo, part_index, &ctx, &mut rng))
+                .map(|i| self.draw(geo, part_index, &ctx, &draws.approach, drawn + i, &mut rng))
                 .collect();
             let pre: Vec<Result<(), Rejection>> = candidates
                 .iter()
-                .map(|c| self.precheck(geo, c, condition))
+                .map(|c| self.precheck(geo, c, condition, &draws.intrinsics))
                 .collect();
             let checks: Vec<PolylineCheck<'_>> = candidates
                 .iter()
@@ -417,6 +456,7 @@ impl Planner {
         )
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn build_plan(
         &self,
         key: &SequenceKey,
@@ -424,6 +464,7 @@ impl Planner {
         part_index: usize,
         part: &GraspPart,
         stream: u64,
+        draws: &SequenceDraws,
         accepted: Accepted,
     ) -> Result<SequencePlan> {
         let cfg = &self.config.plan;
@@ -537,7 +578,13 @@ impl Planner {
             put(k, v.clone());
         }
         put("end", json!(end.as_slice()));
-        put("standoff_m", json!(traj.standoff_m));
+        put("standoff_m", json!(draws.approach.standoff_m));
+        put("aim_offset", json!(draws.approach.aim));
+        if let Some((_, forced)) = draws.approach.end {
+            put("target_end_forced", json!(accepted.attempts <= forced));
+        }
+        put("fov_scale", json!(draws.fov_scale));
+        put("principal_point_shift", json!(draws.principal_point_shift));
         put(
             "mesh_tolerance_used",
             json!(accepted.acceptance.mesh_contact_before_box_m.is_some()),
@@ -559,10 +606,24 @@ impl Planner {
             put("head_elbows", json!(elbows));
         }
 
-        let appearance = Some(crate::appearance::sample(
+        let (distractors, rejected) = self.distractors(geo, c, s, stream);
+        if self.levers.distractors.enabled {
+            put("distractor_count", json!(distractors.len()));
+            put("distractor_rejected_draws", json!(rejected));
+        }
+        let colors = randomize::color_range(
+            &self.levers.object_color,
+            geo.spec.color.as_ref(),
+            crate::render::source::default_object_hsv(&geo.spec.id),
+        );
+        let appearance = Some(randomize::sequence_appearance(
             &self.config.appearance,
+            &self.levers,
             key.condition,
-            substream_seed(stream, "appearance"),
+            stream,
+            &colors,
+            c.placement.position.into(),
+            &self.images,
         ));
         Ok(SequencePlan {
             schema_version: PLAN_SCHEMA_VERSION,
@@ -575,7 +636,7 @@ impl Planner {
             part_index,
             fps: traj.fps,
             duration_s: n as f64 / traj.fps,
-            intrinsics: cfg.camera.intrinsics(),
+            intrinsics: draws.intrinsics,
             object: ObjectPlacement {
                 pose: Pose {
                     position: c.placement.position.into(),
@@ -590,8 +651,54 @@ impl Planner {
             frames,
             sampled,
             appearance,
+            distractors,
         })
     }
+
+    /// The distractors of an accepted scene (none with the lever off).
+    fn distractors(
+        &self,
+        geo: &ObjectGeometry,
+        c: &Candidate,
+        s: &PathSample,
+        stream: u64,
+    ) -> (Vec<grasp_schema::plan::Distractor>, u32) {
+        let lever = &self.levers.distractors;
+        if !lever.enabled {
+            return (Vec::new(), 0);
+        }
+        let n = self.config.plan.validity.curve_segments.max(1);
+        let path = s.path.polyline(n);
+        let keepout = super::distractors::Keepout {
+            object_center: c.placement.to_world(&geo.sphere_center),
+            object_radius: geo.sphere_radius,
+            path: &path,
+            target: c.target,
+        };
+        super::distractors::sample(lever, &self.config.plan.scene, &keepout, stream)
+    }
+}
+
+/// The object's bounding-sphere centre lies inside the image and the sphere
+/// does not fill it, seen from the view point looking at the target with
+/// the sequence's lens `k`.
+fn object_in_view(
+    geo: &ObjectGeometry,
+    c: &Candidate,
+    s: &PathSample,
+    k: &CameraIntrinsics,
+) -> bool {
+    let half = k.fov_x_deg.min(k.fov_y_deg).to_radians() / 2.0;
+    let center = c.placement.to_world(&geo.sphere_center);
+    let to_center = center - s.view_point;
+    let dist = to_center.norm();
+    if dist <= geo.sphere_radius {
+        return false;
+    }
+    let view = c.target - s.view_point;
+    let off_axis = view.angle(&to_center);
+    let angular_radius = (geo.sphere_radius / dist).asin();
+    off_axis < 0.9 * half && angular_radius < half
 }
 
 impl Planner {

@@ -28,6 +28,12 @@ pub struct RenderArgs {
     /// No progress bar (logs and batch jobs).
     #[arg(long)]
     pub no_progress: bool,
+    /// Take over the output folder's lock from a run on another machine
+    /// once its heartbeat has stopped (waits 3 heartbeats of 10 s). A dead
+    /// run on this machine, or an earlier run of the same Slurm job, is
+    /// detected without it; a live run is never overridden.
+    #[arg(long)]
+    pub break_lock: bool,
 }
 
 pub fn run_render(args: &RenderArgs) -> Result<()> {
@@ -60,14 +66,19 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         progress: !args.no_progress,
         stop,
         worker_env: Vec::new(),
+        break_lock: args.break_lock,
     };
     let s = render(source, &render_cfg, &opts)?;
     println!(
-        "shard {}: {} sequences, {} already done, {} rendered ({} frames, {:.2} frames/s, {} retries) in {:.1} s",
+        "shard {}: {} sequences, {} already done, {} rendered{} ({} frames, {:.2} frames/s, {} retries) in {:.1} s",
         args.shard,
         s.in_shard,
         s.skipped,
         s.rendered,
+        match s.redone {
+            0 => String::new(),
+            n => format!(" ({n} of them damaged or incomplete before)"),
+        },
         s.frames,
         s.frames_per_second(),
         s.retries,
@@ -77,6 +88,13 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         println!(
             "peak worker memory (RSS): {:.0} MiB",
             s.peak_worker_rss_kib as f64 / 1024.0
+        );
+    }
+    if let Some(why) = &s.fatal {
+        bail!(
+            "stopped: {why}\n{} finished sequences are kept; fix the cause and run again with \
+             --resume",
+            s.skipped + s.rendered
         );
     }
     if s.interrupted {

@@ -7,6 +7,7 @@
 //! moved into the dataset atomically ([`crate::dataset::writer`]).
 
 pub mod cli;
+pub mod effects;
 pub mod orchestrator;
 pub mod parts;
 pub mod planner_source;

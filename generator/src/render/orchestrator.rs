@@ -6,6 +6,8 @@
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
 use super::source::PlanSource;
 use super::{RenderConfig, SceneGeometry, Shard};
+use crate::dataset::lock::{self, OutputLock};
+use crate::dataset::storage;
 use crate::dataset::writer::{frame_files, write_atomic};
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use anyhow::{anyhow, bail, Context, Result};
@@ -36,6 +38,9 @@ pub struct RenderOptions {
     pub stop: Arc<AtomicBool>,
     /// Extra environment variables of the worker processes.
     pub worker_env: Vec<(String, String)>,
+    /// Take over the output lock of a holder on another machine once its
+    /// heartbeat has stopped (see [`crate::dataset::lock`]).
+    pub break_lock: bool,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -44,6 +49,8 @@ pub struct RenderSummary {
     pub in_shard: usize,
     /// Already finished before this run (`--resume`).
     pub skipped: usize,
+    /// Looked finished but had missing or damaged files: rendered again.
+    pub redone: usize,
     pub rendered: usize,
     pub frames: usize,
     pub retries: usize,
@@ -51,6 +58,8 @@ pub struct RenderSummary {
     pub failed: Vec<(String, String)>,
     pub seconds: f64,
     pub interrupted: bool,
+    /// Why the run stopped early on its own (a full disk, a lost lock).
+    pub fatal: Option<String>,
     /// Largest peak resident memory reported by any worker, KiB.
     pub peak_worker_rss_kib: u64,
 }
@@ -69,7 +78,7 @@ struct Job {
 enum Event {
     Rendered {
         peak_rss_kib: u64,
-        cost: RenderCost,
+        cost: Box<RenderCost>,
         /// Part names in label order (the `part` pass), else empty.
         part_labels: Vec<String>,
         job: Job,
@@ -82,6 +91,11 @@ enum Event {
         error: String,
     },
     Failed {
+        id: String,
+        error: String,
+    },
+    /// Nothing more can be written (a full disk): stop the whole run.
+    Fatal {
         id: String,
         error: String,
     },
@@ -104,6 +118,8 @@ struct Shared {
     stop: Arc<AtomicBool>,
     /// The live worker process of each slot, so the main thread can kill it.
     children: Mutex<Vec<Option<Arc<Mutex<Child>>>>>,
+    /// Prefix of the worker log names: shards sharing a folder keep apart.
+    log_prefix: String,
 }
 
 /// Renders every unfinished sequence of `shard` into `opts.out`.
@@ -115,36 +131,30 @@ pub fn render(
     config.validate()?;
     let start = Instant::now();
     let dataset = DatasetDir::create(&opts.out)?;
+    let lock = lock::acquire(&dataset.work_dir(), opts.shard, "render", opts.break_lock)?;
     let keys = source.keys()?;
     let in_shard: Vec<Assigned> = assign_folders(&keys)
         .into_iter()
         .filter(|a| opts.shard.contains(a.position))
         .collect();
-    let finished = in_shard
+    let finished: Vec<bool> = in_shard
         .iter()
-        .filter(|a| dataset.is_finished(&a.rel_dir))
-        .count();
-    if finished > 0 && !opts.resume {
+        .map(|a| dataset.is_finished(&a.rel_dir))
+        .collect();
+    let finished_count = finished.iter().filter(|f| **f).count();
+    if finished_count > 0 && !opts.resume {
         bail!(
-            "{} already holds {finished} finished sequences of this dataset; pass --resume to \
-             keep them and render the rest, or choose an empty folder",
+            "{} already holds {finished_count} finished sequences of this dataset; pass \
+             --resume to keep them and render the rest, or choose an empty folder",
             opts.out.display()
         );
     }
-    dataset.clean_partials()?;
-    let todo: VecDeque<Job> = in_shard
-        .iter()
-        .filter(|a| !dataset.is_finished(&a.rel_dir))
-        .map(|a| Job {
-            assigned: a.clone(),
-            attempt: 0,
-        })
-        .collect();
+    dataset.clean_partials(opts.shard)?;
     let mut summary = RenderSummary {
         in_shard: in_shard.len(),
-        skipped: finished,
         ..Default::default()
     };
+    let todo = unfinished_jobs(&dataset, &in_shard, &finished, &mut summary);
     let total = todo.len();
     if total > 0 {
         let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
@@ -166,13 +176,76 @@ pub fn render(
             queue: Mutex::new(todo),
             stop: opts.stop.clone(),
             children: Mutex::new(vec![None; workers]),
+            log_prefix: match opts.shard == Shard::ALL {
+                true => String::new(),
+                false => format!("shard-{}-of-{}-", opts.shard.index, opts.shard.count),
+            },
         });
-        summary.interrupted = run_pool(&ctx, workers, total, opts.progress, &mut summary)?;
+        summary.interrupted = run_pool(&ctx, workers, total, opts.progress, &lock, &mut summary)?;
     }
-    dataset.clean_partials()?;
-    dataset.rebuild_manifest()?;
+    if lock.lost() {
+        // The folder is another run's now: leave its partials and manifest.
+        summary.seconds = start.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
+    dataset.clean_partials(opts.shard)?;
+    finish_manifest(&dataset, opts.shard, lock)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// The jobs of this run: the unfinished sequences of the shard, and the
+/// finished-looking ones whose files are missing or damaged (re-rendered,
+/// with a message).
+fn unfinished_jobs(
+    dataset: &DatasetDir,
+    in_shard: &[Assigned],
+    finished: &[bool],
+    summary: &mut RenderSummary,
+) -> VecDeque<Job> {
+    let mut todo = VecDeque::new();
+    for (a, done) in in_shard.iter().zip(finished) {
+        if *done {
+            match dataset.check_finished(&a.rel_dir) {
+                Ok(()) => {
+                    summary.skipped += 1;
+                    continue;
+                }
+                Err(reason) => {
+                    tracing::warn!("re-rendering {}: {reason}", a.rel_dir);
+                    summary.redone += 1;
+                }
+            }
+        }
+        todo.push_back(Job {
+            assigned: a.clone(),
+            attempt: 0,
+        });
+    }
+    todo
+}
+
+/// Rewrites the manifest from the folders. A shard sharing its folder with
+/// other running shards leaves it to the last one to finish (each appended
+/// its lines as it went): the lock is released first, then the manifest is
+/// rebuilt if no other run holds a lock.
+fn finish_manifest(dataset: &DatasetDir, shard: Shard, lock: OutputLock) -> Result<()> {
+    if shard == Shard::ALL {
+        dataset.rebuild_manifest()?;
+        return Ok(());
+    }
+    drop(lock);
+    let others = lock::holders(&dataset.work_dir());
+    if others.is_empty() {
+        dataset.rebuild_manifest()?;
+    } else {
+        tracing::info!(
+            "{} other run(s) still write into {}: the last one rewrites the manifest",
+            others.len(),
+            dataset.root.display()
+        );
+    }
+    Ok(())
 }
 
 /// Writes each needed object's mesh once, as raw little-endian arrays the
@@ -237,6 +310,7 @@ fn run_pool(
     workers: usize,
     total: usize,
     show_progress: bool,
+    lock: &OutputLock,
     summary: &mut RenderSummary,
 ) -> Result<bool> {
     let (tx, rx) = channel();
@@ -249,9 +323,23 @@ fn run_pool(
     drop(tx);
     let pb = progress_bar(total, show_progress);
     let start = Instant::now();
+    // Messages go through the log (stderr) in every mode; the bar steps
+    // aside while they print.
+    let log = |f: &dyn Fn()| pb.suspend(f);
     while summary.rendered + summary.failed.len() < total {
         if ctx.stop.load(Ordering::SeqCst) {
-            pb.println("interrupted: stopping workers; finished sequences are kept (use --resume)");
+            log(&|| {
+                tracing::warn!(
+                    "interrupted: stopping workers; finished sequences are kept (use --resume)"
+                )
+            });
+            break;
+        }
+        if lock.lost() {
+            summary.fatal = Some(format!(
+                "the output lock {} was taken over by another run",
+                lock.path().display()
+            ));
             break;
         }
         match rx.recv_timeout(Duration::from_millis(200)) {
@@ -272,14 +360,22 @@ fn run_pool(
                     render: record_settings(&ctx.settings, &cost, &part_labels),
                     generator_version: env!("CARGO_PKG_VERSION").to_string(),
                 };
+                let id = job.assigned.planned.key.id();
                 match ctx.dataset.finish(&partial, &job.assigned.rel_dir, &record) {
                     Ok(()) => {
                         summary.rendered += 1;
                         summary.frames += frames;
                     }
-                    Err(e) => summary
-                        .failed
-                        .push((job.assigned.planned.key.id(), format!("{e:#}"))),
+                    Err(e) if storage::is_storage_full(&e) => {
+                        let _ = std::fs::remove_dir_all(&partial);
+                        summary.fatal = Some(format!("{id}: {e:#}"));
+                        break;
+                    }
+                    Err(e) => {
+                        let error = format!("{e:#}");
+                        log(&|| tracing::error!("FAILED {id}: {error}"));
+                        summary.failed.push((id, error));
+                    }
                 }
                 pb.inc(1);
                 let fps = summary.frames as f64 / start.elapsed().as_secs_f64().max(1e-9);
@@ -287,12 +383,16 @@ fn run_pool(
             }
             Ok(Event::Retry { id, error }) => {
                 summary.retries += 1;
-                pb.println(format!("retrying {id}: {}", first_line(&error)));
+                log(&|| tracing::warn!("retrying {id}: {}", first_line(&error)));
             }
             Ok(Event::Failed { id, error }) => {
-                pb.println(format!("FAILED {id}: {error}"));
+                log(&|| tracing::error!("FAILED {id}: {error}"));
                 summary.failed.push((id, error));
                 pb.inc(1);
+            }
+            Ok(Event::Fatal { id, error }) => {
+                summary.fatal = Some(format!("{id}: {error}"));
+                break;
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => break,
@@ -345,6 +445,13 @@ impl Shared {
     fn stopped(&self) -> bool {
         self.stop.load(Ordering::SeqCst)
     }
+
+    fn worker_log(&self, slot: usize) -> PathBuf {
+        self.dataset
+            .work_dir()
+            .join("logs")
+            .join(format!("{}worker-{slot}.log", self.log_prefix))
+    }
 }
 
 /// A live worker process.
@@ -356,9 +463,10 @@ struct WorkerProc {
 
 impl WorkerProc {
     fn spawn(slot: usize, ctx: &Shared) -> Result<Self> {
-        let logs = ctx.dataset.work_dir().join("logs");
-        std::fs::create_dir_all(&logs)?;
-        let log_path = logs.join(format!("worker-{slot}.log"));
+        let log_path = ctx.worker_log(slot);
+        if let Some(logs) = log_path.parent() {
+            std::fs::create_dir_all(logs)?;
+        }
         let log = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
@@ -436,11 +544,7 @@ impl WorkerProc {
 fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
     let mut proc: Option<WorkerProc> = None;
     let mut served = 0;
-    let log = ctx
-        .dataset
-        .work_dir()
-        .join("logs")
-        .join(format!("worker-{slot}.log"));
+    let log = ctx.worker_log(slot);
     while !ctx.stopped() {
         let Some(job) = ctx
             .queue
@@ -495,7 +599,7 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                 served += 1;
                 let _ = tx.send(Event::Rendered {
                     peak_rss_kib,
-                    cost,
+                    cost: Box::new(cost),
                     part_labels,
                     job,
                     plan: Box::new(plan),
@@ -515,6 +619,19 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                     let _ = std::fs::remove_dir_all(h);
                 }
                 if ctx.stopped() {
+                    break;
+                }
+                // A full disk fails every sequence alike: stop, do not retry.
+                let full = match storage::is_storage_full(&e) {
+                    true => None,
+                    false => storage::probe(&ctx.dataset.work_dir().join("partial")),
+                };
+                if storage::is_storage_full(&e) || full.is_some() {
+                    let error = match full {
+                        Some(f) => format!("{e:#}; {:#}", anyhow::Error::new(f)),
+                        None => format!("{e:#}"),
+                    };
+                    let _ = tx.send(Event::Fatal { id, error });
                     break;
                 }
                 let error = format!("{e:#}");

@@ -31,6 +31,7 @@ pub fn from_config(config: &GeneratorConfig) -> Result<Arc<dyn PlanSource>> {
 impl PlannerSource {
     pub fn new(config: &GeneratorConfig) -> Result<Self> {
         let catalog = Catalog::builtin().context("loading the built-in catalog")?;
+        config.check(&catalog)?;
         let (tx, rx) = channel::<(SequenceKey, PlanReply)>();
         let (ready_tx, ready_rx) = channel::<Result<()>>();
         let (cfg, cat) = (config.clone(), catalog.clone());

@@ -20,6 +20,21 @@ impl Shard {
     pub fn contains(&self, position: usize) -> bool {
         position % self.count == self.index
     }
+
+    /// Whether two shards (of any counts) share a position: K/N and K'/N'
+    /// do exactly when K = K' mod gcd(N, N') (Chinese remainder theorem).
+    pub fn overlaps(&self, other: &Shard) -> bool {
+        let g = gcd(self.count, other.count);
+        self.index % g == other.index % g
+    }
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
 }
 
 impl FromStr for Shard {
@@ -60,6 +75,20 @@ mod tests {
             assert_eq!(shards.iter().filter(|s| s.contains(pos)).count(), 1);
         }
         assert!(Shard::ALL.contains(17));
+    }
+
+    #[test]
+    fn overlap_is_a_shared_position() {
+        let shards: Vec<Shard> = [(0, 1), (0, 2), (1, 2), (1, 4), (3, 4), (2, 3), (5, 6)]
+            .iter()
+            .map(|&(index, count)| Shard { index, count })
+            .collect();
+        for a in &shards {
+            for b in &shards {
+                let shared = (0..a.count * b.count).any(|p| a.contains(p) && b.contains(p));
+                assert_eq!(a.overlaps(b), shared, "{a} and {b}");
+            }
+        }
     }
 
     #[test]

@@ -43,11 +43,16 @@ pub trait PlanSource: Send + Sync {
 /// A stable, muted colour per object id (the catalog carries no materials):
 /// a hue from a hash of the id.
 pub fn default_object_color(object: &str) -> [f64; 3] {
+    let [h, s, v] = default_object_hsv(object);
+    crate::appearance::hsv_to_linear_rgb(h, s, v)
+}
+
+/// [`default_object_color`] as HSV (of its sRGB colour).
+pub fn default_object_hsv(object: &str) -> [f64; 3] {
     let hash = object.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
         (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
     });
-    let hue = (hash % 360) as f64 / 360.0;
-    crate::appearance::hsv_to_linear_rgb(hue, 0.55, 0.75)
+    [(hash % 360) as f64 / 360.0, 0.55, 0.75]
 }
 
 /// Renders a fixed set of plans with given meshes (tests, re-renders).

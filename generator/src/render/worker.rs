@@ -184,7 +184,8 @@ fn render(
         true => None,
         false => Some(part_labeler(settings, req)?),
     };
-    Python::attach(|py| {
+    let cpu_start = process_cpu_seconds();
+    let mut cost = Python::attach(|py| {
         let w = worker.bind(py);
         let start = Instant::now();
         ensure_mesh(py, w, &req.mesh)?;
@@ -215,11 +216,36 @@ fn render(
                 label_parts(l, settings, req, camera == "head", dir)
                     .with_context(|| format!("part labels of {} ({camera} camera)", req.id))?;
             }
+            let sensor = req.plan.appearance.as_ref().and_then(|a| a.sensor.as_ref());
+            if let Some(e) = sensor.filter(|e| e.is_active()) {
+                cost.effects_seconds +=
+                    super::effects::apply_to_frames(e, camera, dir, &req.frame_files)
+                        .with_context(|| {
+                            format!("camera effects of {} ({camera} camera)", req.id)
+                        })?;
+            }
             cost.camera_seconds
                 .insert(folder.to_string(), start.elapsed().as_secs_f64());
         }
-        Ok(cost)
-    })
+        Ok::<_, anyhow::Error>(cost)
+    })?;
+    if let (Some(a), Some(b)) = (cpu_start, process_cpu_seconds()) {
+        cost.cpu_seconds = b - a;
+    }
+    Ok(cost)
+}
+
+/// User + system CPU seconds of this process, every thread
+/// (`/proc/self/stat` fields 14 and 15, in USER_HZ = 100 ticks per second
+/// on Linux); None elsewhere.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) may hold spaces: count after its ')'.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i)?.parse::<f64>().ok();
+    // rest starts at field 3, so fields 14 and 15 are at 11 and 12.
+    Some((ticks(11)? + ticks(12)?) / 100.0)
 }
 
 fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result<()> {

@@ -20,14 +20,20 @@ pub fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_grasp-gen"))
 }
 
-/// Whether the Python environment with bpy exists; tests skip without it.
+/// Set to 1 (as `scripts/test.sh` does) to make a missing Blender venv a
+/// test failure instead of a skip.
+pub const REQUIRE_BLENDER_ENV: &str = "GRASP_REQUIRE_BLENDER";
+
+/// Whether the Python environment with bpy exists; tests skip without it,
+/// unless `GRASP_REQUIRE_BLENDER=1`, where its absence fails the test.
 pub fn have_blender() -> bool {
     let ok = generator::python::site_packages(&generator::python::venv_dir()).is_ok();
     if !ok {
-        eprintln!(
-            "skipping: no Python venv with bpy ({})",
-            generator::python::setup_hint()
-        );
+        let hint = generator::python::setup_hint();
+        if std::env::var(REQUIRE_BLENDER_ENV).is_ok_and(|v| v == "1") {
+            panic!("{REQUIRE_BLENDER_ENV}=1 but there is no Python venv with bpy ({hint})");
+        }
+        eprintln!("skipping: no Python venv with bpy ({hint})");
     }
     ok
 }
@@ -146,6 +152,7 @@ pub fn plan(
         frames,
         sampled: BTreeMap::new(),
         appearance: Some(sample(&AppearanceConfig::default(), condition, seed)),
+        distractors: Vec::new(),
     }
 }
 
@@ -215,6 +222,7 @@ pub fn options(out: &Path, workers: usize) -> RenderOptions {
         progress: false,
         stop: Arc::new(AtomicBool::new(false)),
         worker_env: Vec::new(),
+        break_lock: false,
     }
 }
 

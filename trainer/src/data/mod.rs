@@ -3,6 +3,7 @@
 
 pub mod augment;
 pub mod bad;
+pub mod coverage;
 pub mod images;
 pub mod reader;
 pub mod split;
@@ -35,9 +36,9 @@ pub struct Sequence {
     pub dir: PathBuf,
     pub category: String,
     pub object: String,
-    /// Object part; for the authors' data (no part annotation) the pre-shape
-    /// folder name stands for it.
-    pub part: String,
+    /// Object part (`sequence.json`'s key); absent for the authors' real
+    /// data, which has no part annotation.
+    pub part: Option<String>,
     pub preshape: Preshape,
     /// `default`, `fast`, ... for generated data; `real` for the authors'.
     pub condition: String,
@@ -45,12 +46,26 @@ pub struct Sequence {
     pub frames: Vec<PathBuf>,
     pub labels: Vec<Class>,
     pub label_source: LabelSource,
+    /// The backbone sees the central square of this fraction of each frame's
+    /// shorter side (`ReaderOptions::center_crop`); `None`: whole frames.
+    #[serde(default)]
+    pub center_crop: Option<f64>,
 }
 
 impl Sequence {
-    /// The stratum of the split: the object-part pair.
+    /// The stratum of the split: the object-part pair (the object and
+    /// pre-shape folder when the part is unknown).
     pub fn stratum(&self) -> String {
-        format!("{}/{}", self.object, self.part)
+        let part = self
+            .part
+            .as_deref()
+            .unwrap_or(self.preshape.authors_folder());
+        format!("{}/{}", self.object, part)
+    }
+
+    /// Frame `i`, decoded and centre-cropped as the reader was told.
+    pub fn load_frame(&self, i: usize, bad: &BadData) -> anyhow::Result<Option<image::RgbImage>> {
+        images::load_frame_cropped(&self.frames[i], self.center_crop, bad)
     }
 
     /// The sequence's grasp class (its pre-shape).

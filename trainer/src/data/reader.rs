@@ -24,6 +24,9 @@ pub struct ReaderOptions {
     pub real_fps: f64,
     /// Length of the final `no_grasp` segment of real data, in seconds.
     pub no_grasp_tail_s: f64,
+    /// Feed the backbone only the central square of this fraction of each
+    /// frame's shorter side (0 < f <= 1); absent: whole frames.
+    pub center_crop: Option<f64>,
 }
 
 impl Default for ReaderOptions {
@@ -32,6 +35,7 @@ impl Default for ReaderOptions {
             camera: WRIST_CAMERA_FOLDER.to_string(),
             real_fps: 30.0,
             no_grasp_tail_s: 0.5,
+            center_crop: None,
         }
     }
 }
@@ -39,6 +43,9 @@ impl Default for ReaderOptions {
 /// Reads every sequence under `root`. Problems (unparseable or missing labels,
 /// missing frames) go through `bad`; a root that cannot be listed is an error.
 pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<Dataset> {
+    if let Some(f) = opts.center_crop.filter(|f| !(*f > 0.0 && *f <= 1.0)) {
+        anyhow::bail!("center_crop must be in (0, 1], got {f}");
+    }
     let generated = root.join(MANIFEST_FILE).is_file();
     let mut sequences = Vec::new();
     for category in subdirs(root)? {
@@ -100,7 +107,7 @@ fn read_sequence(
     let json = dir.join(SEQUENCE_FILE);
     let seq = if json.is_file() {
         match read_record(&json) {
-            Ok(record) => from_record(dir, ctx, &record),
+            Ok(record) => from_record(dir, ctx, &record, opts),
             Err(e) => {
                 bad.report(&json, format!("{e:#}"))?;
                 return Ok(None);
@@ -131,20 +138,26 @@ fn read_record(path: &Path) -> Result<SequenceRecord> {
     Ok(record)
 }
 
-fn from_record(dir: &Path, ctx: &FolderContext, record: &SequenceRecord) -> Sequence {
+fn from_record(
+    dir: &Path,
+    ctx: &FolderContext,
+    record: &SequenceRecord,
+    opts: &ReaderOptions,
+) -> Sequence {
     let plan = &record.plan;
     Sequence {
         id: relative_id(ctx.root, dir),
         dir: dir.to_path_buf(),
         category: ctx.category.clone(),
         object: plan.key.object.clone(),
-        part: plan.key.part.clone(),
+        part: Some(plan.key.part.clone()),
         preshape: plan.preshape,
         condition: plan.key.condition.name().to_string(),
         fps: plan.fps,
         frames: record.frame_files.iter().map(|f| dir.join(f)).collect(),
         labels: plan.labels(),
         label_source: LabelSource::SequenceJson,
+        center_crop: opts.center_crop,
     }
 }
 
@@ -160,13 +173,14 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         dir: dir.to_path_buf(),
         category: ctx.category.clone(),
         object: ctx.object.clone(),
-        part: ctx.preshape.authors_folder().to_string(),
+        part: None,
         preshape: ctx.preshape,
         condition: "real".to_string(),
         fps: opts.real_fps,
         labels: folder_labels(frames.len(), ctx.preshape, opts),
         frames,
         label_source: LabelSource::PreshapeFolder,
+        center_crop: opts.center_crop,
     })
 }
 
@@ -218,11 +232,14 @@ fn is_image(p: &Path) -> bool {
     )
 }
 
+/// The visible sub-folders of `dir`, sorted. Hidden ones are bookkeeping,
+/// never data: the generator's `.grasp-gen/` holds the partial sequences
+/// of an unfinished render, its mesh cache, logs and locks.
 fn subdirs(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out: Vec<PathBuf> = fs::read_dir(dir)
         .with_context(|| format!("cannot list {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir())
+        .filter(|p| p.is_dir() && !file_name(p).starts_with('.'))
         .collect();
     out.sort();
     Ok(out)

@@ -146,13 +146,14 @@ mod tests {
                     dir: Default::default(),
                     category: "c".into(),
                     object: object.to_string(),
-                    part: "p".into(),
+                    part: Some("p".into()),
                     preshape: Preshape::Power,
                     condition: "default".into(),
                     fps: 30.0,
                     frames: Vec::new(),
                     labels: Vec::new(),
                     label_source: LabelSource::SequenceJson,
+                    center_crop: None,
                 });
             }
         }

@@ -254,6 +254,7 @@ fn record(
                 .collect(),
             sampled: Default::default(),
             appearance: None,
+            distractors: Vec::new(),
         },
         frame_files: files,
         render: serde_json::json!({"engine": "synthetic-test-pattern"}),

@@ -16,7 +16,13 @@
 //!   of single-grasp and multi-grasp objects (the paper's Fig. 5);
 //! - baseline: a perfect object classifier that always answers the object's
 //!   most frequent pre-shape among the evaluated videos (ties to the lowest
-//!   class index).
+//!   class index);
+//! - per-part accuracy: per-video accuracy of each part of each multi-grasp
+//!   object, for data that records parts (the generator's); the per-frame
+//!   accuracy of the part's pre-shape frames comes with it.
+//!
+//! A [`FrameWindow`] restricts every metric to the frames of a time window
+//! (videos with no frame in it are left out and counted).
 
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
@@ -27,7 +33,9 @@ use std::collections::BTreeMap;
 pub struct VideoPrediction {
     pub id: String,
     pub object: String,
-    pub part: String,
+    /// The object part, when the data records it (`sequence.json`).
+    #[serde(default)]
+    pub part: Option<String>,
     pub preshape: Preshape,
     /// Whether the object has several pre-shapes in the evaluated data.
     pub multi_grasp: bool,
@@ -112,6 +120,132 @@ pub struct Baseline {
     pub video_accuracy_multi: Option<f64>,
 }
 
+/// Per-video accuracy of one part of a multi-grasp object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartAccuracy {
+    pub object: String,
+    pub part: String,
+    pub preshape: Preshape,
+    pub videos: usize,
+    pub correct_videos: usize,
+    pub video_accuracy: f64,
+    /// Frames labelled with the pre-shape, and the fraction predicted right.
+    pub grasp_frames: usize,
+    pub frame_accuracy: Option<f64>,
+}
+
+/// Which frames are scored, by time since the start of the video. `from_s`
+/// and `to_s` bound it absolutely; `before_tail_s` keeps the last seconds
+/// before the final `no_grasp` segment (the whole tail-less video's end).
+/// All given bounds apply together; none scores every frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameWindow {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub to_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before_tail_s: Option<f64>,
+}
+
+impl FrameWindow {
+    pub fn is_all(&self) -> bool {
+        *self == FrameWindow::default()
+    }
+
+    /// A readable form, e.g. "1.00 s to 2.50 s".
+    pub fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(f) = self.from_s {
+            parts.push(format!("from {f:.2} s"));
+        }
+        if let Some(t) = self.to_s {
+            parts.push(format!("before {t:.2} s"));
+        }
+        if let Some(k) = self.before_tail_s {
+            parts.push(format!("the last {k:.2} s before the no_grasp tail"));
+        }
+        if parts.is_empty() {
+            "every frame".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+
+    /// Checks the bounds.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        for (name, v) in [
+            ("from-s", self.from_s),
+            ("to-s", self.to_s),
+            ("before-tail-s", self.before_tail_s),
+        ] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+                anyhow::bail!("--{name} must be a time >= 0 seconds, got {v}");
+            }
+        }
+        if let (Some(a), Some(b)) = (self.from_s, self.to_s) {
+            if a >= b {
+                anyhow::bail!("--from-s ({a}) must be before --to-s ({b})");
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether frame `i` of `v` is scored.
+    fn keeps(&self, v: &VideoPrediction, i: usize, tail_start: f64) -> bool {
+        let t = v.times_s.get(i).copied().unwrap_or(0.0);
+        self.from_s.is_none_or(|f| t >= f - 1e-9)
+            && self.to_s.is_none_or(|e| t < e - 1e-9)
+            && self
+                .before_tail_s
+                .is_none_or(|k| t < tail_start - 1e-9 && t >= tail_start - k - 1e-9)
+    }
+
+    /// `v` restricted to the window (None when no frame is left).
+    pub fn apply(&self, v: &VideoPrediction) -> Option<VideoPrediction> {
+        if self.is_all() {
+            return Some(v.clone());
+        }
+        let tail_start = tail_start(v);
+        let keep: Vec<usize> = (0..v.labels.len().min(v.probs.len()))
+            .filter(|&i| self.keeps(v, i, tail_start))
+            .collect();
+        if keep.is_empty() {
+            return None;
+        }
+        let pick = |i: &usize| v.times_s.get(*i).copied().unwrap_or(0.0);
+        Some(VideoPrediction {
+            labels: keep.iter().map(|&i| v.labels[i]).collect(),
+            probs: keep.iter().map(|&i| v.probs[i]).collect(),
+            times_s: keep.iter().map(pick).collect(),
+            ..v.clone()
+        })
+    }
+}
+
+/// Time of the first frame of the final run of `no_grasp` labels; without
+/// one, one frame interval after the last frame.
+fn tail_start(v: &VideoPrediction) -> f64 {
+    let n = v.labels.len().min(v.times_s.len());
+    let mut first = n;
+    while first > 0 && v.labels[first - 1] == Class::NoGrasp {
+        first -= 1;
+    }
+    if first < n {
+        return v.times_s[first];
+    }
+    match (
+        n,
+        v.times_s.get(n.wrapping_sub(1)),
+        v.times_s.get(n.wrapping_sub(2)),
+    ) {
+        (0, _, _) => 0.0,
+        (_, Some(last), Some(prev)) => last + (last - prev),
+        (_, Some(last), None) => last + 1e-6,
+        _ => 0.0,
+    }
+}
+
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     pub frames: usize,
@@ -130,6 +264,10 @@ pub struct Metrics {
     pub video_confusion: Vec<Vec<u64>>,
     pub baseline: Baseline,
     pub time: TimeCurves,
+    /// Per-video accuracy of each part of the multi-grasp objects (empty
+    /// when the data records no parts).
+    #[serde(default)]
+    pub per_part: Vec<PartAccuracy>,
 }
 
 fn ratio(num: usize, den: usize) -> f64 {
@@ -195,7 +333,41 @@ pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
     m.video_accuracy_single = opt_ratio(single_ok, m.single_grasp_videos);
     m.video_accuracy_multi = opt_ratio(multi_ok, m.multi_grasp_videos);
     m.baseline = baseline(videos);
+    m.per_part = per_part(videos);
     m
+}
+
+/// Per-part accuracy of the multi-grasp objects' videos that record a part,
+/// by (object, part).
+pub fn per_part(videos: &[VideoPrediction]) -> Vec<PartAccuracy> {
+    // (object, part) -> (pre-shape, videos, right videos, frames, right frames)
+    let mut acc: BTreeMap<(&str, &str), (Preshape, [usize; 4])> = BTreeMap::new();
+    for v in videos.iter().filter(|v| v.multi_grasp) {
+        let Some(part) = v.part.as_deref() else {
+            continue;
+        };
+        let (_, n) = acc.entry((&v.object, part)).or_insert((v.preshape, [0; 4]));
+        n[0] += 1;
+        n[1] += usize::from(video_class(&v.probs) == Class::from(v.preshape).index());
+        for (p, l) in v.probs.iter().zip(&v.labels) {
+            if *l != Class::NoGrasp {
+                n[2] += 1;
+                n[3] += usize::from(frame_class(p) == l.index());
+            }
+        }
+    }
+    acc.into_iter()
+        .map(|((object, part), (preshape, n))| PartAccuracy {
+            object: object.to_string(),
+            part: part.to_string(),
+            preshape,
+            videos: n[0],
+            correct_videos: n[1],
+            video_accuracy: ratio(n[1], n[0]),
+            grasp_frames: n[2],
+            frame_accuracy: opt_ratio(n[3], n[2]),
+        })
+        .collect()
 }
 
 /// The perfect object classifier answering each object's most frequent

@@ -65,7 +65,7 @@ fn extract(
     for chunk in seq.frames.chunks(batch.max(1)) {
         let mut images = Vec::new();
         for f in chunk {
-            let img = crate::data::images::load_frame(f, bad)?;
+            let img = crate::data::images::load_frame_cropped(f, seq.center_crop, bad)?;
             valid.push(img.is_some());
             images.extend(img);
         }

@@ -1,7 +1,7 @@
 //! The evaluation report: `report.json` (everything), `report.md` (tables),
 //! `time_accuracy.png` (the paper's Fig. 5) and `confusion.png`.
 
-use super::metrics::{mean_std, scalars, Curve, MeanStd, Metrics};
+use super::metrics::{mean_std, scalars, Curve, FrameWindow, MeanStd, Metrics};
 use anyhow::Result;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
@@ -14,6 +14,49 @@ pub struct RunReport {
     pub checkpoint: PathBuf,
     pub seed: u64,
     pub metrics: Metrics,
+}
+
+/// One part of a multi-grasp object over the runs of a report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PartSummary {
+    pub object: String,
+    pub part: String,
+    pub preshape: Preshape,
+    /// Videos of the part per run.
+    pub videos: usize,
+    /// Per-video accuracy, mean ± std over runs.
+    pub video_accuracy: MeanStd,
+    /// Per-frame accuracy on the part's pre-shape frames.
+    pub frame_accuracy: Option<MeanStd>,
+}
+
+/// Mean ± std over runs of each part's accuracy, in (object, part) order.
+pub fn part_summaries(runs: &[RunReport]) -> Vec<PartSummary> {
+    let mut by_part: BTreeMap<(String, String), Vec<&super::metrics::PartAccuracy>> =
+        BTreeMap::new();
+    for r in runs {
+        for p in &r.metrics.per_part {
+            by_part
+                .entry((p.object.clone(), p.part.clone()))
+                .or_default()
+                .push(p);
+        }
+    }
+    by_part
+        .into_iter()
+        .filter_map(|((object, part), ps)| {
+            let video: Vec<f64> = ps.iter().map(|p| p.video_accuracy).collect();
+            let frame: Vec<f64> = ps.iter().filter_map(|p| p.frame_accuracy).collect();
+            Some(PartSummary {
+                preshape: ps.first()?.preshape,
+                videos: ps.first()?.videos,
+                video_accuracy: mean_std(&video)?,
+                frame_accuracy: mean_std(&frame),
+                object,
+                part,
+            })
+        })
+        .collect()
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -41,6 +84,26 @@ pub struct Report {
     pub time_bin_s: f64,
     pub time_single: Curve,
     pub time_multi: Curve,
+    /// The frames scored (every frame unless restricted by `eval`).
+    #[serde(default)]
+    pub window: FrameWindow,
+    /// Videos left out because no frame of theirs lies in the window.
+    #[serde(default)]
+    pub videos_outside_window: usize,
+    /// Per-part accuracy of the multi-grasp objects, over runs.
+    #[serde(default)]
+    pub per_part: Vec<PartSummary>,
+    /// Bad data left out (`--on-bad-data skip`): how much, and where listed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bad_data: Option<BadDataNote>,
+}
+
+/// Problems skipped while reading or evaluating the data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BadDataNote {
+    pub skipped: usize,
+    /// `problems.json`, relative to the report's folder.
+    pub listed_in: PathBuf,
 }
 
 impl Report {
@@ -66,6 +129,7 @@ impl Report {
             add_curve(&mut single, &r.metrics.time.single);
             add_curve(&mut multi, &r.metrics.time.multi);
         }
+        let per_part = part_summaries(&runs);
         Report {
             mode: mode.to_string(),
             backbone: String::new(),
@@ -80,6 +144,10 @@ impl Report {
             video_confusion: vc,
             time_single: single,
             time_multi: multi,
+            bad_data: None,
+            window: FrameWindow::default(),
+            videos_outside_window: 0,
+            per_part,
         }
     }
 }
@@ -142,12 +210,30 @@ pub fn markdown(r: &Report) -> String {
         r.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
         r.runs.len()
     );
+    if !r.window.is_all() {
+        let _ = writeln!(
+            s,
+            "- **Frames scored: {}** ({} video(s) with no frame in the window left out)\n",
+            r.window.describe(),
+            r.videos_outside_window
+        );
+    }
     if let Some(n) = r.train_sequences {
         let cap = r
             .sequences_per_pair
             .map(|k| format!(" (at most {k} per object-part pair)"))
             .unwrap_or_default();
         let _ = writeln!(s, "- Training set: {n} sequences{cap}\n");
+    }
+    if let Some(b) = &r.bad_data {
+        let _ = writeln!(
+            s,
+            "- **Bad data skipped: {} problem(s)** (unreadable images, missing labels or \
+             frames), listed in [`{}`]({}); the numbers below leave them out.\n",
+            b.skipped,
+            b.listed_in.display(),
+            b.listed_in.display()
+        );
     }
     let _ = writeln!(
         s,
@@ -194,6 +280,7 @@ pub fn markdown(r: &Report) -> String {
             pct(Some(m.baseline.video_accuracy)),
         );
     }
+    part_table(&mut s, r);
     let names: Vec<&str> = Class::names();
     let _ = writeln!(
         s,
@@ -239,6 +326,38 @@ pub fn markdown(r: &Report) -> String {
          Std is the population std over runs."
     );
     s
+}
+
+/// The per-part section: each part of each multi-grasp object.
+fn part_table(s: &mut String, r: &Report) {
+    let _ = writeln!(
+        s,
+        "\n## Per-part accuracy of multi-grasp objects (%), mean ± std over runs\n"
+    );
+    if r.per_part.is_empty() {
+        let _ = writeln!(
+            s,
+            "No multi-grasp object with recorded parts in this data (the authors' real layout \
+             has no part annotation)."
+        );
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "| object | part | pre-shape | videos | per-video | per-frame (pre-shape frames) |\n|---|---|---|---|---|---|"
+    );
+    for p in &r.per_part {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} |",
+            p.object,
+            p.part,
+            p.preshape,
+            p.videos,
+            pct_ms(Some(&p.video_accuracy)),
+            pct_ms(p.frame_accuracy.as_ref())
+        );
+    }
 }
 
 fn matrix(s: &mut String, m: &[Vec<u64>], names: &[&str]) {

@@ -9,7 +9,7 @@
 //! per model and one column per test condition (the paper's Table 3).
 
 use super::metrics::MeanStd;
-use super::report::Report;
+use super::report::{PartSummary, Report};
 use anyhow::{bail, Context, Result};
 use grasp_schema::plan::Condition;
 use serde::{Deserialize, Serialize};
@@ -122,6 +122,13 @@ pub struct Row {
     pub video_accuracy_single: Option<MeanStd>,
     #[serde(default)]
     pub video_accuracy_multi: Option<MeanStd>,
+    /// Per-part accuracy of the multi-grasp objects (empty for data without
+    /// parts, or reports written before it existed).
+    #[serde(default)]
+    pub per_part: Vec<PartSummary>,
+    /// The frames the report scored.
+    #[serde(default)]
+    pub window: super::metrics::FrameWindow,
 }
 
 impl Row {
@@ -169,6 +176,8 @@ impl Row {
             baseline_video_accuracy: get("baseline_video_accuracy"),
             video_accuracy_single: get("video_accuracy_single"),
             video_accuracy_multi: get("video_accuracy_multi"),
+            per_part: r.per_part,
+            window: r.window,
         })
     }
 
@@ -247,9 +256,13 @@ impl Summary {
         );
         if self.spec.by_condition {
             self.condition_table(&mut s);
+            self.condition_part_table(&mut s);
             let _ = writeln!(s, "\n## Every report\n");
         }
         self.table(&mut s);
+        if !self.spec.by_condition {
+            self.part_table(&mut s);
+        }
         if self.has_x() {
             let _ = writeln!(
                 s,
@@ -352,10 +365,82 @@ impl Summary {
         }
     }
 
+    /// Every (object, part) of the multi-grasp objects in any row, sorted.
+    fn parts(&self) -> Vec<(String, String, String)> {
+        let mut parts: Vec<(String, String, String)> = self
+            .rows
+            .iter()
+            .flat_map(|r| &r.per_part)
+            .map(|p| (p.object.clone(), p.part.clone(), p.preshape.to_string()))
+            .collect();
+        parts.sort();
+        parts.dedup();
+        parts
+    }
+
+    /// Per-video accuracy of each part: one row per model and part, the
+    /// conditions as columns.
+    fn condition_part_table(&self, s: &mut String) {
+        let parts = self.parts();
+        if parts.is_empty() {
+            return;
+        }
+        let conditions = self.conditions();
+        let _ = writeln!(
+            s,
+            "\n## Per-part per-video accuracy of multi-grasp objects by test condition\n\n| model | object | part | pre-shape | {} |",
+            conditions.join(" | ")
+        );
+        let _ = writeln!(s, "|---|---|---|---|{}", "---|".repeat(conditions.len()));
+        for m in self.models() {
+            for (object, part, preshape) in &parts {
+                let cells: Vec<String> = conditions
+                    .iter()
+                    .map(|c| {
+                        let row = self.rows.iter().find(|r| r.group_name() == (&m, c));
+                        part_cell(row, object, part)
+                    })
+                    .collect();
+                let _ = writeln!(
+                    s,
+                    "| {m} | {object} | {part} | {preshape} | {} |",
+                    cells.join(" | ")
+                );
+            }
+        }
+    }
+
+    /// Per-video accuracy of each part, the reports as columns.
+    fn part_table(&self, s: &mut String) {
+        let parts = self.parts();
+        if parts.is_empty() {
+            return;
+        }
+        let labels: Vec<&str> = self.rows.iter().map(|r| r.label.as_str()).collect();
+        let _ = writeln!(
+            s,
+            "\n## Per-part per-video accuracy of multi-grasp objects\n\n| object | part | pre-shape | {} |",
+            labels.join(" | ")
+        );
+        let _ = writeln!(s, "|---|---|---|{}", "---|".repeat(labels.len()));
+        for (object, part, preshape) in &parts {
+            let cells: Vec<String> = self
+                .rows
+                .iter()
+                .map(|r| part_cell(Some(r), object, part))
+                .collect();
+            let _ = writeln!(
+                s,
+                "| {object} | {part} | {preshape} | {} |",
+                cells.join(" | ")
+            );
+        }
+    }
+
     fn sources(&self, s: &mut String) {
         let _ = writeln!(
             s,
-            "\n## Sources\n\n| label | report | mode | head | backbone | training set | test data |\n|---|---|---|---|---|---|---|"
+            "\n## Sources\n\n| label | report | mode | head | backbone | training set | test data | frames scored |\n|---|---|---|---|---|---|---|---|"
         );
         for r in &self.rows {
             let training = match (r.train_sequences, r.sequences_per_pair) {
@@ -365,7 +450,7 @@ impl Summary {
             };
             let _ = writeln!(
                 s,
-                "| {} | `{}` | {} | {} | {} | {} | `{}` |",
+                "| {} | `{}` | {} | {} | {} | {} | `{}` | {} |",
                 r.label,
                 r.source.display(),
                 r.mode,
@@ -376,10 +461,21 @@ impl Summary {
                     &r.backbone
                 },
                 training,
-                r.dataset.display()
+                r.dataset.display(),
+                r.window.describe()
             );
         }
     }
+}
+
+/// A part's per-video accuracy in a row ("–" where the row lacks it).
+fn part_cell(row: Option<&Row>, object: &str, part: &str) -> String {
+    let p = row.and_then(|r| {
+        r.per_part
+            .iter()
+            .find(|p| p.object == object && p.part == part)
+    });
+    pct(p.map(|p| &p.video_accuracy))
 }
 
 fn pct(m: Option<&MeanStd>) -> String {

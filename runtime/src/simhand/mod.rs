@@ -1,19 +1,28 @@
 //! A simulated Hannes hand: the device side of docs/hannes-protocol.md.
 //! It decodes frames (resynchronising on the start byte), checks CRC and
 //! sequence numbers, acknowledges (duplicates idempotently, without executing
-//! them again), logs every commanded configuration, and opens the hand when
-//! the link stays silent longer than the watchdog.
+//! them again), refuses commands whose deadline passed, logs every commanded
+//! configuration, and opens the hand when the link stays silent longer than
+//! the watchdog.
+//!
+//! - [`SimHand`]: the state machine, free of I/O;
+//! - [`RunningHand`] (`server`): serves it on a port in a thread, unplugs
+//!   and re-plugs it, and injects link faults ([`FaultSpec`], `faults`);
+//! - [`PtyHand`] (`pty`): a hand on a fresh pseudo-terminal reached through
+//!   a link whose owner is recorded (`crate::ptylink`).
 
-use crate::decoder::Decoder;
-use crate::protocol::{cmd, Ack, Command, HandState, Packet, Status};
-use crate::transport::{is_timeout, Duplex};
+mod faults;
+mod pty;
+mod server;
+
+pub use crate::ptylink::{pty_pair, replace_symlink};
+pub use faults::{FaultKind, FaultSpec, Toward};
+pub use pty::{PtyHand, PtyPlug};
+pub use server::{DevicePort, OpenPort, Plug, RunningHand};
+
+use crate::protocol::{cmd, Ack, Command, HandState, HandTime, Packet, Status};
 use grasp_schema::taxonomy::{HandConfiguration, Preshape, Thumb};
 use serde::Serialize;
-use std::io;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// Watchdog used until a HELLO sets one.
@@ -51,9 +60,35 @@ pub enum HandEvent {
         cmd: u8,
         status: String,
     },
+    /// A PRESHAPE or CLOSE that arrived after its deadline: refused, not
+    /// executed.
+    Expired {
+        seq: u8,
+        cmd: u8,
+        /// How long after the deadline it arrived.
+        late_ms: i64,
+    },
     /// The link was silent too long: the hand opened itself.
     WatchdogOpen {
         silent_ms: u64,
+    },
+    /// The hand's side of the link was disconnected (an injected fault, a
+    /// request, or the port failed).
+    Unplugged {
+        reason: String,
+        /// When it plugs back in by itself.
+        for_ms: Option<u64>,
+    },
+    /// Connected again after [`HandEvent::Unplugged`].
+    Replugged {
+        device: String,
+    },
+    /// An injected link fault hit a frame.
+    Fault {
+        fault: FaultKind,
+        toward: Toward,
+        seq: u8,
+        cmd: u8,
     },
 }
 
@@ -73,27 +108,41 @@ pub struct SimHand {
     last_rx: Option<Instant>,
     /// Last executed frame and its ACK, for idempotent retransmissions.
     last: Option<(Packet, Ack)>,
+    /// Zero of the hand's clock.
+    epoch: Instant,
 }
 
 impl Default for SimHand {
     fn default() -> Self {
+        SimHand::new(Instant::now())
+    }
+}
+
+impl SimHand {
+    /// A hand whose clock reads 0 at `epoch`.
+    pub fn new(epoch: Instant) -> Self {
         SimHand {
             state: HandState::Open,
             config: Preshape::Power.hand_configuration(),
             watchdog: DEFAULT_WATCHDOG,
             last_rx: None,
             last: None,
+            epoch,
         }
     }
-}
 
-impl SimHand {
     pub fn state(&self) -> HandState {
         self.state
     }
 
     pub fn config(&self) -> HandConfiguration {
         self.config
+    }
+
+    /// The hand's clock at `now`.
+    pub fn clock(&self, now: Instant) -> HandTime {
+        // Truncating to 32 bits is the clock's wrap-around.
+        HandTime(now.saturating_duration_since(self.epoch).as_millis() as u32)
     }
 
     /// Handles one valid frame; returns the ACK to send (if the frame is a
@@ -112,8 +161,17 @@ impl SimHand {
                 return (Some(*ack), Some(event));
             }
         }
+        let clock = self.clock(now);
         let (status, event) = match Command::parse(p) {
-            Ok(c) => (Status::Ok, self.execute(p.seq, c)),
+            Ok((_, Some(deadline))) if !clock.is_before(deadline) => (
+                Status::Expired,
+                Some(HandEvent::Expired {
+                    seq: p.seq,
+                    cmd: p.cmd,
+                    late_ms: clock.since(deadline),
+                }),
+            ),
+            Ok((c, _)) => (Status::Ok, self.execute(p.seq, c)),
             Err(status) => (
                 status,
                 Some(HandEvent::Rejected {
@@ -129,6 +187,7 @@ impl SimHand {
             status,
             state: self.state,
             config: self.config,
+            hand_time: clock,
         };
         self.last = match p.cmd {
             cmd::HELLO => None, // a new session: nothing to deduplicate against
@@ -179,190 +238,19 @@ impl SimHand {
     }
 }
 
-/// Serves one open port until `stop` is set or the port fails.
-pub fn serve(
-    port: &mut dyn Duplex,
-    hand: &Mutex<SimHand>,
-    stop: &AtomicBool,
-    on_event: &mut dyn FnMut(HandEvent),
-) -> io::Result<()> {
-    let mut decoder = Decoder::new();
-    let mut buf = [0u8; 256];
-    port.set_read_timeout(Duration::from_millis(5))?;
-    while !stop.load(Ordering::Relaxed) {
-        match port.read(&mut buf) {
-            Ok(0) => return Err(io::Error::new(io::ErrorKind::UnexpectedEof, "port closed")),
-            Ok(n) => decoder.push(&buf[..n]),
-            Err(e) if is_timeout(&e) => {}
-            Err(e) => return Err(e),
-        }
-        while let Some(p) = decoder.next_packet() {
-            let (ack, event) = lock(hand).on_packet(&p, Instant::now());
-            if let Some(ack) = ack {
-                port.write_all(&ack.packet().encode())?;
-                port.flush()?;
-            }
-            event.into_iter().for_each(&mut *on_event);
-        }
-        if let Some(e) = lock(hand).on_tick(Instant::now()) {
-            on_event(e);
-        }
-    }
-    Ok(())
-}
-
-fn lock(hand: &Mutex<SimHand>) -> std::sync::MutexGuard<'_, SimHand> {
-    hand.lock().unwrap_or_else(|p| p.into_inner())
-}
-
-/// A simulated hand running on its own thread, with its event log.
-pub struct RunningHand {
-    hand: Arc<Mutex<SimHand>>,
-    events: Arc<Mutex<Vec<HandEvent>>>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<io::Result<()>>>,
-}
-
-impl RunningHand {
-    /// Serves `port` on a new thread; `sink` also sees every event.
-    pub fn spawn(
-        mut port: Box<dyn Duplex>,
-        mut sink: impl FnMut(&HandEvent) + Send + 'static,
-    ) -> io::Result<RunningHand> {
-        let hand = Arc::new(Mutex::new(SimHand::default()));
-        let events = Arc::new(Mutex::new(Vec::new()));
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread = {
-            let (hand, events, stop) = (hand.clone(), events.clone(), stop.clone());
-            std::thread::Builder::new()
-                .name("simulated-hand".into())
-                .spawn(move || {
-                    serve(&mut *port, &hand, &stop, &mut |e| {
-                        sink(&e);
-                        events.lock().unwrap_or_else(|p| p.into_inner()).push(e);
-                    })
-                })?
-        };
-        Ok(RunningHand {
-            hand,
-            events,
-            stop,
-            thread: Some(thread),
-        })
-    }
-
-    pub fn state(&self) -> (HandState, HandConfiguration) {
-        let h = lock(&self.hand);
-        (h.state(), h.config())
-    }
-
-    pub fn events(&self) -> Vec<HandEvent> {
-        self.events
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .clone()
-    }
-
-    /// Whether the serving thread ended (port failure).
-    pub fn is_finished(&self) -> bool {
-        self.thread.as_ref().is_none_or(|t| t.is_finished())
-    }
-
-    /// Stops serving and returns how the serving loop ended.
-    pub fn stop(mut self) -> io::Result<()> {
-        self.halt()
-    }
-
-    fn halt(&mut self) -> io::Result<()> {
-        self.stop.store(true, Ordering::Relaxed);
-        match self.thread.take() {
-            Some(t) => t
-                .join()
-                .unwrap_or_else(|_| Err(io::Error::other("simulated hand panicked"))),
-            None => Ok(()),
-        }
-    }
-}
-
-impl Drop for RunningHand {
-    fn drop(&mut self) {
-        let _ = self.halt();
-    }
-}
-
-/// A simulated hand on a fresh pseudo-terminal pair. The host opens
-/// [`PtyHand::path`], a symlink to the slave side, the way udev's
-/// `/dev/serial/by-id` links name a real adapter. Dropping it "unplugs" the
-/// device: the slave side hangs up and the link disappears.
-pub struct PtyHand {
-    pub hand: RunningHand,
-    path: PathBuf,
-    /// Keeps the slave side open so the master never sees a hangup while
-    /// the host is between connections.
-    _slave: std::fs::File,
-}
-
-impl PtyHand {
-    pub fn plug(
-        link_path: &Path,
-        sink: impl FnMut(&HandEvent) + Send + 'static,
-    ) -> anyhow::Result<PtyHand> {
-        let (master, slave) = pty_pair(link_path)?;
-        let hand = RunningHand::spawn(Box::new(master), sink)?;
-        Ok(PtyHand {
-            hand,
-            path: link_path.to_path_buf(),
-            _slave: slave,
-        })
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-}
-
-/// A pseudo-terminal pair whose slave side is reachable at `link_path`.
-/// Returns the master and a plain handle keeping the slave open. The plain
-/// handle takes no lock, so the host may open the slave exclusively.
-pub fn pty_pair(link_path: &Path) -> anyhow::Result<(serialport::TTYPort, std::fs::File)> {
-    use anyhow::Context;
-    use std::os::unix::fs::OpenOptionsExt;
-    let (master, slave) =
-        serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
-    let target =
-        serialport::SerialPort::name(&slave).context("the pseudo-terminal has no slave name")?;
-    let keep = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .custom_flags(libc::O_NOCTTY)
-        .open(&target)
-        .with_context(|| format!("cannot open {target}"))?;
-    drop(slave);
-    replace_symlink(Path::new(&target), link_path)?;
-    Ok((master, keep))
-}
-
-/// Points `link` at `target`, atomically (temp link + rename).
-pub fn replace_symlink(target: &Path, link: &Path) -> anyhow::Result<()> {
-    use anyhow::Context;
-    let tmp = link.with_extension(format!("tmp{}", std::process::id()));
-    let _ = std::fs::remove_file(&tmp);
-    std::os::unix::fs::symlink(target, &tmp)
-        .with_context(|| format!("cannot create symlink {}", tmp.display()))?;
-    std::fs::rename(&tmp, link)
-        .with_context(|| format!("cannot move symlink into place at {}", link.display()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::protocol::preshape_command;
 
+    /// A deadline far ahead of a fresh hand's clock.
+    const LATER: HandTime = HandTime(1 << 30);
+
     #[test]
     fn executes_acks_and_deduplicates_retransmissions() {
         let mut hand = SimHand::default();
         let t = Instant::now();
-        let (ack, ev) = hand.on_packet(&Command::Hello { watchdog_ms: 50 }.packet(0), t);
+        let (ack, ev) = hand.on_packet(&Command::Hello { watchdog_ms: 50 }.packet(0, LATER), t);
         assert_eq!(ack.unwrap().status, Status::Ok);
         assert_eq!(
             ev,
@@ -371,7 +259,7 @@ mod tests {
                 watchdog_ms: 50
             })
         );
-        let p = preshape_command(Preshape::Lateral).packet(1);
+        let p = preshape_command(Preshape::Lateral).packet(1, LATER);
         let (first, ev) = hand.on_packet(&p, t);
         assert!(matches!(
             ev,
@@ -383,8 +271,8 @@ mod tests {
         assert_eq!(hand.state(), HandState::Preshaped);
         // The hand closes; a late retransmission of the pre-shape must not
         // re-open the fingers into the pre-shape.
-        hand.on_packet(&Command::Close.packet(2), t);
-        let (again, ev) = hand.on_packet(&Command::Close.packet(2), t);
+        hand.on_packet(&Command::Close.packet(2, LATER), t);
+        let (again, ev) = hand.on_packet(&Command::Close.packet(2, LATER), t);
         assert_eq!(
             ev,
             Some(HandEvent::Duplicate {
@@ -405,7 +293,7 @@ mod tests {
         let bad = Packet {
             seq: 4,
             cmd: cmd::PRESHAPE,
-            payload: vec![7, 0],
+            payload: vec![7, 0, 0, 0, 0, 0],
         };
         let (ack, ev) = hand.on_packet(&bad, Instant::now());
         assert_eq!(ack.unwrap().status, Status::BadPayload);
@@ -414,11 +302,40 @@ mod tests {
     }
 
     #[test]
+    fn a_command_arriving_at_or_after_its_deadline_is_refused() {
+        let epoch = Instant::now();
+        let mut hand = SimHand::new(epoch);
+        let at = |ms| epoch + Duration::from_millis(ms);
+        let deadline = HandTime(500);
+        let late = preshape_command(Preshape::Pinch).packet(1, deadline);
+        let (ack, ev) = hand.on_packet(&late, at(500));
+        let ack = ack.unwrap();
+        assert_eq!((ack.status, ack.state), (Status::Expired, HandState::Open));
+        assert_eq!(ack.hand_time, HandTime(500));
+        assert_eq!(
+            ev,
+            Some(HandEvent::Expired {
+                seq: 1,
+                cmd: cmd::PRESHAPE,
+                late_ms: 0
+            })
+        );
+        // One millisecond earlier it would have been executed.
+        let in_time = preshape_command(Preshape::Pinch).packet(2, HandTime(501));
+        let (ack, _) = hand.on_packet(&in_time, at(500));
+        assert_eq!(ack.unwrap().state, HandState::Preshaped);
+        let (ack, ev) = hand.on_packet(&Command::Close.packet(3, deadline), at(900));
+        assert_eq!(ack.unwrap().status, Status::Expired);
+        assert!(matches!(ev, Some(HandEvent::Expired { late_ms: 400, .. })));
+        assert_eq!(hand.state(), HandState::Preshaped, "no late closure");
+    }
+
+    #[test]
     fn watchdog_opens_only_after_the_silence_exceeds_it() {
         let mut hand = SimHand::default();
         let t0 = Instant::now();
-        hand.on_packet(&Command::Hello { watchdog_ms: 100 }.packet(0), t0);
-        hand.on_packet(&preshape_command(Preshape::Pinch).packet(1), t0);
+        hand.on_packet(&Command::Hello { watchdog_ms: 100 }.packet(0, LATER), t0);
+        hand.on_packet(&preshape_command(Preshape::Pinch).packet(1, LATER), t0);
         assert_eq!(hand.on_tick(t0 + Duration::from_millis(100)), None);
         assert_eq!(
             hand.on_tick(t0 + Duration::from_millis(101)),

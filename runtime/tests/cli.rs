@@ -1,0 +1,343 @@
+//! `hannes-run` as a user runs it: exit codes of failed approaches, the
+//! simulated hand's `--pty` link on every way it stops, a stale link left by
+//! a killed simulated hand, a closed stdout and errors under
+//! `RUST_BACKTRACE=1`.
+
+use runtime::simhand::{FaultSpec, HandEvent, PtyHand};
+use std::io::Read;
+use std::os::unix::process::ExitStatusExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_hannes-run");
+
+/// A small stand-in checkpoint (random MobileNetV2 backbone, FC head, 32 px),
+/// built once per test process.
+fn checkpoint() -> &'static Path {
+    static CKPT: OnceLock<PathBuf> = OnceLock::new();
+    CKPT.get_or_init(|| {
+        let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
+        // Folders of earlier test processes that are gone.
+        for entry in std::fs::read_dir(tmp).into_iter().flatten().flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if let Some(pid) = name.strip_prefix("hannes-run-cli-checkpoint-") {
+                if !Path::new("/proc").join(pid).exists() {
+                    let _ = std::fs::remove_dir_all(entry.path());
+                }
+            }
+        }
+        let dir = tmp.join(format!("hannes-run-cli-checkpoint-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        runtime::bench::stand_in_checkpoint(&dir, 32, trainer::backbone::Architecture::MobileNetV2)
+            .unwrap()
+    })
+}
+
+/// A bare PNG sequence of `n` frames; frame `broken` (if any) is truncated.
+fn sequence(dir: &Path, n: usize, broken: Option<usize>) -> PathBuf {
+    let seq = dir.join("sequence");
+    std::fs::create_dir_all(&seq).unwrap();
+    for i in 0..n {
+        let path = seq.join(format!("frame_{i:04}.png"));
+        image::RgbImage::from_pixel(32, 32, image::Rgb([90, 120, 40]))
+            .save(&path)
+            .unwrap();
+        if broken == Some(i) {
+            let bytes = std::fs::read(&path).unwrap();
+            std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+        }
+    }
+    seq
+}
+
+/// A config whose link gives up quickly.
+fn quick_link_config(dir: &Path) -> PathBuf {
+    let path = dir.join("run.toml");
+    std::fs::write(
+        &path,
+        "[link]\nack_timeout_ms = 50\nreconnect_interval_ms = 20\nreconnect_timeout_ms = 300\n",
+    )
+    .unwrap();
+    path
+}
+
+fn hannes_run(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// The last line of stderr: the one-line reason.
+fn last_line(stderr: &[u8]) -> String {
+    text(stderr).lines().last().unwrap_or_default().to_string()
+}
+
+fn run_args<'a>(ckpt: &'a str, seq: &'a str, port: &'a str, config: &'a str) -> Vec<&'a str> {
+    vec![
+        "run",
+        "--checkpoint",
+        ckpt,
+        "--source",
+        seq,
+        "--port",
+        port,
+        "--config",
+        config,
+        "--trigger",
+        "now",
+        "--closure",
+        "none",
+        "--as-fast",
+    ]
+}
+
+#[test]
+fn run_exits_3_with_a_reason_when_a_frame_cannot_be_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 8, Some(3));
+    let config = quick_link_config(dir.path());
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let out = hannes_run(&run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        pty.path().to_str().unwrap(),
+        config.to_str().unwrap(),
+    ));
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.starts_with("Error: ") && reason.contains("aborted") && reason.contains("frame"),
+        "{reason}"
+    );
+    assert!(
+        !pty.hand
+            .events()
+            .iter()
+            .any(|e| matches!(e, HandEvent::Preshape { .. })),
+        "an aborted approach sends nothing"
+    );
+}
+
+#[test]
+fn run_exits_4_with_a_reason_when_the_hand_cannot_be_reached() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 4, None);
+    let config = quick_link_config(dir.path());
+    let missing = dir.path().join("no-hand-here");
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let out = hannes_run(&run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        missing.to_str().unwrap(),
+        config.to_str().unwrap(),
+    ));
+    assert_eq!(out.status.code(), Some(4), "{}", text(&out.stderr));
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.starts_with("Error: ") && reason.contains("no-hand-here"),
+        "{reason}"
+    );
+}
+
+#[test]
+fn run_exits_5_and_reports_a_decision_too_old_to_execute() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 4, None);
+    let config = quick_link_config(dir.path());
+    // Every PRESHAPE is held 600 ms on its way: no decision can be
+    // acknowledged within a 100 ms limit, and the hand refuses late copies.
+    let faults: FaultSpec = "delay=1:600,on=preshape".parse().unwrap();
+    let pty = PtyHand::plug_with_faults(&dir.path().join("hand"), faults, |_| {}).unwrap();
+    let report = dir.path().join("report.jsonl");
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let mut args = run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        pty.path().to_str().unwrap(),
+        config.to_str().unwrap(),
+    );
+    args.extend(["--max-decision-age-ms", "100", "--report"]);
+    args.push(report.to_str().unwrap());
+    let out = hannes_run(&args);
+    assert_eq!(out.status.code(), Some(5), "{}", text(&out.stderr));
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.starts_with("Error: approach 1: ") && reason.contains("100 ms age limit"),
+        "{reason}"
+    );
+    let stderr = text(&out.stderr);
+    assert!(stderr.contains("1 expired (stale decision)"), "{stderr}");
+    let line: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&report).unwrap().trim()).unwrap();
+    assert_eq!(line["result"], "expired");
+    assert_eq!(line["expired"]["command"], "PRESHAPE");
+    assert_eq!(line["expired"]["limit_ms"], 100.0);
+    assert!(line["preshape"].is_null() && line["closure"].is_null());
+    assert!(
+        !pty.hand
+            .events()
+            .iter()
+            .any(|e| matches!(e, HandEvent::Preshape { .. })),
+        "nothing executed: {:?}",
+        pty.hand.events()
+    );
+}
+
+/// Polls `cond` for up to `limit` (a bound for a stuck test, not a timing
+/// assertion).
+fn eventually(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
+    let t = Instant::now();
+    while t.elapsed() < limit {
+        if cond() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    cond()
+}
+
+fn spawn_simulated_hand(link: &Path) -> std::process::Child {
+    let child = Command::new(BIN)
+        .args(["simulate-hand", "--pty"])
+        .arg(link)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(
+        eventually(Duration::from_secs(30), || link.symlink_metadata().is_ok()),
+        "simulate-hand made no link"
+    );
+    child
+}
+
+#[test]
+fn simulate_hand_removes_its_link_when_stopped_by_any_signal() {
+    for signal in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("hand.pty");
+        let mut child = spawn_simulated_hand(&link);
+        unsafe { libc::kill(child.id() as i32, signal) };
+        let status = child.wait().unwrap();
+        let mut stderr = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut stderr)
+            .unwrap();
+        assert!(status.success(), "signal {signal}: {status:?} {stderr}");
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert!(left.is_empty(), "signal {signal} left {left:?}");
+    }
+}
+
+#[test]
+fn run_refuses_a_link_left_by_a_killed_simulated_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("hand.pty");
+    let mut child = spawn_simulated_hand(&link);
+    let old_target = std::fs::read_link(&link).unwrap();
+    child.kill().unwrap(); // SIGKILL: nothing can clean up
+    child.wait().unwrap();
+    assert!(link.symlink_metadata().is_ok(), "the stale link stays");
+    // Another hand gets a pseudo-terminal; the kernel hands out the lowest
+    // free number, usually the killed hand's. If another test took that
+    // one, point the link at the new hand ourselves: the same situation.
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    let name = serialport::SerialPort::name(&slave).unwrap();
+    if Path::new(&name) != old_target {
+        let tmp = dir.path().join("relink");
+        std::os::unix::fs::symlink(&name, &tmp).unwrap();
+        std::fs::rename(&tmp, &link).unwrap();
+    }
+    let other = runtime::simhand::RunningHand::spawn(Box::new(master), |_| {}).unwrap();
+
+    let seq = sequence(dir.path(), 4, None);
+    let config = quick_link_config(dir.path());
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let out = hannes_run(&run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        link.to_str().unwrap(),
+        config.to_str().unwrap(),
+    ));
+    assert_eq!(out.status.code(), Some(4), "{}", text(&out.stderr));
+    let reason = last_line(&out.stderr);
+    assert!(reason.contains("hand.pty"), "{reason}");
+    assert!(reason.contains("no longer running"), "{reason}");
+    assert!(other.events().is_empty(), "{:?}", other.events());
+    drop(slave);
+}
+
+/// Runs `args` with stdout a pipe whose reading end is already closed, as
+/// in `hannes-run replay ... | head -0`.
+pub fn run_into_closed_pipe(bin: &str, args: &[&str]) -> (std::process::ExitStatus, String) {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = Command::new(bin)
+        .args(args)
+        .env("RUST_BACKTRACE", "1")
+        .stdin(Stdio::null())
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    (out.status, text(&out.stderr))
+}
+
+#[test]
+fn replay_into_a_closed_pipe_ends_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 4, None);
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let (status, stderr) = run_into_closed_pipe(
+        BIN,
+        &[
+            "replay",
+            "--checkpoint",
+            &ckpt,
+            "--source",
+            seq.to_str().unwrap(),
+        ],
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(status.signal(), Some(libc::SIGPIPE), "{status:?} {stderr}");
+}
+
+#[test]
+fn user_errors_show_the_message_without_a_backtrace() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing-checkpoint");
+    let out = Command::new(BIN)
+        .args(["replay", "--checkpoint"])
+        .arg(&missing)
+        .args(["--source"])
+        .arg(dir.path())
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.to_lowercase().contains("backtrace"), "{stderr}");
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.starts_with("Error: ") && reason.contains("missing-checkpoint"),
+        "{stderr}"
+    );
+}

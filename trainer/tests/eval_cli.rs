@@ -1,0 +1,141 @@
+//! `grasp-train eval` through the command line (issue 15, items 9 and 11):
+//! without `--data` it evaluates the run's own test split whatever the
+//! current directory, and in skip mode it records what it skipped.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+
+fn grasp_train(cwd: &Path, args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .current_dir(cwd)
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+/// Trains one tiny from-scratch seed on `work/data`, with relative paths
+/// from `work` as a user would type them; returns the checkpoint.
+fn train_tiny(work: &Path) -> PathBuf {
+    write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let (ok, text) = grasp_train(
+        work,
+        &[
+            "--threads",
+            "2",
+            "train",
+            "--data",
+            "data",
+            "--out",
+            "run",
+            "--mode",
+            "from-scratch",
+            "--width-mult",
+            "0.25",
+            "--input-size",
+            "32",
+            "--max-epochs",
+            "1",
+        ],
+    );
+    assert!(ok, "{text}");
+    work.join("run/seed-0")
+}
+
+/// The dataset a report was made on, as an absolute path (a relative one is
+/// relative to `cwd`, where eval ran).
+fn report_dataset(cwd: &Path, report: &str) -> PathBuf {
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(cwd.join(report).join("report.json")).unwrap())
+            .unwrap();
+    cwd.join(json["dataset"].as_str().unwrap())
+        .canonicalize()
+        .unwrap()
+}
+
+#[test]
+fn eval_without_data_reads_the_runs_dataset_from_any_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (work, elsewhere) = (dir.path().join("work"), dir.path().join("elsewhere"));
+    std::fs::create_dir_all(&work).unwrap();
+    let ckpt = train_tiny(&work);
+    // Another dataset at the same relative path, with the same sequence ids.
+    let mut decoy = SyntheticSpec::small(Layout::Generated);
+    decoy.seed = 99;
+    write_synthetic(&elsewhere.join("data"), &decoy).unwrap();
+
+    let ckpt_arg = ckpt.to_str().unwrap();
+    let (ok, text) = grasp_train(&elsewhere, &["eval", "-c", ckpt_arg, "--out", "report"]);
+    assert!(ok, "{text}");
+    let used = report_dataset(&elsewhere, "report");
+    assert_eq!(used, work.join("data").canonicalize().unwrap());
+
+    // A run that recorded a relative path: resolved against the run folder.
+    let meta_path = ckpt.join("best.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta_path).unwrap()).unwrap();
+    meta["train_config"]["data"] = "../data".into();
+    std::fs::write(&meta_path, serde_json::to_vec(&meta).unwrap()).unwrap();
+    let (ok, text) = grasp_train(&elsewhere, &["eval", "-c", ckpt_arg, "--out", "report2"]);
+    assert!(ok, "{text}");
+    let used = report_dataset(&elsewhere, "report2");
+    assert_eq!(used, work.join("data").canonicalize().unwrap());
+
+    // One that does not exist there is an error naming it, not a guess.
+    meta["train_config"]["data"] = "data".into();
+    std::fs::write(&meta_path, serde_json::to_vec(&meta).unwrap()).unwrap();
+    let (ok, text) = grasp_train(&elsewhere, &["eval", "-c", ckpt_arg, "--out", "report3"]);
+    assert!(!ok, "{text}");
+    assert!(text.contains("relative to the run folder"), "{text}");
+    assert!(text.contains("--data"), "{text}");
+}
+
+#[test]
+fn eval_in_skip_mode_records_what_it_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path().join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let ckpt = train_tiny(&work);
+    let test = dir.path().join("test");
+    write_synthetic(&test, &SyntheticSpec::small(Layout::Generated)).unwrap();
+    // An unreadable frame and a sequence without labels.
+    let seqs = |p: &str| test.join(p);
+    let frame = seqs("can/010_can/power_no3/Wrist_d435/rgb00000/00003.png");
+    std::fs::write(&frame, b"not a png").unwrap();
+    let json = seqs("plate/029_plate/pinch_no3/Wrist_d435/rgb00012/sequence.json");
+    std::fs::remove_file(&json).unwrap();
+
+    let (ok, text) = grasp_train(
+        dir.path(),
+        &[
+            "eval",
+            "-c",
+            ckpt.to_str().unwrap(),
+            "--data",
+            test.to_str().unwrap(),
+            "--out",
+            "report",
+        ],
+    );
+    assert!(ok, "{text}");
+    let report = dir.path().join("report");
+    let problems: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(report.join("problems.json")).unwrap()).unwrap();
+    let paths: Vec<&str> = problems
+        .iter()
+        .map(|p| p["path"].as_str().unwrap())
+        .collect();
+    assert_eq!(paths.len(), 2, "{problems:?}");
+    assert!(paths.contains(&frame.to_str().unwrap()), "{paths:?}");
+    assert!(paths.contains(&json.to_str().unwrap()), "{paths:?}");
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    assert!(md.contains("Bad data skipped: 2 problem(s)"), "{md}");
+    assert!(md.contains("problems.json"), "{md}");
+}

@@ -1,0 +1,77 @@
+//! A training split that lacks a pre-shape is refused (issue 15, item 12):
+//! it would train to "100 %" on one-class data. `no_grasp` frames, which
+//! every sequence has, do not make it a second class.
+
+use grasp_schema::taxonomy::{Class, Preshape};
+use trainer::checkpoint::TrainMode;
+use trainer::config::TrainConfig;
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+
+fn config(root: &std::path::Path, allow: bool) -> TrainConfig {
+    TrainConfig {
+        data: root.join("data"),
+        out: root.join(if allow { "allowed" } else { "refused" }),
+        mode: TrainMode::FromScratch,
+        width_mult: 0.25,
+        input_size: 32,
+        max_epochs: 1,
+        allow_missing_classes: allow,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn a_split_without_some_pre_shapes_is_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    // Power only (a can and a mug body), each sequence ending in no_grasp.
+    spec.objects.truncate(2);
+    spec.objects[1].2.truncate(1);
+    spec.sequences_per_part = 6;
+    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+
+    let err = trainer::experiment::run(&config(dir.path(), false), 1)
+        .err()
+        .expect("a power-only training set was accepted");
+    let text = format!("{err:#}");
+    assert!(text.contains("has sequences of power only"), "{text}");
+    assert!(
+        text.contains("no training sequence of lateral, pinch, pinch3"),
+        "{text}"
+    );
+    assert!(text.contains("--allow-missing-classes"), "{text}");
+    assert!(!dir.path().join("refused/seed-0").exists());
+
+    // Told otherwise, it trains (and its frames do hold two labels).
+    let out = trainer::experiment::run(&config(dir.path(), true), 1).unwrap();
+    assert_eq!(out.runs.len(), 1);
+    let data = trainer::data::read_dataset(
+        &dir.path().join("data"),
+        &Default::default(),
+        &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
+    )
+    .unwrap();
+    let c = trainer::data::coverage::coverage(&data);
+    assert_eq!(c.present, vec![Preshape::Power]);
+    assert!(c.no_grasp_frames > 0);
+    assert!(data
+        .sequences
+        .iter()
+        .all(|s| s.labels.contains(&Class::NoGrasp)));
+}
+
+#[test]
+fn every_pre_shape_present_trains() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = SyntheticSpec::small(Layout::Generated);
+    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let data = trainer::data::read_dataset(
+        &dir.path().join("data"),
+        &Default::default(),
+        &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
+    )
+    .unwrap();
+    let c = trainer::data::coverage::check_training_classes(&data, false).unwrap();
+    assert!(c.missing.is_empty());
+    assert_eq!(c.present.len(), 4);
+}
