@@ -268,6 +268,10 @@ struct EvalArgs {
     /// side (default: the checkpoint's training setting).
     #[arg(long, value_name = "FRACTION")]
     center_crop: Option<f64>,
+    /// Camera folder to evaluate (default: the camera the checkpoint was
+    /// trained on, e.g. Head_d435 for an egocentric model).
+    #[arg(long)]
+    camera: Option<String>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -357,12 +361,23 @@ fn eval(a: EvalArgs) -> Result<()> {
         before_tail_s: a.before_tail_s,
     };
     window.validate()?;
+    let trained = trained_reader(&a.checkpoints[0])?;
+    let camera = a.camera.clone().unwrap_or_else(|| {
+        let default = trainer::data::ReaderOptions::default().camera;
+        trained["camera"].as_str().map_or(default, str::to_string)
+    });
     let mut data = match &a.data {
         Some(root) => {
+            let defaults = trainer::data::ReaderOptions::default();
             let opts = trainer::data::ReaderOptions {
                 real_fps: a.real_fps,
-                center_crop: a.center_crop.or(trained_center_crop(&a.checkpoints[0])?),
-                ..Default::default()
+                center_crop: a.center_crop.or(trained["center_crop"].as_f64()),
+                camera: a.camera.clone().unwrap_or_else(|| {
+                    trained["camera"]
+                        .as_str()
+                        .map_or(defaults.camera.clone(), str::to_string)
+                }),
+                ..defaults
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
@@ -378,7 +393,14 @@ fn eval(a: EvalArgs) -> Result<()> {
         }
     }
     if data.sequences.is_empty() {
-        anyhow::bail!("no sequences to evaluate");
+        match &a.data {
+            Some(root) => anyhow::bail!(
+                "no sequences to evaluate in {} (camera folder {})",
+                root.display(),
+                camera
+            ),
+            None => anyhow::bail!("no sequences to evaluate"),
+        }
     }
     let mut report =
         trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad, &window)
@@ -392,10 +414,11 @@ fn eval(a: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The centre crop a checkpoint was trained with (its reader options).
-fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
+/// The reader options a checkpoint was trained with (camera, centre crop):
+/// evaluation reads test frames the same way.
+fn trained_reader(checkpoint: &std::path::Path) -> Result<serde_json::Value> {
     let (meta, _) = trainer::checkpoint::CheckpointMeta::load(checkpoint)?;
-    Ok(meta.train_config["reader"]["center_crop"].as_f64())
+    Ok(meta.train_config["reader"].clone())
 }
 
 fn summarize(a: SummarizeArgs) -> Result<()> {
