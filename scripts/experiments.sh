@@ -125,6 +125,10 @@ stage_ablation() {
     run "$BIN/grasp-gen" dataset stats "$OUT/ablation/no-$lever" --json >"$OUT/ablation/no-$lever.stats.json"
     heads "$OUT/ablation/no-$lever" "$OUT/ablation-models/no-$lever" --head fc --center-crop "$CROP"
   done
+  # every lever on, the training noise widened towards (not into) unseen_look's
+  # shellcheck disable=SC2086
+  render "$OUT/ablation/noise-wide" 1 2 default $base "$(printf '[randomize.sensor_noise]\nsigma = [0.0, 0.029]')"
+  heads "$OUT/ablation/noise-wide" "$OUT/ablation-models/noise-wide" --head fc --center-crop "$CROP"
 }
 
 stage_parts() {
@@ -153,16 +157,17 @@ stage_egocentric() {
   render "$ego/train" 1 2 default 128 1 openimagedenoise 2.5 "$head_camera"
   render "$ego/val" 2 1 default 128 1 openimagedenoise 2.5 "$head_camera"
   render "$ego/test-default" 3 2 default 128 1 openimagedenoise 2.5 "$head_camera"
-  for camera in Wrist_d435 Head_d435; do
-    local runs="$ego/$camera" ckpts=()
+  for camera in Wrist_d435 Head_d435 Wrist_d435-whole Head_d435-whole; do
+    local runs="$ego/$camera" ckpts=() crop=(--center-crop "$CROP")
+    [ "${camera%-whole}" = "$camera" ] || crop=()
     [ -f "$runs/.done" ] || {
       run "$BIN/grasp-train" train --data "$ego/train" --val-data "$ego/val" --head fc --seeds "$SEEDS" \
-        --camera "$camera" --center-crop "$CROP" --out "$runs" --cache-dir "$OUT/cache"
+        --camera "${camera%-whole}" "${crop[@]}" --out "$runs" --cache-dir "$OUT/cache"
       touch "$runs/.done"
     }
     for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
     [ -f "$runs/eval-default/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$ego/test-default" --camera "$camera" \
+      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$ego/test-default" \
         --out "$runs/eval-default" --cache-dir "$OUT/cache"
   done
 }
