@@ -8,6 +8,8 @@
 //! trained from scratch (width 0.25, 32x32 input, a few epochs): the
 //! trainer's from-scratch mode, whose checkpoint carries the backbone too.
 
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use grasp_schema::dataset::{ManifestEntry, MANIFEST_FILE};
 use grasp_schema::taxonomy::Preshape;
 use runtime::approach::{actuate, classify_window};
@@ -22,10 +24,8 @@ use runtime::trigger::Timer;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
-use trainer::heads::HeadKind;
 
 fn train_tiny_model(dir: &Path) -> PathBuf {
     let mut spec = SyntheticSpec::small(Layout::Generated);

@@ -3,6 +3,7 @@
 //! project's Python environment is.
 
 pub mod appearance;
+pub mod atomic;
 pub mod cli;
 pub mod dataset;
 pub mod plan;

@@ -17,7 +17,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-use trainer::backbone::Architecture;
 
 const RUN_EXIT_CODES: &str = "\
 Exit codes:
@@ -170,16 +169,11 @@ fn parse_faults(s: &str) -> Result<FaultSpec, String> {
 
 #[derive(Args)]
 struct BenchArgs {
-    /// Trained checkpoint (from grasp-train). Without it, a stand-in with
-    /// an FC head on --backbone is built in a temporary directory: latency
-    /// does not depend on weight values.
+    /// Checkpoint with an FC head (from grasp-train). Latency does not
+    /// depend on weight values: `grasp-train stand-in --out DIR` builds one
+    /// without a dataset.
     #[arg(long)]
-    checkpoint: Option<PathBuf>,
-    /// Backbone of the stand-in checkpoint: efficientnet-lite0 (the
-    /// trainer's default, ImageNet weights from the venv) or mobilenet-v2
-    /// (the paper's, random weights).
-    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
-    backbone: Architecture,
+    checkpoint: PathBuf,
     /// Timed inference frames (224x224).
     #[arg(long, default_value_t = 200)]
     frames: usize,
@@ -550,18 +544,7 @@ fn print_event(started: Instant, e: &HandEvent) {
 
 fn bench(a: BenchArgs) -> Result<()> {
     use runtime::bench;
-    let scratch = tempfile::tempdir()?;
-    let checkpoint = match &a.checkpoint {
-        Some(c) => c.clone(),
-        None => {
-            eprintln!(
-                "no --checkpoint: building a stand-in ({}, FC head)",
-                a.backbone.name()
-            );
-            bench::stand_in_checkpoint(scratch.path(), a.size, a.backbone)?
-        }
-    };
-    let mut classifier = runtime::model::load(&checkpoint)?;
+    let mut classifier = runtime::model::load(&a.checkpoint)?;
     let frames = bench::synthetic_frames(a.frames.max(1), a.size);
     let inference = bench::inference(&mut classifier, &frames, a.warmup)?;
     println!(

@@ -31,8 +31,12 @@ fn checkpoint() -> &'static Path {
         let dir = tmp.join(format!("hannes-run-cli-checkpoint-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
-        runtime::bench::stand_in_checkpoint(&dir, 32, trainer::backbone::Architecture::MobileNetV2)
-            .unwrap()
+        trainer::stand_in::stand_in_checkpoint(
+            &dir,
+            32,
+            grasp_model::backbone::Architecture::MobileNetV2,
+        )
+        .unwrap()
     })
 }
 

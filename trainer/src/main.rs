@@ -2,12 +2,12 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_model::backbone::Architecture;
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
-use trainer::backbone::Architecture;
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::{BadData, OnBadData};
-use trainer::heads::HeadKind;
 
 /// Train and evaluate pre-shape classifiers (a frozen ImageNet
 /// EfficientNet-Lite0 or MobileNetV2, or MobileNetV2 from scratch, with an
@@ -78,6 +78,26 @@ enum Command {
     BenchBackbone(BenchBackboneArgs),
     /// Say which backbones' pretrained weights are installed, and where.
     Doctor,
+    /// Build a stand-in checkpoint for timing (`hannes-run bench
+    /// --checkpoint`): an FC head on --backbone, trained one epoch on a small
+    /// synthetic set. Latency depends on the architecture, not on the
+    /// weights' values. Prints the checkpoint's folder.
+    StandIn(StandInArgs),
+}
+
+#[derive(Args)]
+struct StandInArgs {
+    /// Folder to build in (its synthetic data, run and checkpoint).
+    #[arg(long, short)]
+    out: PathBuf,
+    /// efficientnet-lite0 (the trainer's default, ImageNet weights from the
+    /// venv) or mobilenet-v2 (the paper's, random weights, batch-norm
+    /// adapted).
+    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
+    backbone: Architecture,
+    /// Input height and width.
+    #[arg(long, default_value_t = 224)]
+    size: u32,
 }
 
 #[derive(Args)]
@@ -270,6 +290,12 @@ struct EvalArgs {
     center_crop: Option<f64>,
 }
 
+fn stand_in(args: StandInArgs) -> Result<()> {
+    let checkpoint = trainer::stand_in::stand_in_checkpoint(&args.out, args.size, args.backbone)?;
+    println!("{}", checkpoint.display());
+    Ok(())
+}
+
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
         tracing_subscriber::fmt()
@@ -290,6 +316,7 @@ fn main() -> std::process::ExitCode {
             Command::BenchHeads(a) => bench(a),
             Command::BenchBackbone(a) => bench_backbone(a),
             Command::Doctor => doctor(),
+            Command::StandIn(a) => stand_in(a),
         }
     })
 }
@@ -394,7 +421,7 @@ fn eval(a: EvalArgs) -> Result<()> {
 
 /// The centre crop a checkpoint was trained with (its reader options).
 fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
-    let (meta, _) = trainer::checkpoint::CheckpointMeta::load(checkpoint)?;
+    let (meta, _) = grasp_model::checkpoint::CheckpointMeta::load(checkpoint)?;
     Ok(meta.train_config["reader"]["center_crop"].as_f64())
 }
 
@@ -473,10 +500,10 @@ fn doctor() -> Result<()> {
             );
             continue;
         };
-        match trainer::backbone::venv_weights(variant) {
+        match grasp_model::backbone::venv_weights(variant) {
             Ok(path) => println!("{:20} found: {}", arch.name(), path.display()),
             Err(e) => {
-                missing_default |= variant == trainer::model::LiteVariant::Lite0;
+                missing_default |= variant == grasp_model::model::LiteVariant::Lite0;
                 println!("{:20} missing: {e:#}", arch.name());
             }
         }

@@ -7,18 +7,18 @@
 //! Two modes share the loop: frozen-pretrained (the paper's; heads on cached
 //! features) and from-scratch (the whole MobileNetV2, with augmentation).
 
-use crate::backbone::{Architecture, Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
-use crate::checkpoint::{self, CheckpointMeta, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::split::{self, Split};
 use crate::data::{self, BadData, Dataset};
 use crate::features::{FeatureCache, SequenceFeatures};
-use crate::heads::{Head, HeadConfig, HeadKind};
-use crate::model::gather::gather_rows;
 use crate::optim::Adam;
 use anyhow::{Context, Result};
 use candle_core::{DType, Device, Tensor, D};
 use candle_nn::{VarBuilder, VarMap};
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
+use grasp_model::checkpoint::{self, CheckpointMeta, TrainMode};
+use grasp_model::heads::{Head, HeadConfig, HeadKind};
+use grasp_model::model::gather::gather_rows;
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
 use rand::seq::SliceRandom;
@@ -528,13 +528,13 @@ pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> 
         let variant = arch
             .lite()
             .with_context(|| format!("a frozen {} needs --weights FILE", arch.name()))?;
-        let path = crate::backbone::venv_weights(variant)?;
+        let path = grasp_model::backbone::venv_weights(variant)?;
         return Ok((
             BackboneInfo::pretrained(&path, arch, cfg.width_mult)?,
             arch.preprocess(cfg.input_size),
         ));
     };
-    if crate::backbone::is_checkpoint(path) {
+    if grasp_model::backbone::is_checkpoint(path) {
         return BackboneInfo::from_checkpoint(path)
             .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()));
     }
@@ -555,7 +555,7 @@ pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> 
 
 /// The architecture of a pretrained weights file, from its tensor names.
 pub fn detect_architecture(path: &Path) -> Result<Architecture> {
-    let vb = crate::model::weights::var_builder(path, &Device::Cpu)?;
+    let vb = grasp_model::model::weights::var_builder(path, &Device::Cpu)?;
     Architecture::detect(&vb).with_context(|| {
         format!(
             "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \
@@ -585,7 +585,7 @@ pub fn prepare(
                 train: SplitFrames::from_features(&splits.train, &tf, dev)?,
                 val: SplitFrames::from_features(&splits.val, &vf, dev)?,
                 real_data,
-                feature_dim: crate::features::FeatureExtractor::feature_dim(&bb),
+                feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
             })
@@ -631,7 +631,7 @@ fn build_net(
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
             let bb = Backbone::from_vb(info.clone(), prep.preprocess.clone(), vb, dev)?;
             crate::init::reinit_backbone(&vm, seed)?;
-            let dim = crate::features::FeatureExtractor::feature_dim(&bb);
+            let dim = grasp_model::extractor::FeatureExtractor::feature_dim(&bb);
             (Some((bb, vm)), info, dim)
         }
     };
@@ -722,7 +722,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             };
             checkpoint::save(out, &meta, &net.tensors())?;
         }
-        checkpoint::write_atomic(
+        grasp_schema::atomic::write_atomic(
             &out.join("history.json"),
             serde_json::to_string_pretty(&history)?.as_bytes(),
         )?;
@@ -817,7 +817,7 @@ fn batch_name(
 }
 
 fn check_finite(t: &Tensor, what: &str, name: &dyn Fn() -> String) -> Result<()> {
-    if let Some(bad) = crate::model::first_non_finite(t)? {
+    if let Some(bad) = grasp_model::model::first_non_finite(t)? {
         anyhow::bail!("non-finite {what} value ({bad}) in {}", name());
     }
     Ok(())

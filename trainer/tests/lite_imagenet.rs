@@ -11,7 +11,7 @@
 use std::path::PathBuf;
 
 use candle_core::{Device, D};
-use trainer::backbone::{Architecture, Backbone, BackboneInfo};
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
 
 /// (photograph, acceptable ImageNet classes, PyTorch reference top-1).
 const CASES: [(&str, &[u32], &str); 4] = [
@@ -37,7 +37,7 @@ fn required() -> bool {
 fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     let venv = grasp_schema::venv::venv_dir();
     let site = grasp_schema::venv::site_packages(&venv).map_err(|e| e.to_string())?;
-    let weights = trainer::backbone::venv_weights(trainer::model::LiteVariant::Lite0)
+    let weights = grasp_model::backbone::venv_weights(grasp_model::model::LiteVariant::Lite0)
         .map_err(|e| format!("{e:#}"))?;
     let data = site.join("skimage").join("data");
     if !data.join(CASES[0].0).is_file() {
@@ -103,10 +103,10 @@ fn larger_variants_when_installed() {
         return;
     };
     for variant in [
-        trainer::model::LiteVariant::Lite1,
-        trainer::model::LiteVariant::Lite2,
+        grasp_model::model::LiteVariant::Lite1,
+        grasp_model::model::LiteVariant::Lite2,
     ] {
-        let Ok(weights) = trainer::backbone::venv_weights(variant) else {
+        let Ok(weights) = grasp_model::backbone::venv_weights(variant) else {
             eprintln!(
                 "skipping {}: not installed (the optional `backbones` extra)",
                 variant.name()

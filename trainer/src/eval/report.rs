@@ -174,13 +174,16 @@ fn add_curve(acc: &mut Curve, c: &Curve) {
 /// Writes the report's files into `dir`.
 pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    crate::checkpoint::write_atomic(
+    grasp_schema::atomic::write_atomic(
         &dir.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),
     )?;
     super::plots::time_accuracy(report, &dir.join("time_accuracy.png"))?;
     super::plots::confusion(&report.frame_confusion, &dir.join("confusion.png"))?;
-    crate::checkpoint::write_atomic(&dir.join("report.md"), markdown(report).as_bytes())
+    Ok(grasp_schema::atomic::write_atomic(
+        &dir.join("report.md"),
+        markdown(report).as_bytes(),
+    )?)
 }
 
 fn pct(v: Option<f64>) -> String {

@@ -92,7 +92,7 @@ impl SummarySpec {
         for (i, e) in spec.reports.iter_mut().enumerate() {
             e.check()
                 .with_context(|| format!("{}: report {} (`{}`)", path.display(), i + 1, e.label))?;
-            e.path = crate::backbone::resolve(&e.path, dir);
+            e.path = grasp_model::backbone::resolve(&e.path, dir);
         }
         Ok(spec)
     }
@@ -233,13 +233,16 @@ impl Summary {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         if self.has_x() {
             let png = super::plots::error_against_x(self)?;
-            crate::checkpoint::write_atomic(&dir.join("error.png"), &png)?;
+            grasp_schema::atomic::write_atomic(&dir.join("error.png"), &png)?;
         }
-        crate::checkpoint::write_atomic(
+        grasp_schema::atomic::write_atomic(
             &dir.join("summary.json"),
             serde_json::to_string_pretty(self)?.as_bytes(),
         )?;
-        crate::checkpoint::write_atomic(&dir.join("summary.md"), self.markdown().as_bytes())
+        Ok(grasp_schema::atomic::write_atomic(
+            &dir.join("summary.md"),
+            self.markdown().as_bytes(),
+        )?)
     }
 
     pub fn markdown(&self) -> String {
