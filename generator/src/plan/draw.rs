@@ -187,12 +187,12 @@ pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Res
             draw_panel(&mut canvas, &view, planner, group);
         }
     }
-    let tmp = super::cli::tmp_path(out);
-    canvas
-        .img
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("renaming to {}", out.display()))
+    grasp_schema::atomic::write_atomic_with(out, |tmp| -> Result<()> {
+        canvas
+            .img
+            .save_with_format(tmp, image::ImageFormat::Png)
+            .with_context(|| format!("writing {}", out.display()))
+    })
 }
 
 fn draw_header(c: &mut Canvas, count: usize) {
