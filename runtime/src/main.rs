@@ -195,13 +195,7 @@ struct BenchArgs {
 
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
-        tracing_subscriber::fmt()
-            .with_env_filter(
-                tracing_subscriber::EnvFilter::try_from_default_env()
-                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-            )
-            .with_writer(std::io::stderr)
-            .init();
+        grasp_schema::cli::init_logging();
         dispatch(Cli::parse())
     })
 }

@@ -298,13 +298,7 @@ fn stand_in(args: StandInArgs) -> Result<()> {
 
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
-        tracing_subscriber::fmt()
-            .with_env_filter(
-                tracing_subscriber::EnvFilter::try_from_default_env()
-                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-            )
-            .with_writer(std::io::stderr)
-            .init();
+        grasp_schema::cli::init_logging();
         let cli = Cli::parse();
         if let Some(n) = cli.threads {
             std::env::set_var("RAYON_NUM_THREADS", n.to_string());

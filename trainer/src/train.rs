@@ -283,7 +283,7 @@ impl Net {
         train: bool,
         rng: &mut impl Rng,
     ) -> Result<Batch> {
-        let dev = self.head_device();
+        let dev = Device::Cpu;
         match self.head.cfg.kind {
             HeadKind::Fc => {
                 let rows: Vec<Option<usize>> = units.iter().map(|r| Some(*r)).collect();
@@ -308,7 +308,7 @@ impl Net {
         train: bool,
         rng: &mut impl Rng,
     ) -> Result<Batch> {
-        let dev = self.head_device();
+        let dev = Device::Cpu;
         let t_max = seqs
             .iter()
             .map(|s| frames.seq_rows[*s].len())
@@ -357,10 +357,6 @@ impl Net {
             state = s.detach();
         }
         Ok(Tensor::cat(&outs, 1)?)
-    }
-
-    fn head_device(&self) -> Device {
-        Device::Cpu
     }
 
     /// Tensors of the checkpoint: `head.*`, plus `backbone.*` from scratch.
