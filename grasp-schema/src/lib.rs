@@ -7,6 +7,7 @@ pub mod atomic;
 pub mod cli;
 pub mod dataset;
 pub mod plan;
+pub mod prerequisite;
 pub mod taxonomy;
 pub mod venv;
 

@@ -29,10 +29,6 @@ fn arch_default() -> Architecture {
     Architecture::EfficientNetLite0
 }
 
-fn required() -> bool {
-    std::env::var("GRASP_REQUIRE_BLENDER").is_ok_and(|v| v == "1")
-}
-
 /// The weights file and scikit-image's data folder, or why not.
 fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     let venv = grasp_schema::venv::venv_dir();
@@ -54,9 +50,13 @@ fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
 fn lite0_classifies_photographs_like_pytorch() {
     let (weights, data) = match prerequisites() {
         Ok(p) => p,
-        Err(why) if required() => panic!("GRASP_REQUIRE_BLENDER=1 but {why}"),
         Err(why) => {
-            eprintln!("skipping the ImageNet check: {why}");
+            use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
+            assert!(!check(
+                "lite0_classifies_photographs_like_pytorch",
+                REQUIRE_BLENDER_ENV,
+                Some(why)
+            ));
             return;
         }
     };
@@ -95,20 +95,31 @@ fn lite0_classifies_photographs_like_pytorch() {
 
 /// Lite1 and Lite2 come from the optional `backbones` extra: checked when
 /// installed (detection from the file, and the first two photographs at
-/// their native input sizes), skipped otherwise even under the test command.
+/// their native input sizes), skipped otherwise even under the test command
+/// (the venv itself is required there).
 #[test]
 fn larger_variants_when_installed() {
-    let Ok((_, data)) = prerequisites() else {
-        eprintln!("skipping: no venv (see lite0_classifies_photographs_like_pytorch)");
-        return;
+    let (_, data) = match prerequisites() {
+        Ok(p) => p,
+        Err(why) => {
+            use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
+            assert!(!check(
+                "larger_variants_when_installed",
+                REQUIRE_BLENDER_ENV,
+                Some(why)
+            ));
+            return;
+        }
     };
     for variant in [
         grasp_model::model::LiteVariant::Lite1,
         grasp_model::model::LiteVariant::Lite2,
     ] {
         let Ok(weights) = grasp_model::backbone::venv_weights(variant) else {
+            // optional even under the test command
             eprintln!(
-                "skipping {}: not installed (the optional `backbones` extra)",
+                "SKIPPED: larger_variants_when_installed: {} is not installed (the optional \
+                 `backbones` extra)",
                 variant.name()
             );
             continue;
