@@ -178,8 +178,16 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
         &dir.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),
     )?;
-    super::plots::time_accuracy(report, &dir.join("time_accuracy.png"))?;
-    super::plots::confusion(&report.frame_confusion, &dir.join("confusion.png"))?;
+    let time_accuracy = super::plots::time_accuracy(&super::plots::TimeAccuracy {
+        title: format!("Accuracy against time ({}, {})", report.mode, report.head),
+        bin_s: report.time_bin_s,
+        single: &report.time_single.accuracy(),
+        multi: &report.time_multi.accuracy(),
+    })?;
+    grasp_schema::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
+    let confusion =
+        super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
+    grasp_schema::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
     Ok(grasp_schema::atomic::write_atomic(
         &dir.join("report.md"),
         markdown(report).as_bytes(),

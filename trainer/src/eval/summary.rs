@@ -232,7 +232,7 @@ impl Summary {
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         if self.has_x() {
-            let png = super::plots::error_against_x(self)?;
+            let png = super::plots::error_against_x(&self.error_plot()?)?;
             grasp_schema::atomic::write_atomic(&dir.join("error.png"), &png)?;
         }
         grasp_schema::atomic::write_atomic(
@@ -275,6 +275,37 @@ impl Summary {
         }
         self.sources(&mut s);
         s
+    }
+
+    /// The plot of per-video error against x: one series per label group.
+    fn error_plot(&self) -> Result<super::plots::ErrorAgainstX> {
+        let mut series: Vec<super::plots::Series> = Vec::new();
+        for r in &self.rows {
+            let Some(x) = r.x else { continue };
+            if self.spec.log_x && x <= 0.0 {
+                anyhow::bail!("report `{}`: x = {x} cannot go on a log axis", r.label);
+            }
+            let group = r.group_name().0.to_string();
+            let point = (x, r.video_error.mean * 100.0, r.video_error.std * 100.0);
+            match series.iter_mut().find(|(g, _)| *g == group) {
+                Some((_, v)) => v.push(point),
+                None => series.push((group, vec![point])),
+            }
+        }
+        for (_, v) in &mut series {
+            v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let title = self
+            .spec
+            .title
+            .clone()
+            .unwrap_or_else(|| format!("Per-video error against {}", self.x_label()));
+        Ok(super::plots::ErrorAgainstX {
+            title,
+            x_label: self.x_label().to_string(),
+            log_x: self.spec.log_x,
+            series,
+        })
     }
 
     pub fn x_label(&self) -> &str {
