@@ -7,7 +7,8 @@
 //! temporary folder and moved into `Head_d435` first; the wrist folder moves
 //! last, so a sequence is finished only when both cameras are complete.
 
-use crate::render::{PlannedKey, Shard};
+use super::shard::Shard;
+use crate::plan::PlannedKey;
 use anyhow::{bail, Context, Result};
 use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{

@@ -614,7 +614,7 @@ impl Planner {
         let colors = randomize::color_range(
             &self.levers.object_color,
             geo.spec.color.as_ref(),
-            crate::render::source::default_object_hsv(&geo.spec.id),
+            crate::appearance::default_object_hsv(&geo.spec.id),
         );
         let appearance = Some(randomize::sequence_appearance(
             &self.config.appearance,

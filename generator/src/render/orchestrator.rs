@@ -4,7 +4,7 @@
 //! sequences, shows progress, and stops cleanly when `stop` is raised.
 
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
-use super::source::PlanSource;
+use super::source::RenderSource;
 use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::lock::{self, OutputLock};
 use crate::dataset::storage;
@@ -104,7 +104,7 @@ enum Event {
 
 /// What every worker thread shares.
 struct Shared {
-    source: Arc<dyn PlanSource>,
+    source: Arc<dyn RenderSource>,
     dataset: DatasetDir,
     geometry: SceneGeometry,
     settings: serde_json::Value,
@@ -125,7 +125,7 @@ struct Shared {
 
 /// Renders every unfinished sequence of `shard` into `opts.out`.
 pub fn render(
-    source: Arc<dyn PlanSource>,
+    source: Arc<dyn RenderSource>,
     config: &RenderConfig,
     opts: &RenderOptions,
 ) -> Result<RenderSummary> {
@@ -252,7 +252,7 @@ fn finish_manifest(dataset: &DatasetDir, shard: Shard, lock: OutputLock) -> Resu
 /// Writes each needed object's mesh once, as raw little-endian arrays the
 /// workers pass to Blender without parsing.
 fn write_meshes(
-    source: &dyn PlanSource,
+    source: &dyn RenderSource,
     dataset: &DatasetDir,
     todo: &VecDeque<Job>,
 ) -> Result<BTreeMap<String, MeshFiles>> {
