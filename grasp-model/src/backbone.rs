@@ -66,8 +66,8 @@ impl Architecture {
         }
     }
 
-    pub fn from_lite(v: LiteVariant) -> Architecture {
-        match v {
+    pub fn from_lite(variant: LiteVariant) -> Architecture {
+        match variant {
             LiteVariant::Lite0 => Architecture::EfficientNetLite0,
             LiteVariant::Lite1 => Architecture::EfficientNetLite1,
             LiteVariant::Lite2 => Architecture::EfficientNetLite2,
@@ -401,11 +401,11 @@ pub fn is_checkpoint(path: &Path) -> bool {
 
 /// A path recorded in a checkpoint: as given when it exists from the current
 /// directory (or is absolute), otherwise relative to the checkpoint.
-pub fn resolve(p: &Path, dir: &Path) -> PathBuf {
-    if p.is_absolute() || p.exists() {
-        p.to_path_buf()
+pub fn resolve(path: &Path, dir: &Path) -> PathBuf {
+    if path.is_absolute() || path.exists() {
+        path.to_path_buf()
     } else {
-        dir.join(p)
+        dir.join(path)
     }
 }
 

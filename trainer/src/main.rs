@@ -315,8 +315,8 @@ fn main() -> std::process::ExitCode {
     })
 }
 
-fn train(a: TrainArgs) -> Result<()> {
-    let mut cfg = match &a.config {
+fn train(args: TrainArgs) -> Result<()> {
+    let mut cfg = match &args.config {
         Some(p) => TrainConfig::from_toml_file(p)?,
         None => TrainConfig::default(),
     };
@@ -327,34 +327,34 @@ fn train(a: TrainArgs) -> Result<()> {
             }
         };
     }
-    set!(cfg.data, a.data);
-    cfg.val_data = a.val_data.or(cfg.val_data);
-    cfg.test_data = a.test_data.or(cfg.test_data);
-    cfg.weights = a.weights.or(cfg.weights);
-    cfg.backbone = a.backbone.or(cfg.backbone);
-    cfg.batch_size = a.batch_size.or(cfg.batch_size);
-    cfg.sequences_per_pair = a.sequences_per_pair.or(cfg.sequences_per_pair);
-    set!(cfg.out, a.out);
-    set!(cfg.mode, a.mode);
-    set!(cfg.head, a.head);
-    set!(cfg.width_mult, a.width_mult);
-    set!(cfg.input_size, a.input_size);
-    set!(cfg.max_epochs, a.max_epochs);
-    set!(cfg.optimizer.lr, a.lr);
-    set!(cfg.optimizer.weight_decay, a.weight_decay);
-    set!(cfg.seed, a.seed);
-    set!(cfg.cache_dir, a.cache_dir);
-    set!(cfg.tbptt, a.tbptt);
-    set!(cfg.reader.real_fps, a.real_fps);
-    set!(cfg.reader.camera, a.camera);
-    cfg.reader.center_crop = a.center_crop.or(cfg.reader.center_crop);
-    set!(cfg.on_bad_data, a.on_bad_data);
-    cfg.augment.hflip |= a.hflip;
-    cfg.allow_missing_classes |= a.allow_missing_classes;
-    if a.no_augment {
+    set!(cfg.data, args.data);
+    cfg.val_data = args.val_data.or(cfg.val_data);
+    cfg.test_data = args.test_data.or(cfg.test_data);
+    cfg.weights = args.weights.or(cfg.weights);
+    cfg.backbone = args.backbone.or(cfg.backbone);
+    cfg.batch_size = args.batch_size.or(cfg.batch_size);
+    cfg.sequences_per_pair = args.sequences_per_pair.or(cfg.sequences_per_pair);
+    set!(cfg.out, args.out);
+    set!(cfg.mode, args.mode);
+    set!(cfg.head, args.head);
+    set!(cfg.width_mult, args.width_mult);
+    set!(cfg.input_size, args.input_size);
+    set!(cfg.max_epochs, args.max_epochs);
+    set!(cfg.optimizer.lr, args.lr);
+    set!(cfg.optimizer.weight_decay, args.weight_decay);
+    set!(cfg.seed, args.seed);
+    set!(cfg.cache_dir, args.cache_dir);
+    set!(cfg.tbptt, args.tbptt);
+    set!(cfg.reader.real_fps, args.real_fps);
+    set!(cfg.reader.camera, args.camera);
+    cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
+    set!(cfg.on_bad_data, args.on_bad_data);
+    cfg.augment.hflip |= args.hflip;
+    cfg.allow_missing_classes |= args.allow_missing_classes;
+    if args.no_augment {
         cfg.augment.enabled = false;
     }
-    let outcome = trainer::experiment::run(&cfg, a.seeds)?;
+    let outcome = trainer::experiment::run(&cfg, args.seeds)?;
     for r in &outcome.runs {
         println!(
             "checkpoint {} (epoch {}, val loss {:.4})",
@@ -370,26 +370,28 @@ fn train(a: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-fn eval(a: EvalArgs) -> Result<()> {
-    let bad = BadData::new(a.on_bad_data);
+fn eval(args: EvalArgs) -> Result<()> {
+    let bad = BadData::new(args.on_bad_data);
     let window = trainer::eval::metrics::FrameWindow {
-        from_s: a.from_s,
-        to_s: a.to_s,
-        before_tail_s: a.before_tail_s,
+        from_s: args.from_s,
+        to_s: args.to_s,
+        before_tail_s: args.before_tail_s,
     };
     window.validate()?;
-    let mut data = match &a.data {
+    let mut data = match &args.data {
         Some(root) => {
             let opts = trainer::data::ReaderOptions {
-                real_fps: a.real_fps,
-                center_crop: a.center_crop.or(trained_center_crop(&a.checkpoints[0])?),
+                real_fps: args.real_fps,
+                center_crop: args
+                    .center_crop
+                    .or(trained_center_crop(&args.checkpoints[0])?),
                 ..Default::default()
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
-        None => trainer::experiment::test_split_of(&a.checkpoints[0], &bad)?,
+        None => trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?,
     };
-    if let Some(c) = a.center_crop {
+    if let Some(c) = args.center_crop {
         anyhow::ensure!(
             c > 0.0 && c <= 1.0,
             "--center-crop must be in (0, 1], got {c}"
@@ -402,14 +404,14 @@ fn eval(a: EvalArgs) -> Result<()> {
         anyhow::bail!("no sequences to evaluate");
     }
     let mut report =
-        trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad, &window)
+        trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
             .context("evaluation failed")?;
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
-    trainer::experiment::write_problems(&bad, &a.out)?;
-    trainer::eval::write_report(&report, &a.out)?;
+    trainer::experiment::write_problems(&bad, &args.out)?;
+    trainer::eval::write_report(&report, &args.out)?;
     print_headline(&report);
-    println!("report: {}", a.out.join("report.md").display());
+    println!("report: {}", args.out.join("report.md").display());
     Ok(())
 }
 
@@ -419,37 +421,37 @@ fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
     Ok(meta.train_config["reader"]["center_crop"].as_f64())
 }
 
-fn summarize(a: SummarizeArgs) -> Result<()> {
+fn summarize(args: SummarizeArgs) -> Result<()> {
     use trainer::eval::summary::{Entry, Summary, SummarySpec};
-    let mut spec = match &a.list {
+    let mut spec = match &args.list {
         Some(p) => SummarySpec::from_toml_file(p)?,
         None => SummarySpec::default(),
     };
-    for r in &a.reports {
+    for r in &args.reports {
         spec.reports.push(Entry::parse(r)?);
     }
-    spec.by_condition |= a.by_condition;
-    spec.log_x |= a.log_x;
-    spec.x_label = a.x_label.or(spec.x_label);
-    spec.title = a.title.or(spec.title);
+    spec.by_condition |= args.by_condition;
+    spec.log_x |= args.log_x;
+    spec.x_label = args.x_label.or(spec.x_label);
+    spec.title = args.title.or(spec.title);
     let summary = Summary::load(spec)?;
-    summary.write(&a.out)?;
-    println!("summary: {}", a.out.join("summary.md").display());
+    summary.write(&args.out)?;
+    println!("summary: {}", args.out.join("summary.md").display());
     if summary.has_x() {
-        println!("plot: {}", a.out.join("error.png").display());
+        println!("plot: {}", args.out.join("error.png").display());
     }
     Ok(())
 }
 
-fn bench(a: BenchArgs) -> Result<()> {
+fn bench(args: BenchArgs) -> Result<()> {
     let w = trainer::bench::Workload {
-        head: a.head,
-        sequences: a.sequences,
-        val_sequences: a.val_sequences,
-        frames: a.frames,
-        dim: a.dim,
-        batch: a.batch,
-        epochs: a.epochs,
+        head: args.head,
+        sequences: args.sequences,
+        val_sequences: args.val_sequences,
+        frames: args.frames,
+        dim: args.dim,
+        batch: args.batch,
+        epochs: args.epochs,
     };
     let mut secs = trainer::bench::heads_epoch_seconds(&w)?;
     // The first epoch includes one-off allocation: report the median of the rest.
@@ -460,22 +462,22 @@ fn bench(a: BenchArgs) -> Result<()> {
     secs.sort_by(f64::total_cmp);
     println!(
         "{{\"impl\": \"candle\", \"head\": \"{}\", \"median_epoch_s\": {:.4}, \"epochs_s\": {:?}}}",
-        a.head.name(),
+        args.head.name(),
         secs[secs.len() / 2],
         all
     );
     Ok(())
 }
 
-fn bench_backbone(a: BenchBackboneArgs) -> Result<()> {
+fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
     let w = trainer::bench::BackboneWorkload {
-        arch: a.backbone,
-        weights: a.weights,
-        batch: a.batch,
-        size: a.size,
-        width_mult: a.width_mult,
-        iters: a.iters,
-        latency_iters: a.latency_iters,
+        arch: args.backbone,
+        weights: args.weights,
+        batch: args.batch,
+        size: args.size,
+        width_mult: args.width_mult,
+        iters: args.iters,
+        latency_iters: args.latency_iters,
     };
     println!("{}", trainer::bench::backbone(&w)?);
     Ok(())
@@ -510,15 +512,15 @@ fn doctor() -> Result<()> {
     Ok(())
 }
 
-fn print_headline(r: &trainer::eval::Report) {
-    if let Some(v) = r.aggregate.get("video_accuracy") {
+fn print_headline(report: &trainer::eval::Report) {
+    if let Some(v) = report.aggregate.get("video_accuracy") {
         println!(
             "[{}{}] per-video accuracy {:.1} ± {:.1} % over {} run(s)",
-            r.mode,
-            if r.backbone.is_empty() {
+            report.mode,
+            if report.backbone.is_empty() {
                 String::new()
             } else {
-                format!(", {}", r.backbone)
+                format!(", {}", report.backbone)
             },
             v.mean * 100.0,
             v.std * 100.0,

@@ -132,18 +132,18 @@ pub struct Row {
 }
 
 impl Row {
-    pub fn load(e: &Entry) -> Result<Row> {
-        let file = if e.path.is_dir() {
-            e.path.join("report.json")
+    pub fn load(entry: &Entry) -> Result<Row> {
+        let file = if entry.path.is_dir() {
+            entry.path.join("report.json")
         } else {
-            e.path.clone()
+            entry.path.clone()
         };
         let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("report `{}`: cannot read {}", e.label, file.display()))?;
+            .with_context(|| format!("report `{}`: cannot read {}", entry.label, file.display()))?;
         let r: Report = serde_json::from_str(&text).with_context(|| {
             format!(
                 "report `{}`: {} is not a report.json",
-                e.label,
+                entry.label,
                 file.display()
             )
         })?;
@@ -151,13 +151,13 @@ impl Row {
         let video = get("video_accuracy").with_context(|| {
             format!(
                 "report `{}`: {} has no aggregate.video_accuracy (no runs?)",
-                e.label,
+                entry.label,
                 file.display()
             )
         })?;
         Ok(Row {
-            label: e.label.clone(),
-            x: e.x,
+            label: entry.label.clone(),
+            x: entry.x,
             source: file,
             mode: r.mode,
             backbone: r.backbone,
