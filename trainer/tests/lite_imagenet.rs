@@ -46,19 +46,24 @@ fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     Ok((weights, data))
 }
 
+/// [`prerequisites`], or `None` when `test` is skipped (it fails instead
+/// under GRASP_REQUIRE_BLENDER=1).
+fn prerequisites_or_skip(test: &str) -> Option<(PathBuf, PathBuf)> {
+    use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
+    match prerequisites() {
+        Ok(found) => Some(found),
+        Err(why) => {
+            check(test, REQUIRE_BLENDER_ENV, Some(why));
+            None
+        }
+    }
+}
+
 #[test]
 fn lite0_classifies_photographs_like_pytorch() {
-    let (weights, data) = match prerequisites() {
-        Ok(p) => p,
-        Err(why) => {
-            use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
-            assert!(!check(
-                "lite0_classifies_photographs_like_pytorch",
-                REQUIRE_BLENDER_ENV,
-                Some(why)
-            ));
-            return;
-        }
+    let Some((weights, data)) = prerequisites_or_skip("lite0_classifies_photographs_like_pytorch")
+    else {
+        return;
     };
     assert_eq!(
         trainer::train::detect_architecture(&weights).unwrap(),
@@ -99,17 +104,8 @@ fn lite0_classifies_photographs_like_pytorch() {
 /// (the venv itself is required there).
 #[test]
 fn larger_variants_when_installed() {
-    let (_, data) = match prerequisites() {
-        Ok(p) => p,
-        Err(why) => {
-            use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
-            assert!(!check(
-                "larger_variants_when_installed",
-                REQUIRE_BLENDER_ENV,
-                Some(why)
-            ));
-            return;
-        }
+    let Some((_, data)) = prerequisites_or_skip("larger_variants_when_installed") else {
+        return;
     };
     for variant in [
         grasp_model::model::LiteVariant::Lite1,
