@@ -89,6 +89,7 @@ mod tests {
     fn a_folder_without_the_release_is_absent() {
         let dir = tempfile::tempdir().unwrap();
         let root = dir.path().join("repo");
+        std::fs::create_dir_all(&root).unwrap();
         std::fs::create_dir_all(dir.path().join("shared/ycb")).unwrap();
         assert!(ycb_dir(&root).unwrap_err().contains("annotations.json"));
         std::fs::write(dir.path().join("shared/ycb/annotations.json"), "{}").unwrap();
