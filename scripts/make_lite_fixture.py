@@ -1,4 +1,4 @@
-"""Make the EfficientNet-Lite parity fixture for trainer/tests/lite_parity.rs.
+"""Make the EfficientNet-Lite parity fixture for grasp-model/tests/lite_parity.rs.
 
 Builds a plain PyTorch EfficientNet-Lite (written here from the architecture's
 description, with the parameter names of the pip-installed ImageNet files) at
@@ -6,7 +6,7 @@ a reduced size (width 0.15, depth 0.5, stem 16, head 64, 10 classes) with
 seeded random weights and realistic batch-norm statistics (gathered from
 train-mode passes; one channel in eight then gets a running variance below
 1e-3, where TensorFlow's epsilon of 1e-3 and PyTorch's 1e-5 differ), and
-saves into trainer/tests/fixtures/:
+saves into grasp-model/tests/fixtures/:
 
   lite_small_legacy.pth   the state dict in PyTorch's legacy (pre-1.6)
                          format, stored like the pip files: every weight a
@@ -38,7 +38,7 @@ import torch.nn.functional as F
 from safetensors.torch import save_file
 from torch import nn
 
-OUT = pathlib.Path(__file__).resolve().parent.parent / "trainer" / "tests" / "fixtures"
+OUT = pathlib.Path(__file__).resolve().parent.parent / "grasp-model" / "tests" / "fixtures"
 SEED = 4321
 BN_EPS = 1e-3
 # (kernel, stride, expansion, output channels, repeats)

@@ -1,8 +1,8 @@
-"""Make the MobileNetV2 parity fixture for trainer/tests/model_parity.rs.
+"""Make the MobileNetV2 parity fixture for grasp-model/tests/model_parity.rs.
 
 Builds torchvision's mobilenet_v2 at a reduced width with seeded random
 weights and realistic batch-norm statistics, and saves into
-trainer/tests/fixtures/:
+grasp-model/tests/fixtures/:
   mnv2_w010.pth          state_dict, PyTorch zip format (torch.save)
   mnv2_w010.safetensors  the same state_dict
   mnv2_w010_io.safetensors
@@ -41,7 +41,7 @@ LEGACY_KEYS = [
     "features.2.conv.1.0.weight",
     "classifier.1.bias",
 ]
-OUT = pathlib.Path(__file__).resolve().parent.parent / "trainer" / "tests" / "fixtures"
+OUT = pathlib.Path(__file__).resolve().parent.parent / "grasp-model" / "tests" / "fixtures"
 
 
 def build() -> torch.nn.Module:

@@ -1,6 +1,7 @@
 //! Trainer -> runtime: train a tiny FC-head model with the trainer's public
 //! API on a test-made dataset (generator layout), then replay unseen
-//! sequences of each pre-shape through `hannes-run`'s loop and check that
+//! sequences of each pre-shape through `hannes-run`'s own loop
+//! (`runtime::session::Session::run`) and check that
 //! the simulated hand, over a pseudo-terminal, is commanded with the
 //! sequence's pre-shape and then closed.
 //!
@@ -8,24 +9,25 @@
 //! trained from scratch (width 0.25, 32x32 input, a few epochs): the
 //! trainer's from-scratch mode, whose checkpoint carries the backbone too.
 
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use grasp_schema::dataset::{ManifestEntry, MANIFEST_FILE};
 use grasp_schema::taxonomy::Preshape;
-use runtime::approach::{actuate, classify_window};
+use runtime::approach::ApproachReport;
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink, LinkConfig};
 use runtime::policy::PolicyConfig;
 use runtime::protocol::HandState;
+use runtime::session::{Session, SessionObserver};
 use runtime::simhand::{HandEvent, PtyHand};
 use runtime::source::{Pacing, SequenceFolder};
 use runtime::transport::SerialConnector;
 use runtime::trigger::Timer;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
-use trainer::checkpoint::TrainMode;
+use std::time::Duration;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
-use trainer::heads::HeadKind;
 
 fn train_tiny_model(dir: &Path) -> PathBuf {
     let mut spec = SyntheticSpec::small(Layout::Generated);
@@ -94,28 +96,38 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
     let policy = PolicyConfig {
         fallback: None,
         min_confidence: 0.0,
+        // Not about the age limit (runtime/tests/faults.rs is): one no
+        // loaded machine reaches.
+        max_decision_age_ms: 30_000,
         ..PolicyConfig::default()
     };
     let stop = AtomicBool::new(false);
+    let mut session = Session {
+        hand: &hand,
+        classifier: &mut model,
+        policy: &policy,
+        mode: FeedMode::Lockstep,
+        stop: &stop,
+    };
     for (sequence, label) in replay_set(&dir.path().join("replay")) {
         let source = SequenceFolder::open(&sequence, None, Pacing::AsFastAsPossible).unwrap();
         assert_eq!(source.info().preshape, Some(label));
-        let t0 = Instant::now();
-        let (_, window) = classify_window(
-            Box::new(source),
-            FeedMode::Lockstep,
-            &mut model,
-            &policy,
-            t0,
-            &mut |_| {},
-        )
-        .unwrap();
-        assert_eq!(window.decision.frames, 10, "every frame classified");
+        // One approach, as `hannes-run run` makes it: triggered at once,
+        // closed 10 ms after the pre-shape.
         let mut closure = Timer(Duration::from_millis(10));
-        // Not about the age limit (runtime/tests/faults.rs is): one no
-        // loaded machine reaches.
-        let max_age = Duration::from_secs(30);
-        let report = actuate(&hand, window, Some(&mut closure), &stop, t0, max_age).unwrap();
+        let mut reports = Reports::default();
+        let (_, summary) = session
+            .run(
+                Box::new(source),
+                1,
+                &mut Timer(Duration::ZERO),
+                Some(&mut closure),
+                &mut reports,
+            )
+            .unwrap();
+        assert_eq!(summary.approaches, 1);
+        let report = reports.0.pop().expect("one approach report");
+        assert_eq!(report.window.decision.frames, 10, "every frame classified");
         let sent = report
             .preshape
             .unwrap_or_else(|| panic!("{label}: nothing sent: {:?}", report.window.decision));
@@ -137,4 +149,15 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
     let mut expected: Vec<Option<Preshape>> = Preshape::ALL.iter().map(|p| Some(*p)).collect();
     expected.sort();
     assert_eq!(commanded, expected);
+}
+
+/// Keeps every approach's report.
+#[derive(Default)]
+struct Reports(Vec<ApproachReport>);
+
+impl SessionObserver for Reports {
+    fn approach(&mut self, _approach: usize, report: &ApproachReport) -> anyhow::Result<()> {
+        self.0.push(report.clone());
+        Ok(())
+    }
 }

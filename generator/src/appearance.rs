@@ -358,6 +358,21 @@ pub fn blackbody_tint(kelvin: f64) -> [f64; 3] {
     rgb.map(|c| c / max)
 }
 
+/// A stable, muted colour per object id (the catalog carries no materials):
+/// a hue from a hash of the id.
+pub fn default_object_color(object: &str) -> [f64; 3] {
+    let [h, s, v] = default_object_hsv(object);
+    hsv_to_linear_rgb(h, s, v)
+}
+
+/// [`default_object_color`] as HSV (of its sRGB colour).
+pub fn default_object_hsv(object: &str) -> [f64; 3] {
+    let hash = object.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    });
+    [(hash % 360) as f64 / 360.0, 0.55, 0.75]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

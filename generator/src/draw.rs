@@ -35,19 +35,19 @@ struct View {
 
 const VIEWS: [View; 3] = [
     View {
-        name: "TOP (X RIGHT, Y UP)",
+        name: "top (x right, y up)",
         right: [1.0, 0.0, 0.0],
         up: [0.0, 1.0, 0.0],
         toward: [0.0, 0.0, 1.0],
     },
     View {
-        name: "FRONT (X RIGHT, Z UP)",
+        name: "front (x right, z up)",
         right: [1.0, 0.0, 0.0],
         up: [0.0, 0.0, 1.0],
         toward: [0.0, -1.0, 0.0],
     },
     View {
-        name: "SIDE (Y RIGHT, Z UP)",
+        name: "side (y right, z up)",
         right: [0.0, 1.0, 0.0],
         up: [0.0, 0.0, 1.0],
         toward: [1.0, 0.0, 0.0],
@@ -67,7 +67,7 @@ pub fn render_object(object: &ObjectSpec, mesh: &TriMesh) -> RgbImage {
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max).max(1e-6);
     let scale = (PANEL as f64 - 40.0) / extent;
     let title = format!(
-        "{} ({})  {:.0} X {:.0} X {:.0} MM",
+        "{} ({})  {:.0} x {:.0} x {:.0} mm",
         object.id,
         object.name,
         (hi[0] - lo[0]) * 1e3,
@@ -127,14 +127,14 @@ pub fn render_object(object: &ObjectSpec, mesh: &TriMesh) -> RgbImage {
         let mut tags = Vec::new();
         match part.upside_down {
             crate::catalog::UpsideDown::Never => {}
-            crate::catalog::UpsideDown::May => tags.push("MAY BE UPSIDE DOWN"),
-            crate::catalog::UpsideDown::Must => tags.push("UPSIDE DOWN"),
+            crate::catalog::UpsideDown::May => tags.push("may be upside down"),
+            crate::catalog::UpsideDown::Must => tags.push("upside down"),
         }
         if part.pronation == crate::catalog::Pronation::None {
-            tags.push("NO PRONATION");
+            tags.push("no pronation");
         }
         if part.table_border {
-            tags.push("TABLE BORDER");
+            tags.push("table border");
         }
         let line_text = format!(
             "{} {}: {} ({}){}{}",
@@ -152,7 +152,7 @@ pub fn render_object(object: &ObjectSpec, mesh: &TriMesh) -> RgbImage {
         &mut img,
         10,
         y as i64,
-        "ARROWS: APPROACH (BOX +Z). RED POWER, BLUE LATERAL, GREEN PINCH, ORANGE PINCH3",
+        "arrows: approach (box +Z). red power, blue lateral, green pinch, orange pinch3",
         INK,
         1,
     );
@@ -279,83 +279,11 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), colour: Rgb<u8>, ox: u
     }
 }
 
-/// Draws text with the built-in 5x7 font (upper case), `scale` pixels per dot.
+/// Draws text with the toolkit's bundled font (`grasp_font`), the top-left
+/// corner of its line box at (`x`, `y`): `scale` 1 is small print (12 px),
+/// 2 is body text (18 px).
 pub fn text(img: &mut RgbImage, x: i64, y: i64, s: &str, colour: Rgb<u8>, scale: i64) {
-    let mut cx = x;
-    for ch in s.chars() {
-        let rows = glyph(ch.to_ascii_uppercase());
-        for (r, bits) in rows.iter().enumerate() {
-            for c in 0..5 {
-                if bits & (0x10 >> c) != 0 {
-                    for dy in 0..scale {
-                        for dx in 0..scale {
-                            let (px, py) = (cx + c * scale + dx, y + r as i64 * scale + dy);
-                            if px >= 0
-                                && py >= 0
-                                && (px as u32) < img.width()
-                                && (py as u32) < img.height()
-                            {
-                                img.put_pixel(px as u32, py as u32, colour);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        cx += 6 * scale;
-    }
-}
-
-fn glyph(c: char) -> [u8; 7] {
-    match c {
-        'A' => [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
-        'B' => [0x1E, 0x11, 0x11, 0x1E, 0x11, 0x11, 0x1E],
-        'C' => [0x0E, 0x11, 0x10, 0x10, 0x10, 0x11, 0x0E],
-        'D' => [0x1E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x1E],
-        'E' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x1F],
-        'F' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x10],
-        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
-        'H' => [0x11, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
-        'I' => [0x0E, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        'J' => [0x07, 0x02, 0x02, 0x02, 0x02, 0x12, 0x0C],
-        'K' => [0x11, 0x12, 0x14, 0x18, 0x14, 0x12, 0x11],
-        'L' => [0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F],
-        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
-        'N' => [0x11, 0x11, 0x19, 0x15, 0x13, 0x11, 0x11],
-        'O' => [0x0E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
-        'P' => [0x1E, 0x11, 0x11, 0x1E, 0x10, 0x10, 0x10],
-        'Q' => [0x0E, 0x11, 0x11, 0x11, 0x15, 0x12, 0x0D],
-        'R' => [0x1E, 0x11, 0x11, 0x1E, 0x14, 0x12, 0x11],
-        'S' => [0x0F, 0x10, 0x10, 0x0E, 0x01, 0x01, 0x1E],
-        'T' => [0x1F, 0x04, 0x04, 0x04, 0x04, 0x04, 0x04],
-        'U' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
-        'V' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x0A, 0x04],
-        'W' => [0x11, 0x11, 0x11, 0x15, 0x15, 0x15, 0x0A],
-        'X' => [0x11, 0x11, 0x0A, 0x04, 0x0A, 0x11, 0x11],
-        'Y' => [0x11, 0x11, 0x11, 0x0A, 0x04, 0x04, 0x04],
-        'Z' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x10, 0x1F],
-        '0' => [0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E],
-        '1' => [0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        '2' => [0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F],
-        '3' => [0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E],
-        '4' => [0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02],
-        '5' => [0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E],
-        '6' => [0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E],
-        '7' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
-        '8' => [0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E],
-        '9' => [0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C],
-        '_' => [0, 0, 0, 0, 0, 0, 0x1F],
-        '-' => [0, 0, 0, 0x1F, 0, 0, 0],
-        '.' => [0, 0, 0, 0, 0, 0x0C, 0x0C],
-        ',' => [0, 0, 0, 0, 0x0C, 0x04, 0x08],
-        ':' => [0, 0x0C, 0x0C, 0, 0x0C, 0x0C, 0],
-        '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
-        ')' => [0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08],
-        '/' => [0x01, 0x01, 0x02, 0x04, 0x08, 0x10, 0x10],
-        '+' => [0, 0x04, 0x04, 0x1F, 0x04, 0x04, 0],
-        '=' => [0x00, 0x00, 0x1F, 0x00, 0x1F, 0x00, 0x00],
-        _ => [0; 7],
-    }
+    grasp_font::draw_text(img, x, y, s, colour, 6.0 + 6.0 * scale as f32);
 }
 
 /// Renders and writes a PNG atomically.
@@ -368,5 +296,5 @@ pub fn write_object_png(object: &ObjectSpec, path: &std::path::Path) -> Result<(
         image::ImageFormat::Png,
     )
     .context("encoding the PNG")?;
-    crate::catalog::write_atomic(path, &bytes)
+    Ok(grasp_schema::atomic::write_atomic(path, &bytes)?)
 }

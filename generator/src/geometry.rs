@@ -140,11 +140,6 @@ impl MeshQuery {
         self.watertight
     }
 
-    /// The ray backend trimesh chose: `ray_pyembree` or `ray_triangle`.
-    pub fn ray_backend(&self) -> &str {
-        &self.backend
-    }
-
     fn call(&self, method: &str, args: &[Vec<u8>]) -> Result<Vec<u8>> {
         Python::attach(|py| -> PyResult<Vec<u8>> {
             let args: Vec<Bound<'_, PyBytes>> = args.iter().map(|a| PyBytes::new(py, a)).collect();

@@ -35,14 +35,7 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
-        tracing_subscriber::fmt()
-            .with_env_filter(
-                tracing_subscriber::EnvFilter::try_from_default_env()
-                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-            )
-            .with_writer(std::io::stderr)
-            .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-            .init();
+        grasp_schema::cli::init_logging();
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),

@@ -76,11 +76,13 @@ pub fn preview(dataset: &Path, out: &Path, opts: &PreviewOptions) -> Result<Vec<
     let chosen: Vec<&(String, SequenceRecord)> = sheet_records.iter().collect();
     let (sheet, legend) = contact_sheet(dataset, &chosen, opts)?;
     let sheet_path = out.join("contact_sheet.png");
-    sheet
-        .save(&sheet_path)
-        .with_context(|| format!("cannot write {}", sheet_path.display()))?;
+    grasp_schema::atomic::write_atomic_with(&sheet_path, |tmp| -> Result<()> {
+        sheet
+            .save_with_format(tmp, image::ImageFormat::Png)
+            .with_context(|| format!("cannot write {}", sheet_path.display()))
+    })?;
     let legend_path = out.join("contact_sheet.txt");
-    std::fs::write(&legend_path, legend)?;
+    grasp_schema::atomic::write_atomic(&legend_path, legend.as_bytes())?;
     let gif_path = out.join("preview.gif");
     let gif_records = load(opts.gif_sequences)?;
     let chosen: Vec<&(String, SequenceRecord)> = gif_records.iter().collect();
@@ -163,9 +165,8 @@ fn write_gif(
         .map(|(_, r)| r.plan.fps)
         .unwrap_or(10.0)
         .clamp(1.0, 50.0);
-    let file =
-        std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
-    let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
+    let mut file = grasp_schema::atomic::AtomicFile::create(path)?;
+    let mut enc = GifEncoder::new_with_speed(&mut file, 10);
     enc.set_repeat(Repeat::Infinite)?;
     let w = chosen.len() as u32 * (opts.thumb + GAP);
     for f in 0..longest {
@@ -185,6 +186,8 @@ fn write_gif(
         let delay = Delay::from_numer_denom_ms(1000, fps.round() as u32);
         enc.encode_frame(Frame::from_parts(canvas, 0, 0, delay))?;
     }
+    drop(enc);
+    file.commit()?;
     Ok(())
 }
 

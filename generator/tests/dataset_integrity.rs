@@ -28,7 +28,7 @@ fn truncate(path: &Path) {
     std::fs::write(path, &bytes[..bytes.len() / 2]).unwrap();
 }
 
-fn problems_text(root: &Path, source: &dyn generator::render::PlanSource) -> String {
+fn problems_text(root: &Path, source: &dyn generator::plan::PlanSource) -> String {
     let report = verify(root, Some(source), false).unwrap();
     assert!(!report.ok(), "verify passed:\n{}", report.render_text());
     report.problems.join("\n")

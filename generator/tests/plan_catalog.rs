@@ -91,11 +91,12 @@ fn builtin_catalog_with_the_authors_camera() {
 
 #[test]
 fn ycb_catalog_every_pair_every_preset() {
-    let ycb = generator::python::workspace_root().join("../shared/ycb");
-    if !ycb.join("annotations.json").is_file() {
-        eprintln!("skipped: ../shared/ycb is absent");
+    let Some(ycb) = grasp_schema::prerequisite::require_ycb(
+        "ycb_catalog_every_pair_every_preset",
+        &generator::python::workspace_root(),
+    ) else {
         return;
-    }
+    };
     let out = tempfile::tempdir().unwrap();
     generator::catalog::ycb::import(&ycb, out.path()).unwrap();
     let catalog = Catalog::load_dir(out.path()).unwrap();

@@ -31,6 +31,12 @@ fn plan_writes_json_lines_and_a_picture() {
     // The mug has 4 parts and the hammer 1: 5 pairs x 2 conditions x 3.
     assert_eq!(plans.len(), 30);
     assert!(!dir.path().join(".plans.jsonl.tmp").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
     let img = image::open(&png).unwrap();
     assert!(img.width() > 400 && img.height() > 300);
     // Same config, same bytes.

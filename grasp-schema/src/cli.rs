@@ -6,6 +6,9 @@
 //!   bugs); a panic, which is a bug, keeps Rust's report and backtrace;
 //! - an error may carry its exit code ([`Failure`]); any other error exits
 //!   with 1 (clap's usage errors exit with 2 before `main`'s body runs);
+//! - logs go to stderr, at `info` unless `RUST_LOG` says otherwise, coloured
+//!   only when stderr is a terminal ([`init_logging`]), so that log files
+//!   and CI output carry no ANSI escape codes;
 //! - printing to a closed pipe (`grasp-gen render | head -1`) ends the
 //!   program quietly the way it ends C programs: killed by SIGPIPE (a
 //!   shell reports status 141), after the main thread unwound, so
@@ -59,6 +62,19 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
 /// The one line printed for an error.
 pub fn error_line(e: &anyhow::Error) -> String {
     format!("Error: {e:#}")
+}
+
+/// The programs' log subscriber: stderr, `RUST_LOG` (default `info`), ANSI
+/// colours only on a terminal.
+pub fn init_logging() {
+    use std::io::IsTerminal;
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .init();
 }
 
 /// Runs a program's body with the conventions above:

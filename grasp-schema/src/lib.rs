@@ -3,9 +3,11 @@
 //! project's Python environment is.
 
 pub mod appearance;
+pub mod atomic;
 pub mod cli;
 pub mod dataset;
 pub mod plan;
+pub mod prerequisite;
 pub mod taxonomy;
 pub mod venv;
 

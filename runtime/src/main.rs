@@ -17,7 +17,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-use trainer::backbone::Architecture;
 
 const RUN_EXIT_CODES: &str = "\
 Exit codes:
@@ -170,16 +169,11 @@ fn parse_faults(s: &str) -> Result<FaultSpec, String> {
 
 #[derive(Args)]
 struct BenchArgs {
-    /// Trained checkpoint (from grasp-train). Without it, a stand-in with
-    /// an FC head on --backbone is built in a temporary directory: latency
-    /// does not depend on weight values.
+    /// Checkpoint with an FC head (from grasp-train). Latency does not
+    /// depend on weight values: `grasp-train stand-in --out DIR` builds one
+    /// without a dataset.
     #[arg(long)]
-    checkpoint: Option<PathBuf>,
-    /// Backbone of the stand-in checkpoint: efficientnet-lite0 (the
-    /// trainer's default, ImageNet weights from the venv) or mobilenet-v2
-    /// (the paper's, random weights).
-    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
-    backbone: Architecture,
+    checkpoint: PathBuf,
     /// Timed inference frames (224x224).
     #[arg(long, default_value_t = 200)]
     frames: usize,
@@ -201,13 +195,7 @@ struct BenchArgs {
 
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
-        tracing_subscriber::fmt()
-            .with_env_filter(
-                tracing_subscriber::EnvFilter::try_from_default_env()
-                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-            )
-            .with_writer(std::io::stderr)
-            .init();
+        grasp_schema::cli::init_logging();
         dispatch(Cli::parse())
     })
 }
@@ -225,31 +213,31 @@ fn stop_flag() -> Result<&'static std::sync::atomic::AtomicBool> {
     runtime::signals::stop_flag().context("cannot install the signal handlers")
 }
 
-fn config(p: &PolicyArgs) -> Result<RuntimeConfig> {
-    let mut cfg = match &p.config {
+fn config(policy_args: &PolicyArgs) -> Result<RuntimeConfig> {
+    let mut cfg = match &policy_args.config {
         Some(path) => RuntimeConfig::load(path)?,
         None => RuntimeConfig::default(),
     };
     let policy = &mut cfg.policy;
-    if let Some(w) = p.window {
+    if let Some(w) = policy_args.window {
         policy.window_s = w;
     }
-    if p.early_margin.is_some() {
-        policy.early_margin = p.early_margin;
+    if policy_args.early_margin.is_some() {
+        policy.early_margin = policy_args.early_margin;
     }
-    if let Some(f) = &p.fallback {
+    if let Some(f) = &policy_args.fallback {
         policy.fallback = match f.as_str() {
             "none" => None,
             name => Some(name.parse::<Preshape>().context("--fallback")?),
         };
     }
-    if let Some(c) = p.min_confidence {
+    if let Some(c) = policy_args.min_confidence {
         policy.min_confidence = c;
     }
-    if let Some(o) = p.on_invalid {
+    if let Some(o) = policy_args.on_invalid {
         policy.on_invalid = o;
     }
-    if let Some(ms) = p.max_decision_age_ms {
+    if let Some(ms) = policy_args.max_decision_age_ms {
         policy.max_decision_age_ms = ms;
     }
     cfg.validate()?;
@@ -257,12 +245,12 @@ fn config(p: &PolicyArgs) -> Result<RuntimeConfig> {
 }
 
 /// Opens the frame source; returns it with whether it is live.
-fn open_source(a: &SourceArgs, pacing: Pacing) -> Result<(Box<dyn FrameSource>, bool)> {
-    if let Some(rest) = a.source.strip_prefix("camera") {
+fn open_source(source_args: &SourceArgs, pacing: Pacing) -> Result<(Box<dyn FrameSource>, bool)> {
+    if let Some(rest) = source_args.source.strip_prefix("camera") {
         let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
         return Ok((open_camera(Path::new(device))?, true));
     }
-    let folder = SequenceFolder::open(Path::new(&a.source), a.fps, pacing)?;
+    let folder = SequenceFolder::open(Path::new(&source_args.source), source_args.fps, pacing)?;
     Ok((Box::new(folder), false))
 }
 
@@ -282,29 +270,29 @@ fn open_camera(device: &Path) -> Result<Box<dyn FrameSource>> {
     )
 }
 
-fn run(a: RunArgs) -> Result<()> {
-    let cfg = config(&a.policy)?;
+fn run(args: RunArgs) -> Result<()> {
+    let cfg = config(&args.policy)?;
     let stop = stop_flag()?;
-    let mut classifier = runtime::model::load(&a.source.checkpoint)?;
-    let pacing = if a.as_fast {
+    let mut classifier = runtime::model::load(&args.source.checkpoint)?;
+    let pacing = if args.as_fast {
         Pacing::AsFastAsPossible
     } else {
         Pacing::RealTime
     };
-    let (source, live) = open_source(&a.source, pacing)?;
-    let mode = if a.as_fast && !live {
+    let (source, live) = open_source(&args.source, pacing)?;
+    let mode = if args.as_fast && !live {
         FeedMode::Lockstep
     } else {
         FeedMode::Latest
     };
     let mut stdin = None;
-    let mut trigger = parse_trigger(&a.trigger, &mut stdin)?;
-    let mut closure = match a.closure.as_str() {
+    let mut trigger = parse_trigger(&args.trigger, &mut stdin)?;
+    let mut closure = match args.closure.as_str() {
         "none" => None,
         spec => Some(parse_trigger(spec, &mut stdin)?),
     };
     let link = HandLink::new(
-        Box::new(SerialConnector::new(&a.port, a.baud)),
+        Box::new(SerialConnector::new(&args.port, args.baud)),
         cfg.link.clone(),
     );
     let hand = match Hand::start(link) {
@@ -314,7 +302,7 @@ fn run(a: RunArgs) -> Result<()> {
             return Err(e.context(Failure::new(code, "cannot start the link to the hand")));
         }
     };
-    let approaches = a.approaches.unwrap_or(if live { usize::MAX } else { 1 });
+    let approaches = args.approaches.unwrap_or(if live { usize::MAX } else { 1 });
     let mut session = Session {
         hand: &hand,
         classifier: &mut classifier,
@@ -323,7 +311,7 @@ fn run(a: RunArgs) -> Result<()> {
         stop,
     };
     let mut printer = RunPrinter {
-        report: a.report.as_deref(),
+        report: args.report.as_deref(),
     };
     let closure = closure.as_mut().map(|c| c.as_mut() as &mut dyn Trigger);
     let (_, summary) = session.run(source, approaches, trigger.as_mut(), closure, &mut printer)?;
@@ -401,10 +389,10 @@ impl SessionObserver for RunPrinter<'_> {
     }
 }
 
-fn votes(v: &[u32; Class::COUNT]) -> String {
+fn votes(votes: &[u32; Class::COUNT]) -> String {
     Class::ALL
         .iter()
-        .map(|c| format!("{c} {}", v[c.index()]))
+        .map(|c| format!("{c} {}", votes[c.index()]))
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -419,22 +407,22 @@ fn append_json_line(path: &Path, value: &impl serde::Serialize) -> Result<()> {
         .with_context(|| format!("cannot write report {}", path.display()))
 }
 
-fn replay(a: ReplayArgs) -> Result<()> {
-    let cfg = config(&a.policy)?;
-    let mut classifier = runtime::model::load(&a.source.checkpoint)?;
-    let pacing = if a.realtime {
+fn replay(args: ReplayArgs) -> Result<()> {
+    let cfg = config(&args.policy)?;
+    let mut classifier = runtime::model::load(&args.source.checkpoint)?;
+    let pacing = if args.realtime {
         Pacing::RealTime
     } else {
         Pacing::AsFastAsPossible
     };
-    let folder = SequenceFolder::open(Path::new(&a.source.source), a.source.fps, pacing)?;
+    let folder = SequenceFolder::open(Path::new(&args.source.source), args.source.fps, pacing)?;
     let info = folder.info().clone();
-    let mode = if a.realtime {
+    let mode = if args.realtime {
         FeedMode::Latest
     } else {
         FeedMode::Lockstep
     };
-    let json = a.json;
+    let json = args.json;
     if !json {
         println!("{}", header());
     }
@@ -481,34 +469,36 @@ fn header() -> String {
     )
 }
 
-fn row(p: &FramePrediction, truth: Option<Class>) -> String {
-    let probs: Vec<String> = p
+fn row(prediction: &FramePrediction, truth: Option<Class>) -> String {
+    let probs: Vec<String> = prediction
         .probabilities
         .iter()
         .map(|v| format!("{v:>8.3}"))
         .collect();
-    let class = p.class.map_or("INVALID".to_string(), |c| c.to_string());
+    let class = prediction
+        .class
+        .map_or("INVALID".to_string(), |c| c.to_string());
     let truth = truth.map_or("-".to_string(), |c| c.to_string());
     format!(
         "{:>5} {:>8.3}  {}  {:<9}  {:<8} {:>5.1}",
-        p.index,
-        p.time_s,
+        prediction.index,
+        prediction.time_s,
         probs.join(""),
         class,
         truth,
-        p.inference_ms
+        prediction.inference_ms
     )
 }
 
-fn simulate_hand(a: SimArgs) -> Result<()> {
+fn simulate_hand(args: SimArgs) -> Result<()> {
     let stop = stop_flag()?;
     let started = Instant::now();
     let sink = move |e: &HandEvent| print_event(started, e);
-    let faults = a.faults.unwrap_or_default();
+    let faults = args.faults.unwrap_or_default();
     if faults.is_active() {
         eprintln!("injecting link faults: {faults}");
     }
-    let (plug, ready): (Box<dyn Plug>, String) = match (&a.pty, &a.port) {
+    let (plug, ready): (Box<dyn Plug>, String) = match (&args.pty, &args.port) {
         (Some(link), _) => (
             Box::new(PtyPlug::new(link)?),
             format!(
@@ -519,7 +509,7 @@ fn simulate_hand(a: SimArgs) -> Result<()> {
         (None, Some(port)) => (
             Box::new(DevicePort {
                 path: port.clone(),
-                baud: a.baud,
+                baud: args.baud,
             }),
             format!("simulated hand serving {}", port.display()),
         ),
@@ -548,39 +538,34 @@ fn print_event(started: Instant, e: &HandEvent) {
     let _ = out.flush();
 }
 
-fn bench(a: BenchArgs) -> Result<()> {
+fn bench(args: BenchArgs) -> Result<()> {
     use runtime::bench;
-    let scratch = tempfile::tempdir()?;
-    let checkpoint = match &a.checkpoint {
-        Some(c) => c.clone(),
-        None => {
-            eprintln!(
-                "no --checkpoint: building a stand-in ({}, FC head)",
-                a.backbone.name()
-            );
-            bench::stand_in_checkpoint(scratch.path(), a.size, a.backbone)?
-        }
-    };
-    let mut classifier = runtime::model::load(&checkpoint)?;
-    let frames = bench::synthetic_frames(a.frames.max(1), a.size);
-    let inference = bench::inference(&mut classifier, &frames, a.warmup)?;
+    let mut classifier = runtime::model::load(&args.checkpoint)?;
+    let frames = bench::synthetic_frames(args.frames.max(1), args.size);
+    let inference = bench::inference(&mut classifier, &frames, args.warmup)?;
     println!(
         "inference {}x{} ({} frames): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
-        a.size,
-        a.size,
+        args.size,
+        args.size,
         inference.n,
         inference.p50_ms,
         inference.p99_ms,
         inference.mean_ms,
         inference.max_ms
     );
-    let link = bench::link_round_trip(a.sends.max(1), a.baud)?;
+    let link = bench::link_round_trip(args.sends.max(1), args.baud)?;
     println!(
         "link PRESHAPE->ACK over a pty at {} baud ({} sends): p50 {:.3} ms, p99 {:.3} ms",
         link.baud, link.round_trip.n, link.round_trip.p50_ms, link.round_trip.p99_ms
     );
-    let window = bench::synthetic_frames(60, a.size);
-    let ap = bench::approaches(&mut classifier, window, 30.0, a.approaches.max(1), a.baud)?;
+    let window = bench::synthetic_frames(60, args.size);
+    let ap = bench::approaches(
+        &mut classifier,
+        window,
+        30.0,
+        args.approaches.max(1),
+        args.baud,
+    )?;
     println!(
         "approach (window {} s at {} fps, {} runs): trigger->ACK p50 {:.1} ms, p99 {:.1} ms; \
          after the window p50 {:.1} ms, p99 {:.1} ms; {} frames classified, {} dropped",

@@ -1,13 +1,13 @@
-//! The trained checkpoint (trainer crate) as a [`FrameClassifier`], on the
+//! The trained checkpoint (`grasp-model`) as a [`FrameClassifier`], on the
 //! CPU.
 
 use crate::classifier::FrameClassifier;
-use anyhow::{Context, Result};
+use anyhow::Result;
+use grasp_model::checkpoint::Classifier;
+use grasp_model::heads::HeadKind;
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
 use std::path::Path;
-use trainer::checkpoint::Classifier;
-use trainer::heads::HeadKind;
 
 /// Loads a checkpoint directory (or its `best.json`) for per-frame use.
 ///
@@ -15,8 +15,16 @@ use trainer::heads::HeadKind;
 /// needs; an LSTM head would have to re-read the whole window for every new
 /// frame, so it is refused with an explanation.
 pub fn load(path: &Path) -> Result<Classifier> {
-    let classifier = Classifier::load(path, &candle_core::Device::Cpu)
-        .with_context(|| format!("cannot load checkpoint {}", path.display()))?;
+    let classifier = Classifier::load(path, &candle_core::Device::Cpu).map_err(|e| {
+        let what = if e.is_missing() {
+            "no checkpoint at"
+        } else if e.is_corrupt() {
+            "corrupt checkpoint"
+        } else {
+            "cannot load checkpoint"
+        };
+        anyhow::Error::new(e).context(format!("{what} {}", path.display()))
+    })?;
     check(&classifier, path)?;
     Ok(classifier)
 }

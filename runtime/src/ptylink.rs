@@ -79,7 +79,7 @@ impl PtyLink {
         let target = PathBuf::from(target);
         // The record first: a host never sees the link without it.
         let owner = LinkOwner::this_process(&target);
-        write_atomically(&owner_path(link), &serde_json::to_vec_pretty(&owner)?)?;
+        grasp_schema::atomic::write_atomic(&owner_path(link), &serde_json::to_vec_pretty(&owner)?)?;
         let made = PtyLink {
             link: link.to_path_buf(),
             target,
@@ -121,20 +121,11 @@ pub fn pty_pair(link_path: &Path) -> anyhow::Result<(serialport::TTYPort, PtyLin
 
 /// Points `link` at `target`, atomically (temp link + rename).
 pub fn replace_symlink(target: &Path, link: &Path) -> anyhow::Result<()> {
-    let tmp = link.with_extension(format!("tmp{}", std::process::id()));
-    let _ = std::fs::remove_file(&tmp);
+    let tmp = grasp_schema::atomic::temp_path(link);
     std::os::unix::fs::symlink(target, &tmp)
         .with_context(|| format!("cannot create symlink {}", tmp.display()))?;
     std::fs::rename(&tmp, link)
         .with_context(|| format!("cannot move symlink into place at {}", link.display()))
-}
-
-fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let mut tmp = OsString::from(path.as_os_str());
-    tmp.push(format!(".tmp{}", std::process::id()));
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn read_owner(record: &Path) -> io::Result<LinkOwner> {

@@ -55,14 +55,14 @@ pub enum ApproachResult {
 }
 
 impl ApproachResult {
-    pub fn of(r: &ApproachReport) -> Self {
-        if matches!(r.window.decision.outcome, Outcome::Aborted { .. }) {
+    pub fn of(report: &ApproachReport) -> Self {
+        if matches!(report.window.decision.outcome, Outcome::Aborted { .. }) {
             ApproachResult::Aborted
-        } else if r.expired.is_some() {
+        } else if report.expired.is_some() {
             ApproachResult::Expired
-        } else if r.link_error.is_some() {
+        } else if report.link_error.is_some() {
             ApproachResult::HandFailed
-        } else if r.preshape.is_some() {
+        } else if report.preshape.is_some() {
             ApproachResult::Commanded
         } else {
             ApproachResult::NoCommand
@@ -81,11 +81,13 @@ impl ApproachResult {
 }
 
 /// One line saying why approach `n` failed.
-pub fn failure_reason(n: usize, r: &ApproachReport) -> String {
-    match ApproachResult::of(r) {
-        ApproachResult::Aborted => format!("approach {n}: {}", r.window.decision.outcome),
+pub fn failure_reason(approach: usize, report: &ApproachReport) -> String {
+    match ApproachResult::of(report) {
+        ApproachResult::Aborted => {
+            format!("approach {approach}: {}", report.window.decision.outcome)
+        }
         ApproachResult::Expired => {
-            let e = r.expired.as_ref().expect("expired");
+            let e = report.expired.as_ref().expect("expired");
             let what = match e.preshape {
                 Some(p) => format!("the {p} pre-shape"),
                 None => format!("the {}", e.command),
@@ -95,16 +97,16 @@ pub fn failure_reason(n: usize, r: &ApproachReport) -> String {
                 false => "",
             };
             format!(
-                "approach {n}: {what} was not acknowledged within its {:.0} ms age limit \
+                "approach {approach}: {what} was not acknowledged within its {:.0} ms age limit \
                  (given up at {:.0} ms{refused}): not executed, no closure",
                 e.limit_ms, e.age_ms
             )
         }
         ApproachResult::HandFailed => format!(
-            "approach {n}: the hand was not commanded: {}",
-            r.link_error.as_deref().unwrap_or("link failure")
+            "approach {approach}: the hand was not commanded: {}",
+            report.link_error.as_deref().unwrap_or("link failure")
         ),
-        ApproachResult::Commanded | ApproachResult::NoCommand => format!("approach {n}: ok"),
+        ApproachResult::Commanded | ApproachResult::NoCommand => format!("approach {approach}: ok"),
     }
 }
 

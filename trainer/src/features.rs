@@ -14,20 +14,11 @@
 use crate::data::{BadData, Dataset, Sequence};
 use anyhow::{Context, Result};
 use candle_core::{DType, Device, Tensor};
-use image::RgbImage;
+use grasp_model::extractor::FeatureExtractor;
+use grasp_model::hashing::{hex, sha256_hex};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-
-/// Turns frames into feature vectors.
-pub trait FeatureExtractor {
-    /// Identifies the weights and the preprocessing; features from extractors
-    /// with equal ids are interchangeable.
-    fn id(&self) -> String;
-    fn feature_dim(&self) -> usize;
-    /// Features `(N, feature_dim)`, f32, of `images`.
-    fn extract(&self, images: &[RgbImage]) -> Result<Tensor>;
-}
 
 /// Features of one sequence: rows for the readable frames only.
 #[derive(Debug, Clone)]
@@ -112,7 +103,7 @@ impl FeatureCache {
     }
 
     fn entry_path(&self, ex: &dyn FeatureExtractor, seq: &Sequence) -> Result<PathBuf> {
-        let key = hex(&Sha256::digest(ex.id().as_bytes()))[..24].to_string();
+        let key = sha256_hex(ex.id().as_bytes())[..24].to_string();
         Ok(self
             .dir
             .join(key)
@@ -220,26 +211,10 @@ fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<()> {
         "valid".to_string(),
         Tensor::from_vec(valid, f.valid.len(), &dev)?,
     );
-    let dir = path.parent().context("cache entry has no parent")?;
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let tmp = crate::checkpoint::temp_path(path);
-    candle_core::safetensors::save(&map, &tmp)
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot move into {}", path.display()))?;
-    Ok(())
-}
-
-/// SHA-256 of a file's bytes, hex.
-pub fn file_sha256(path: &Path) -> Result<String> {
-    let mut f =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok(hex(&h.finalize()))
-}
-
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
+    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> {
+        candle_core::safetensors::save(&map, tmp)
+            .with_context(|| format!("cannot write {}", path.display()))
+    })
 }
 
 /// Frames of a split flattened for the FC head: one row per valid frame.

@@ -3,10 +3,10 @@
 //! then overwritten, in name order, from a seeded stream with PyTorch's
 //! initialisation rules.
 
-use crate::heads::{Head, HeadConfig};
 use anyhow::Result;
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::VarMap;
+use grasp_model::heads::{Head, HeadConfig};
 use rand::Rng;
 
 /// A VarMap holding the head's parameters, initialised like PyTorch's
@@ -97,7 +97,7 @@ pub fn write_random_backbone(
     calibration: &[image::RgbImage],
     seed: u64,
 ) -> Result<()> {
-    use crate::model::{MobileNetV2, MobileNetV2Config};
+    use grasp_model::model::{MobileNetV2, MobileNetV2Config};
     let vm = VarMap::new();
     let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
     let cfg = MobileNetV2Config {
@@ -108,18 +108,15 @@ pub fn write_random_backbone(
     let net = MobileNetV2::new(vb, &cfg)?;
     reinit_backbone(&vm, seed)?;
     let mut rng = crate::rng::stream(seed, "init/calibration");
-    let pre = crate::model::preprocess::Preprocess::imagenet(input_size);
+    let pre = grasp_model::model::preprocess::Preprocess::imagenet(input_size);
     for _ in 0..if calibration.len() < 2 { 0 } else { 40 } {
         let batch: Vec<image::RgbImage> = (0..16)
             .map(|_| calibration[rng.gen_range(0..calibration.len())].clone())
             .collect();
-        let x = crate::model::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
+        let x = grasp_model::model::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
         net.features(&x, true)?;
     }
-    let tmp = crate::checkpoint::temp_path(path);
-    vm.save(&tmp)?;
-    std::fs::rename(&tmp, path)?;
-    Ok(())
+    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
 }
 
 /// Writes a randomly initialised EfficientNet-Lite (ImageNet-sized `_fc`)
@@ -128,16 +125,13 @@ pub fn write_random_backbone(
 /// its architecture is meaningful (timing, loading), not its features.
 pub fn write_random_lite(
     path: &std::path::Path,
-    variant: crate::model::LiteVariant,
+    variant: grasp_model::model::LiteVariant,
     seed: u64,
 ) -> Result<()> {
-    use crate::model::{EfficientNetLite, EfficientNetLiteConfig};
+    use grasp_model::model::{EfficientNetLite, EfficientNetLiteConfig};
     let vm = VarMap::new();
     let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
     EfficientNetLite::new(vb, &EfficientNetLiteConfig::variant(variant, Some(1000)))?;
     reinit_backbone(&vm, seed)?;
-    let tmp = crate::checkpoint::temp_path(path);
-    vm.save(&tmp)?;
-    std::fs::rename(&tmp, path)?;
-    Ok(())
+    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
 }

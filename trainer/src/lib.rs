@@ -1,20 +1,18 @@
 //! Training and evaluation of the pre-shape classifier (Vasile et al., IROS
-//! 2022): a MobileNetV2 backbone in candle with an FC or LSTM head, the
-//! paper's training protocol, and the evaluation report.
+//! 2022): the paper's training protocol for the networks of `grasp-model`
+//! (a MobileNetV2 or EfficientNet-Lite backbone with an FC or LSTM head),
+//! and the evaluation report.
 
-pub mod backbone;
 pub mod bench;
-pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod eval;
 pub mod experiment;
 pub mod features;
-pub mod heads;
 pub mod init;
 pub mod loss;
-pub mod model;
 pub mod optim;
 pub mod progress;
 pub mod rng;
+pub mod stand_in;
 pub mod train;

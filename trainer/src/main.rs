@@ -2,12 +2,12 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_model::backbone::Architecture;
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
-use trainer::backbone::Architecture;
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::{BadData, OnBadData};
-use trainer::heads::HeadKind;
 
 /// Train and evaluate pre-shape classifiers (a frozen ImageNet
 /// EfficientNet-Lite0 or MobileNetV2, or MobileNetV2 from scratch, with an
@@ -78,6 +78,26 @@ enum Command {
     BenchBackbone(BenchBackboneArgs),
     /// Say which backbones' pretrained weights are installed, and where.
     Doctor,
+    /// Build a stand-in checkpoint for timing (`hannes-run bench
+    /// --checkpoint`): an FC head on --backbone, trained one epoch on a small
+    /// synthetic set. Latency depends on the architecture, not on the
+    /// weights' values. Prints the checkpoint's folder.
+    StandIn(StandInArgs),
+}
+
+#[derive(Args)]
+struct StandInArgs {
+    /// Folder to build in (its synthetic data, run and checkpoint).
+    #[arg(long, short)]
+    out: PathBuf,
+    /// efficientnet-lite0 (the trainer's default, ImageNet weights from the
+    /// venv) or mobilenet-v2 (the paper's, random weights, batch-norm
+    /// adapted).
+    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
+    backbone: Architecture,
+    /// Input height and width.
+    #[arg(long, default_value_t = 224)]
+    size: u32,
 }
 
 #[derive(Args)]
@@ -274,15 +294,15 @@ struct EvalArgs {
     camera: Option<String>,
 }
 
+fn stand_in(args: StandInArgs) -> Result<()> {
+    let checkpoint = trainer::stand_in::stand_in_checkpoint(&args.out, args.size, args.backbone)?;
+    println!("{}", checkpoint.display());
+    Ok(())
+}
+
 fn main() -> std::process::ExitCode {
     grasp_schema::cli::main(|| {
-        tracing_subscriber::fmt()
-            .with_env_filter(
-                tracing_subscriber::EnvFilter::try_from_default_env()
-                    .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-            )
-            .with_writer(std::io::stderr)
-            .init();
+        grasp_schema::cli::init_logging();
         let cli = Cli::parse();
         if let Some(n) = cli.threads {
             std::env::set_var("RAYON_NUM_THREADS", n.to_string());
@@ -294,12 +314,13 @@ fn main() -> std::process::ExitCode {
             Command::BenchHeads(a) => bench(a),
             Command::BenchBackbone(a) => bench_backbone(a),
             Command::Doctor => doctor(),
+            Command::StandIn(a) => stand_in(a),
         }
     })
 }
 
-fn train(a: TrainArgs) -> Result<()> {
-    let mut cfg = match &a.config {
+fn train(args: TrainArgs) -> Result<()> {
+    let mut cfg = match &args.config {
         Some(p) => TrainConfig::from_toml_file(p)?,
         None => TrainConfig::default(),
     };
@@ -310,34 +331,34 @@ fn train(a: TrainArgs) -> Result<()> {
             }
         };
     }
-    set!(cfg.data, a.data);
-    cfg.val_data = a.val_data.or(cfg.val_data);
-    cfg.test_data = a.test_data.or(cfg.test_data);
-    cfg.weights = a.weights.or(cfg.weights);
-    cfg.backbone = a.backbone.or(cfg.backbone);
-    cfg.batch_size = a.batch_size.or(cfg.batch_size);
-    cfg.sequences_per_pair = a.sequences_per_pair.or(cfg.sequences_per_pair);
-    set!(cfg.out, a.out);
-    set!(cfg.mode, a.mode);
-    set!(cfg.head, a.head);
-    set!(cfg.width_mult, a.width_mult);
-    set!(cfg.input_size, a.input_size);
-    set!(cfg.max_epochs, a.max_epochs);
-    set!(cfg.optimizer.lr, a.lr);
-    set!(cfg.optimizer.weight_decay, a.weight_decay);
-    set!(cfg.seed, a.seed);
-    set!(cfg.cache_dir, a.cache_dir);
-    set!(cfg.tbptt, a.tbptt);
-    set!(cfg.reader.real_fps, a.real_fps);
-    set!(cfg.reader.camera, a.camera);
-    cfg.reader.center_crop = a.center_crop.or(cfg.reader.center_crop);
-    set!(cfg.on_bad_data, a.on_bad_data);
-    cfg.augment.hflip |= a.hflip;
-    cfg.allow_missing_classes |= a.allow_missing_classes;
-    if a.no_augment {
+    set!(cfg.data, args.data);
+    cfg.val_data = args.val_data.or(cfg.val_data);
+    cfg.test_data = args.test_data.or(cfg.test_data);
+    cfg.weights = args.weights.or(cfg.weights);
+    cfg.backbone = args.backbone.or(cfg.backbone);
+    cfg.batch_size = args.batch_size.or(cfg.batch_size);
+    cfg.sequences_per_pair = args.sequences_per_pair.or(cfg.sequences_per_pair);
+    set!(cfg.out, args.out);
+    set!(cfg.mode, args.mode);
+    set!(cfg.head, args.head);
+    set!(cfg.width_mult, args.width_mult);
+    set!(cfg.input_size, args.input_size);
+    set!(cfg.max_epochs, args.max_epochs);
+    set!(cfg.optimizer.lr, args.lr);
+    set!(cfg.optimizer.weight_decay, args.weight_decay);
+    set!(cfg.seed, args.seed);
+    set!(cfg.cache_dir, args.cache_dir);
+    set!(cfg.tbptt, args.tbptt);
+    set!(cfg.reader.real_fps, args.real_fps);
+    set!(cfg.reader.camera, args.camera);
+    cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
+    set!(cfg.on_bad_data, args.on_bad_data);
+    cfg.augment.hflip |= args.hflip;
+    cfg.allow_missing_classes |= args.allow_missing_classes;
+    if args.no_augment {
         cfg.augment.enabled = false;
     }
-    let outcome = trainer::experiment::run(&cfg, a.seeds)?;
+    let outcome = trainer::experiment::run(&cfg, args.seeds)?;
     for r in &outcome.runs {
         println!(
             "checkpoint {} (epoch {}, val loss {:.4})",
@@ -353,37 +374,33 @@ fn train(a: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-fn eval(a: EvalArgs) -> Result<()> {
-    let bad = BadData::new(a.on_bad_data);
+fn eval(args: EvalArgs) -> Result<()> {
+    let bad = BadData::new(args.on_bad_data);
     let window = trainer::eval::metrics::FrameWindow {
-        from_s: a.from_s,
-        to_s: a.to_s,
-        before_tail_s: a.before_tail_s,
+        from_s: args.from_s,
+        to_s: args.to_s,
+        before_tail_s: args.before_tail_s,
     };
     window.validate()?;
-    let trained = trained_reader(&a.checkpoints[0])?;
-    let camera = a.camera.clone().unwrap_or_else(|| {
+    let trained = trained_reader(&args.checkpoints[0])?;
+    let camera = args.camera.clone().unwrap_or_else(|| {
         let default = trainer::data::ReaderOptions::default().camera;
         trained["camera"].as_str().map_or(default, str::to_string)
     });
-    let mut data = match &a.data {
+    let mut data = match &args.data {
         Some(root) => {
             let defaults = trainer::data::ReaderOptions::default();
             let opts = trainer::data::ReaderOptions {
-                real_fps: a.real_fps,
-                center_crop: a.center_crop.or(trained["center_crop"].as_f64()),
-                camera: a.camera.clone().unwrap_or_else(|| {
-                    trained["camera"]
-                        .as_str()
-                        .map_or(defaults.camera.clone(), str::to_string)
-                }),
+                real_fps: args.real_fps,
+                center_crop: args.center_crop.or(trained["center_crop"].as_f64()),
+                camera: camera.clone(),
                 ..defaults
             };
             trainer::data::read_dataset(root, &opts, &bad)?
         }
-        None => trainer::experiment::test_split_of(&a.checkpoints[0], &bad)?,
+        None => trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?,
     };
-    if let Some(c) = a.center_crop {
+    if let Some(c) = args.center_crop {
         anyhow::ensure!(
             c > 0.0 && c <= 1.0,
             "--center-crop must be in (0, 1], got {c}"
@@ -393,7 +410,7 @@ fn eval(a: EvalArgs) -> Result<()> {
         }
     }
     if data.sequences.is_empty() {
-        match &a.data {
+        match &args.data {
             Some(root) => anyhow::bail!(
                 "no sequences to evaluate in {} (camera folder {})",
                 root.display(),
@@ -403,55 +420,55 @@ fn eval(a: EvalArgs) -> Result<()> {
         }
     }
     let mut report =
-        trainer::experiment::evaluate(&a.checkpoints, &data, &a.cache_dir, 32, &bad, &window)
+        trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
             .context("evaluation failed")?;
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
-    trainer::experiment::write_problems(&bad, &a.out)?;
-    trainer::eval::write_report(&report, &a.out)?;
+    trainer::experiment::write_problems(&bad, &args.out)?;
+    trainer::eval::write_report(&report, &args.out)?;
     print_headline(&report);
-    println!("report: {}", a.out.join("report.md").display());
+    println!("report: {}", args.out.join("report.md").display());
     Ok(())
 }
 
 /// The reader options a checkpoint was trained with (camera, centre crop):
 /// evaluation reads test frames the same way.
 fn trained_reader(checkpoint: &std::path::Path) -> Result<serde_json::Value> {
-    let (meta, _) = trainer::checkpoint::CheckpointMeta::load(checkpoint)?;
+    let (meta, _) = grasp_model::checkpoint::CheckpointMeta::load(checkpoint)?;
     Ok(meta.train_config["reader"].clone())
 }
 
-fn summarize(a: SummarizeArgs) -> Result<()> {
+fn summarize(args: SummarizeArgs) -> Result<()> {
     use trainer::eval::summary::{Entry, Summary, SummarySpec};
-    let mut spec = match &a.list {
+    let mut spec = match &args.list {
         Some(p) => SummarySpec::from_toml_file(p)?,
         None => SummarySpec::default(),
     };
-    for r in &a.reports {
+    for r in &args.reports {
         spec.reports.push(Entry::parse(r)?);
     }
-    spec.by_condition |= a.by_condition;
-    spec.log_x |= a.log_x;
-    spec.x_label = a.x_label.or(spec.x_label);
-    spec.title = a.title.or(spec.title);
+    spec.by_condition |= args.by_condition;
+    spec.log_x |= args.log_x;
+    spec.x_label = args.x_label.or(spec.x_label);
+    spec.title = args.title.or(spec.title);
     let summary = Summary::load(spec)?;
-    summary.write(&a.out)?;
-    println!("summary: {}", a.out.join("summary.md").display());
+    summary.write(&args.out)?;
+    println!("summary: {}", args.out.join("summary.md").display());
     if summary.has_x() {
-        println!("plot: {}", a.out.join("error.png").display());
+        println!("plot: {}", args.out.join("error.png").display());
     }
     Ok(())
 }
 
-fn bench(a: BenchArgs) -> Result<()> {
+fn bench(args: BenchArgs) -> Result<()> {
     let w = trainer::bench::Workload {
-        head: a.head,
-        sequences: a.sequences,
-        val_sequences: a.val_sequences,
-        frames: a.frames,
-        dim: a.dim,
-        batch: a.batch,
-        epochs: a.epochs,
+        head: args.head,
+        sequences: args.sequences,
+        val_sequences: args.val_sequences,
+        frames: args.frames,
+        dim: args.dim,
+        batch: args.batch,
+        epochs: args.epochs,
     };
     let mut secs = trainer::bench::heads_epoch_seconds(&w)?;
     // The first epoch includes one-off allocation: report the median of the rest.
@@ -462,22 +479,22 @@ fn bench(a: BenchArgs) -> Result<()> {
     secs.sort_by(f64::total_cmp);
     println!(
         "{{\"impl\": \"candle\", \"head\": \"{}\", \"median_epoch_s\": {:.4}, \"epochs_s\": {:?}}}",
-        a.head.name(),
+        args.head.name(),
         secs[secs.len() / 2],
         all
     );
     Ok(())
 }
 
-fn bench_backbone(a: BenchBackboneArgs) -> Result<()> {
+fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
     let w = trainer::bench::BackboneWorkload {
-        arch: a.backbone,
-        weights: a.weights,
-        batch: a.batch,
-        size: a.size,
-        width_mult: a.width_mult,
-        iters: a.iters,
-        latency_iters: a.latency_iters,
+        arch: args.backbone,
+        weights: args.weights,
+        batch: args.batch,
+        size: args.size,
+        width_mult: args.width_mult,
+        iters: args.iters,
+        latency_iters: args.latency_iters,
     };
     println!("{}", trainer::bench::backbone(&w)?);
     Ok(())
@@ -496,10 +513,10 @@ fn doctor() -> Result<()> {
             );
             continue;
         };
-        match trainer::backbone::venv_weights(variant) {
+        match grasp_model::backbone::venv_weights(variant) {
             Ok(path) => println!("{:20} found: {}", arch.name(), path.display()),
             Err(e) => {
-                missing_default |= variant == trainer::model::LiteVariant::Lite0;
+                missing_default |= variant == grasp_model::model::LiteVariant::Lite0;
                 println!("{:20} missing: {e:#}", arch.name());
             }
         }
@@ -512,15 +529,15 @@ fn doctor() -> Result<()> {
     Ok(())
 }
 
-fn print_headline(r: &trainer::eval::Report) {
-    if let Some(v) = r.aggregate.get("video_accuracy") {
+fn print_headline(report: &trainer::eval::Report) {
+    if let Some(v) = report.aggregate.get("video_accuracy") {
         println!(
             "[{}{}] per-video accuracy {:.1} ± {:.1} % over {} run(s)",
-            r.mode,
-            if r.backbone.is_empty() {
+            report.mode,
+            if report.backbone.is_empty() {
                 String::new()
             } else {
-                format!(", {}", r.backbone)
+                format!(", {}", report.backbone)
             },
             v.mean * 100.0,
             v.std * 100.0,

@@ -2,8 +2,8 @@
 //! (format 2); format-1 checkpoints, from before EfficientNet-Lite, have
 //! neither and still load as MobileNetV2 with bilinear resizing.
 
-use trainer::backbone::{Architecture, ResizeFilter};
-use trainer::checkpoint::{Classifier, FORMAT_VERSION, META_FILE};
+use grasp_model::backbone::{Architecture, ResizeFilter};
+use grasp_model::checkpoint::{Classifier, FORMAT_VERSION, META_FILE};
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
 

@@ -87,3 +87,31 @@ fn a_user_error_prints_its_message_without_a_backtrace() {
         "{stderr}"
     );
 }
+
+#[test]
+fn stand_in_logs_without_colour_codes_into_a_pipe_and_prints_its_checkpoint() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "stand-in",
+            "--backbone",
+            "mobilenet-v2",
+            "--size",
+            "32",
+            "--out",
+        ])
+        .arg(dir.path().join("stand-in"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("INFO"), "{stderr}");
+    assert!(
+        !stderr.contains('\x1b'),
+        "ANSI escape codes in a pipe: {stderr:?}"
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let checkpoint = Path::new(stdout.trim());
+    assert!(checkpoint.join("best.json").is_file(), "{stdout}");
+    assert!(checkpoint.join("best.safetensors").is_file(), "{stdout}");
+}

@@ -3,8 +3,8 @@
 //! the mug's parts get their own rows, a window scores fewer frames, and a
 //! run trained on centre crops evaluates on centre crops.
 
+use grasp_model::checkpoint::TrainMode;
 use std::path::Path;
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{BadData, OnBadData};

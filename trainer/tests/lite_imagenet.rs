@@ -11,7 +11,7 @@
 use std::path::PathBuf;
 
 use candle_core::{Device, D};
-use trainer::backbone::{Architecture, Backbone, BackboneInfo};
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
 
 /// (photograph, acceptable ImageNet classes, PyTorch reference top-1).
 const CASES: [(&str, &[u32], &str); 4] = [
@@ -29,15 +29,11 @@ fn arch_default() -> Architecture {
     Architecture::EfficientNetLite0
 }
 
-fn required() -> bool {
-    std::env::var("GRASP_REQUIRE_BLENDER").is_ok_and(|v| v == "1")
-}
-
 /// The weights file and scikit-image's data folder, or why not.
 fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     let venv = grasp_schema::venv::venv_dir();
     let site = grasp_schema::venv::site_packages(&venv).map_err(|e| e.to_string())?;
-    let weights = trainer::backbone::venv_weights(trainer::model::LiteVariant::Lite0)
+    let weights = grasp_model::backbone::venv_weights(grasp_model::model::LiteVariant::Lite0)
         .map_err(|e| format!("{e:#}"))?;
     let data = site.join("skimage").join("data");
     if !data.join(CASES[0].0).is_file() {
@@ -50,15 +46,24 @@ fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     Ok((weights, data))
 }
 
+/// [`prerequisites`], or `None` when `test` is skipped (it fails instead
+/// under GRASP_REQUIRE_BLENDER=1).
+fn prerequisites_or_skip(test: &str) -> Option<(PathBuf, PathBuf)> {
+    use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
+    match prerequisites() {
+        Ok(found) => Some(found),
+        Err(why) => {
+            check(test, REQUIRE_BLENDER_ENV, Some(why));
+            None
+        }
+    }
+}
+
 #[test]
 fn lite0_classifies_photographs_like_pytorch() {
-    let (weights, data) = match prerequisites() {
-        Ok(p) => p,
-        Err(why) if required() => panic!("GRASP_REQUIRE_BLENDER=1 but {why}"),
-        Err(why) => {
-            eprintln!("skipping the ImageNet check: {why}");
-            return;
-        }
+    let Some((weights, data)) = prerequisites_or_skip("lite0_classifies_photographs_like_pytorch")
+    else {
+        return;
     };
     assert_eq!(
         trainer::train::detect_architecture(&weights).unwrap(),
@@ -95,20 +100,22 @@ fn lite0_classifies_photographs_like_pytorch() {
 
 /// Lite1 and Lite2 come from the optional `backbones` extra: checked when
 /// installed (detection from the file, and the first two photographs at
-/// their native input sizes), skipped otherwise even under the test command.
+/// their native input sizes), skipped otherwise even under the test command
+/// (the venv itself is required there).
 #[test]
 fn larger_variants_when_installed() {
-    let Ok((_, data)) = prerequisites() else {
-        eprintln!("skipping: no venv (see lite0_classifies_photographs_like_pytorch)");
+    let Some((_, data)) = prerequisites_or_skip("larger_variants_when_installed") else {
         return;
     };
     for variant in [
-        trainer::model::LiteVariant::Lite1,
-        trainer::model::LiteVariant::Lite2,
+        grasp_model::model::LiteVariant::Lite1,
+        grasp_model::model::LiteVariant::Lite2,
     ] {
-        let Ok(weights) = trainer::backbone::venv_weights(variant) else {
+        let Ok(weights) = grasp_model::backbone::venv_weights(variant) else {
+            // optional even under the test command
             eprintln!(
-                "skipping {}: not installed (the optional `backbones` extra)",
+                "SKIPPED: larger_variants_when_installed: {} is not installed (the optional \
+                 `backbones` extra)",
                 variant.name()
             );
             continue;

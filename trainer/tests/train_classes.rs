@@ -2,8 +2,8 @@
 //! it would train to "100 %" on one-class data. `no_grasp` frames, which
 //! every sequence has, do not make it a second class.
 
+use grasp_model::checkpoint::TrainMode;
 use grasp_schema::taxonomy::{Class, Preshape};
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 

@@ -5,7 +5,7 @@
 //! sequences. The other learning tests train heads on generated features;
 //! this one covers the image path end to end.
 
-use trainer::checkpoint::TrainMode;
+use grasp_model::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 

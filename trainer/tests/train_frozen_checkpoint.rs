@@ -4,12 +4,12 @@
 //! cached under a key that includes its weights, only the head is trained,
 //! and the report names the checkpoint.
 
+use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::extractor::FeatureExtractor;
+use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
-use trainer::checkpoint::{Classifier, TrainMode};
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
-use trainer::features::FeatureExtractor;
-use trainer::heads::HeadKind;
 
 fn scratch_cfg(root: &Path) -> TrainConfig {
     TrainConfig {

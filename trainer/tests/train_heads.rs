@@ -9,11 +9,11 @@
 //! MobileNetV2 (width 0.25) stands in for `mobilenet_v2-b0353104.pth`; the
 //! code path (weights file -> hash -> cached features -> head) is the same.
 
+use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::heads::HeadKind;
 use std::path::Path;
-use trainer::checkpoint::{Classifier, TrainMode};
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
-use trainer::heads::HeadKind;
 
 fn setup(dir: &Path) -> TrainConfig {
     let mut spec = SyntheticSpec::small(Layout::Generated);
@@ -84,7 +84,7 @@ fn train_and_check(head: HeadKind) {
         assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-4);
     }
     // predict() = backbone features + head, as the evaluation computes them.
-    let feats = trainer::features::FeatureExtractor::extract(clf.backbone(), &frames).unwrap();
+    let feats = grasp_model::extractor::FeatureExtractor::extract(clf.backbone(), &frames).unwrap();
     let again = clf.predict_features(&feats).unwrap();
     for (a, b) in probs.iter().zip(&again) {
         for k in 0..5 {

@@ -4,10 +4,10 @@
 //! pre-shape, then two `no_grasp`). Chance is 1/5 per frame.
 
 use candle_core::{Device, Tensor};
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::HeadKind;
 use rand::Rng;
-use trainer::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
-use trainer::heads::HeadKind;
 use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 const DIM: usize = 64;
@@ -51,11 +51,11 @@ fn learn(head: HeadKind) -> f64 {
         train: split(40, 1, &means),
         val: split(12, 2, &means),
         real_data: false,
-        backbone: Some(trainer::backbone::BackboneInfo::generated(
+        backbone: Some(grasp_model::backbone::BackboneInfo::generated(
             "generated-features",
         )),
         feature_dim: DIM,
-        preprocess: trainer::backbone::Preprocess::imagenet(224),
+        preprocess: grasp_model::backbone::Preprocess::imagenet(224),
     };
     let dir = tempfile::tempdir().unwrap();
     let cfg = TrainConfig {

@@ -2,7 +2,7 @@
 //! trained, with augmentation, at a small width and input size; the
 //! checkpoint carries the backbone and every report names the mode.
 
-use trainer::checkpoint::{Classifier, TrainMode};
+use grasp_model::checkpoint::{Classifier, TrainMode};
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 

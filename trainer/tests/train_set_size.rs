@@ -2,7 +2,7 @@
 //! every object-part pair, validation and test are untouched, and the cap is
 //! recorded in the run's config, its checkpoints and its report.
 
-use trainer::checkpoint::TrainMode;
+use grasp_model::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::split::Split;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};

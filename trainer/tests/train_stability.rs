@@ -3,9 +3,9 @@
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
-use trainer::checkpoint::TrainMode;
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::{Head, HeadConfig, HeadKind};
 use trainer::config::TrainConfig;
-use trainer::heads::{Head, HeadConfig, HeadKind};
 use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 fn lstm(feature_dim: usize) -> (Head, candle_nn::VarMap) {
@@ -29,7 +29,7 @@ fn lstm_runs_ten_thousand_steps_without_nan() {
     assert_eq!(logits.dims(), &[2, 10_000, 5]);
     let v: Vec<f32> = logits.flatten_all().unwrap().to_vec1().unwrap();
     assert!(v.iter().all(|x| x.is_finite()));
-    let p = trainer::checkpoint::probabilities(&logits.get(0).unwrap()).unwrap();
+    let p = grasp_model::checkpoint::probabilities(&logits.get(0).unwrap()).unwrap();
     assert!(p.iter().all(|r| (r.iter().sum::<f32>() - 1.0).abs() < 1e-4));
 }
 
@@ -85,9 +85,9 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         train: split(features.clone()),
         val: split(features),
         real_data: false,
-        backbone: Some(trainer::backbone::BackboneInfo::generated("test")),
+        backbone: Some(grasp_model::backbone::BackboneInfo::generated("test")),
         feature_dim: dim,
-        preprocess: trainer::backbone::Preprocess::imagenet(224),
+        preprocess: grasp_model::backbone::Preprocess::imagenet(224),
     }
 }
 

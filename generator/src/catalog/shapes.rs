@@ -119,12 +119,6 @@ fn norm(a: V3) -> V3 {
     }
 }
 
-/// Rotation about Z by `a` radians, as rows.
-pub fn rot_z(a: f64) -> [[f64; 3]; 3] {
-    let (s, c) = a.sin_cos();
-    [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-}
-
 /// Rotation about Y by `a` radians, as rows.
 pub fn rot_y(a: f64) -> [[f64; 3]; 3] {
     let (s, c) = a.sin_cos();

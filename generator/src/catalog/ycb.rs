@@ -8,9 +8,10 @@
 //! hull of `points.xyz` is written next to the object files.
 
 use super::load::{ObjectFile, PartFile};
+use super::meshio;
 use super::model::{MeshSource, Pronation, TriMesh, UpsideDown};
-use super::{meshio, write_atomic};
 use anyhow::{bail, Context, Result};
+use grasp_schema::atomic::write_atomic;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;
 use std::path::{Path, PathBuf};

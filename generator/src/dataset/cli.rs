@@ -22,7 +22,7 @@ pub enum DatasetCommand {
         /// With --config: the folder is the output of `render --shard K/N`;
         /// only that shard's sequences are expected.
         #[arg(long, default_value = "0/1")]
-        shard: crate::render::Shard,
+        shard: super::shard::Shard,
     },
     /// Join shard outputs into OUT (copies, or hard links where possible).
     Merge { out: PathBuf, shards: Vec<PathBuf> },
@@ -44,12 +44,11 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             shard,
         } => {
             let source = match config {
-                Some(p) => Some(crate::render::planner_source::from_config(
-                    &GeneratorConfig::load(p)?,
-                )?),
+                Some(p) => Some(crate::plan::PlannerSource::new(&GeneratorConfig::load(p)?)?),
                 None => None,
             };
-            let report = super::verify::verify_shard(dir, source.as_deref(), *decode, *shard)?;
+            let source = source.as_ref().map(|s| s as &dyn crate::plan::PlanSource);
+            let report = super::verify::verify_shard(dir, source, *decode, *shard)?;
             print!("{}", report.render_text());
             if !report.ok() {
                 bail!("{}: {} problems", dir.display(), report.problems.len());

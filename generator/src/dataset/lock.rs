@@ -20,7 +20,7 @@
 //! * The holder's heartbeat also checks that the file is still its own; a
 //!   run whose lock was taken over stops instead of writing on.
 
-use crate::render::Shard;
+use super::shard::Shard;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

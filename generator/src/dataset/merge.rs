@@ -3,8 +3,8 @@
 //! present in two inputs must hold the same record.
 
 use super::lock;
+use super::shard::Shard;
 use super::writer::{read_record, sequence_dirs, visit_sequences, DatasetDir, WORK_DIR};
-use crate::render::Shard;
 use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{head_sequence_dir, SEQUENCE_FILE};
 use std::collections::BTreeSet;

@@ -6,6 +6,7 @@ pub mod cli;
 pub mod integrity;
 pub mod lock;
 pub mod merge;
+pub mod shard;
 pub mod stats;
 pub mod storage;
 pub mod verify;

@@ -8,11 +8,12 @@
 //! folder.
 
 use super::integrity::check_image;
+use super::shard::Shard;
 use super::writer::{
     manifest_entry, output_files, read_record, sequence_dirs, visit_sequences, WORK_DIR,
 };
 use super::{assign_folders, Assigned};
-use crate::render::{PlanSource, Shard};
+use crate::plan::PlanSource;
 use anyhow::{Context, Result};
 use grasp_schema::dataset::{
     head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,

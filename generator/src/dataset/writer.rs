@@ -7,8 +7,10 @@
 //! temporary folder and moved into `Head_d435` first; the wrist folder moves
 //! last, so a sequence is finished only when both cameras are complete.
 
-use crate::render::{PlannedKey, Shard};
+use super::shard::Shard;
+use crate::plan::PlannedKey;
 use anyhow::{bail, Context, Result};
+use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{
     camera_dir, frame_file_name, head_sequence_dir, padding_for, part_file_name, sequence_dir_name,
     ManifestEntry, SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE,
@@ -314,27 +316,6 @@ pub fn manifest_entry(rel_dir: &str, record: &SequenceRecord) -> ManifestEntry {
         condition: plan.key.condition,
         frames: plan.frames.len(),
     }
-}
-
-/// Writes a file through a temporary sibling and a rename. The temporary
-/// name is unique to this process, so shards writing the same file (a mesh,
-/// the manifest) into one folder never mix their bytes.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
-    let tmp = path.with_file_name(format!(".{name}.{}-{nanos}.tmp", std::process::id()));
-    let written = std::fs::write(&tmp, bytes)
-        .with_context(|| format!("cannot write {}", tmp.display()))
-        .and_then(|_| {
-            std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
-        });
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
 }
 
 /// Every finished sequence under `root` (folders holding `sequence.json`,

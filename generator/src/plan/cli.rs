@@ -4,6 +4,7 @@ use super::{sequence_keys, Planner};
 use crate::catalog::Catalog;
 use crate::config::GeneratorConfig;
 use anyhow::{bail, Context, Result};
+use grasp_schema::atomic::AtomicFile;
 use grasp_schema::SequencePlan;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -69,14 +70,14 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     let started = Instant::now();
     // Plans are written as they are made and only the drawn ones are kept:
     // memory does not grow with the number of sequences.
-    let mut sink = args.out.as_deref().map(JsonlWriter::create).transpose()?;
+    let mut sink = args.out.as_deref().map(AtomicFile::create).transpose()?;
     let mut shown = Vec::new();
     let bar = progress_bar(keys.len(), args.quiet);
     for key in &keys {
         let plan = planner.plan(key)?;
         bar.inc(1);
         if let Some(w) = sink.as_mut() {
-            w.push(&plan)?;
+            push_line(w, &plan)?;
         }
         if args.show.is_some() && plan.key.index < args.show_per_pair {
             shown.push(plan);
@@ -90,7 +91,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
         1e3 * secs / keys.len() as f64
     );
     if let (Some(w), Some(out)) = (sink, &args.out) {
-        w.finish()?;
+        w.commit()?;
         eprintln!("wrote {}", out.display());
     }
     if let Some(png) = &args.show {
@@ -99,6 +100,14 @@ pub fn run(args: &PlanArgs) -> Result<()> {
         eprintln!("drew {} paths into {}", shown.len(), png.display());
     }
     Ok(())
+}
+
+/// Appends `plan` as one JSON line.
+fn push_line(out: &mut AtomicFile, plan: &SequencePlan) -> Result<()> {
+    serde_json::to_writer(&mut *out, plan)
+        .map_err(anyhow::Error::from)
+        .and_then(|_| Ok(out.write_all(b"\n")?))
+        .with_context(|| format!("writing {}", out.path().display()))
 }
 
 fn progress_bar(len: usize, quiet: bool) -> indicatif::ProgressBar {
@@ -114,53 +123,6 @@ fn progress_bar(len: usize, quiet: bool) -> indicatif::ProgressBar {
         .expect("valid template"),
     );
     bar
-}
-
-/// A JSON-lines file written plan by plan into a temporary file, renamed
-/// into place by [`JsonlWriter::finish`] (removed if dropped before).
-struct JsonlWriter {
-    path: PathBuf,
-    tmp: PathBuf,
-    out: Option<std::io::BufWriter<std::fs::File>>,
-}
-
-impl JsonlWriter {
-    fn create(path: &Path) -> Result<Self> {
-        let tmp = tmp_path(path);
-        let file = std::fs::File::create(&tmp)
-            .with_context(|| format!("cannot create {}", tmp.display()))?;
-        Ok(JsonlWriter {
-            path: path.to_path_buf(),
-            tmp,
-            out: Some(std::io::BufWriter::new(file)),
-        })
-    }
-
-    fn push(&mut self, plan: &SequencePlan) -> Result<()> {
-        let w = self.out.as_mut().context("writer already finished")?;
-        serde_json::to_writer(&mut *w, plan)
-            .map_err(anyhow::Error::from)
-            .and_then(|_| Ok(w.write_all(b"\n")?))
-            .with_context(|| format!("writing {}", self.tmp.display()))
-    }
-
-    fn finish(mut self) -> Result<()> {
-        let w = self.out.take().context("writer already finished")?;
-        w.into_inner()
-            .map_err(|e| e.into_error())
-            .and_then(|f| f.sync_all())
-            .with_context(|| format!("writing {}", self.tmp.display()))?;
-        std::fs::rename(&self.tmp, &self.path)
-            .with_context(|| format!("renaming {} to {}", self.tmp.display(), self.path.display()))
-    }
-}
-
-impl Drop for JsonlWriter {
-    fn drop(&mut self) {
-        if self.out.is_some() {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
 }
 
 /// Plans every key in order, with a progress bar.
@@ -181,38 +143,7 @@ pub fn plan_all(
     Ok(plans)
 }
 
-/// Writes plans as JSON lines through a temporary file and a rename.
-pub fn write_jsonl(path: &Path, plans: &[SequencePlan]) -> Result<()> {
-    let tmp = tmp_path(path);
-    let write = || -> Result<()> {
-        let file = std::fs::File::create(&tmp)
-            .with_context(|| format!("cannot create {}", tmp.display()))?;
-        let mut w = std::io::BufWriter::new(file);
-        for p in plans {
-            serde_json::to_writer(&mut w, p)?;
-            w.write_all(b"\n")?;
-        }
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        Ok(())
-    };
-    if let Err(e) = write() {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.context(format!("writing {}", path.display())));
-    }
-    std::fs::rename(&tmp, path)
-        .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-}
-
-/// `dir/.name.tmp` next to the destination, so the rename stays on one filesystem.
-pub fn tmp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp"))
-}
-
-/// Reads plans written by [`write_jsonl`], naming the file and line on error.
+/// Reads plans written by `grasp-gen plan --out`, naming the file and line on error.
 pub fn read_jsonl(path: &Path) -> Result<Vec<SequencePlan>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;

@@ -187,12 +187,12 @@ pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Res
             draw_panel(&mut canvas, &view, planner, group);
         }
     }
-    let tmp = super::cli::tmp_path(out);
-    canvas
-        .img
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("renaming to {}", out.display()))
+    grasp_schema::atomic::write_atomic_with(out, |tmp| -> Result<()> {
+        canvas
+            .img
+            .save_with_format(tmp, image::ImageFormat::Png)
+            .with_context(|| format!("writing {}", out.display()))
+    })
 }
 
 fn draw_header(c: &mut Canvas, count: usize) {
@@ -206,7 +206,7 @@ fn draw_header(c: &mut Canvas, count: usize) {
     for p in Preshape::ALL {
         c.rect((x, 22), (x + 10, 30), crate::draw::preshape_colour(p));
         c.text(x + 14, 23, p.name(), INK);
-        x += 14 + 6 * p.name().len() as i64 + 16;
+        x += 14 + grasp_font::text_width(p.name(), 12.0).ceil() as i64 + 16;
     }
     c.text(x + 10, 23, "grey: table top and object silhouette", INK);
 }

@@ -13,6 +13,7 @@ pub mod head_camera;
 mod planner;
 pub mod scene;
 pub mod selection;
+pub mod source;
 pub mod trajectory;
 pub mod validity;
 pub mod wrist;
@@ -22,6 +23,7 @@ pub use conditions::ConditionsConfig;
 pub use head_camera::HeadCameraConfig;
 pub use planner::{sequence_keys, ObjectGeometry, Planner};
 pub use scene::SceneConfig;
+pub use source::{PlanSource, PlannedKey, PlannerSource};
 pub use trajectory::TrajectoryConfig;
 pub use validity::ValidityConfig;
 

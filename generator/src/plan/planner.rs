@@ -16,7 +16,7 @@ use grasp_schema::plan::{
     PLAN_SCHEMA_VERSION,
 };
 use grasp_schema::{Class, Condition};
-use nalgebra::Vector3;
+use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::json;
@@ -473,76 +473,9 @@ impl Planner {
         let n = traj.frame_count(duration)?;
         let c = &accepted.candidate;
         let s = c.sample.as_ref().expect("accepted candidates have a path");
-        let mut wrist_rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "wrist"));
-        let schedule = WristSchedule::sample(traj, s.approach_tau, &mut wrist_rng);
-
-        let up = Vector3::z();
-        let forward = Vector3::x();
-        let final_dir = (c.target - s.path.end())
-            .try_normalize(1e-12)
-            .unwrap_or_else(|| (c.target - s.path.position(1.0 - 1e-6)).normalize());
-        let look = |p: &Vector3<f64>| {
-            let d = c.target - p;
-            let d = if d.norm() > 1e-9 { d } else { final_dir };
-            look_at(&d, &up, &forward)
-        };
-        // Pronation-supination: turn the camera's X onto the box's X axis.
-        let end = s.path.end();
-        let q_end = look(&end);
-        let bx = &geo.boxes[part_index];
-        let box_x = c.placement.rotation * (bx.rotation * Vector3::x());
-        let ps_angle = match part.pronation {
-            Pronation::None => None,
-            rule => {
-                wrist::signed_angle_about(&final_dir, &wrist::right_axis(&q_end), &box_x).map(|a| {
-                    wrist::wrap_roll(
-                        a,
-                        if rule == Pronation::Supination {
-                            RollRule::Supination
-                        } else {
-                            RollRule::Shortest
-                        },
-                    )
-                })
-            }
-        }
-        .unwrap_or(0.0);
-        // Flexion-extension: pitch about the camera's X towards the other end.
-        let q_end_ps = wrist::roll(&q_end, ps_angle * schedule.ps(1.0));
-        let fe_angle = wrist::signed_angle_about(
-            &wrist::right_axis(&q_end_ps),
-            &wrist::view_direction(&q_end_ps),
-            &(c.other_end - end),
-        )
-        .unwrap_or(0.0);
-        let q_down = look_at(&-up, &up, &forward);
-
-        let tail = traj.tail_frames(n);
+        let wrist = WristAngles::new(traj, geo, part_index, part, c, stream);
         let class = Class::from(part.grasp_type.preshape());
-        let mut frames = (0..n)
-            .map(|i| {
-                let tau = frame_tau(i, n);
-                let p = s.path.position(tau);
-                let mut q = look(&p);
-                if let Some(t1) = s.rise_until.filter(|t1| tau < *t1) {
-                    q = wrist::slerp(&q_down, &q, min_jerk(tau / t1));
-                }
-                let q = wrist::pitch(
-                    &wrist::roll(&q, ps_angle * schedule.ps(tau)),
-                    fe_angle * schedule.fe(tau),
-                );
-                FramePlan {
-                    index: i as u32,
-                    time_s: i as f64 / traj.fps,
-                    camera: Pose {
-                        position: [p.x, p.y, p.z],
-                        rotation_wxyz: wrist::to_wxyz(&q),
-                    },
-                    class: if i >= n - tail { Class::NoGrasp } else { class },
-                    head_camera: None,
-                }
-            })
-            .collect::<Vec<_>>();
+        let mut frames = frame_poses(traj, n, c, &wrist, class);
         let head = self.head_camera(key, geo, &c.placement, stream);
         let mut elbows = Vec::new();
         if let Some(h) = &head {
@@ -553,52 +486,10 @@ impl Planner {
             }
         }
 
-        let mut sampled = BTreeMap::new();
+        let mut sampled = sampled_record(&accepted, draws, part, &wrist);
         let mut put = |k: &str, v: serde_json::Value| {
             sampled.insert(k.to_string(), v);
         };
-        put("attempts", json!(accepted.attempts));
-        put(
-            "rejections",
-            json!(accepted
-                .rejections
-                .iter()
-                .map(|(r, n)| (format!("{r:?}"), *n))
-                .collect::<BTreeMap<_, _>>()),
-        );
-        put("object_x", json!(c.placement.position.x));
-        put("object_y", json!(c.placement.position.y));
-        put("object_yaw_deg", json!(c.placement.yaw.to_degrees()));
-        put("upside_down", json!(c.placement.upside_down));
-        put(
-            "target_end",
-            json!(if c.target_sign > 0.0 { "+z" } else { "-z" }),
-        );
-        for (k, v) in &s.sampled {
-            put(k, v.clone());
-        }
-        put("end", json!(end.as_slice()));
-        put("standoff_m", json!(draws.approach.standoff_m));
-        put("aim_offset", json!(draws.approach.aim));
-        if let Some((_, forced)) = draws.approach.end {
-            put("target_end_forced", json!(accepted.attempts <= forced));
-        }
-        put("fov_scale", json!(draws.fov_scale));
-        put("principal_point_shift", json!(draws.principal_point_shift));
-        put(
-            "mesh_tolerance_used",
-            json!(accepted.acceptance.mesh_contact_before_box_m.is_some()),
-        );
-        if let Some(gap) = accepted.acceptance.mesh_contact_before_box_m {
-            put("mesh_contact_before_box_m", json!(gap));
-        }
-        put(
-            "pronation_rule",
-            json!(format!("{:?}", part.pronation).to_lowercase()),
-        );
-        put("ps_angle_deg", json!(ps_angle.to_degrees()));
-        put("fe_angle_deg", json!(fe_angle.to_degrees()));
-        schedule.record(&mut put);
         for (k, v) in head.iter().flat_map(|h| h.sampled()) {
             put(k, v);
         }
@@ -614,7 +505,7 @@ impl Planner {
         let colors = randomize::color_range(
             &self.levers.object_color,
             geo.spec.color.as_ref(),
-            crate::render::source::default_object_hsv(&geo.spec.id),
+            crate::appearance::default_object_hsv(&geo.spec.id),
         );
         let appearance = Some(randomize::sequence_appearance(
             &self.config.appearance,
@@ -677,6 +568,200 @@ impl Planner {
         };
         super::distractors::sample(lever, &self.config.plan.scene, &keepout, stream)
     }
+}
+
+/// The wrist's two rotations of a sequence: pronation-supination turns the
+/// camera's X onto the target box's X axis, flexion-extension pitches it
+/// towards the part's other end; the schedule says how much of each is
+/// done at each moment.
+struct WristAngles {
+    schedule: WristSchedule,
+    /// Pronation-supination angle (radians, about the view direction).
+    ps_angle: f64,
+    /// Flexion-extension angle (radians, about the camera's X).
+    fe_angle: f64,
+    /// The approach direction at the end of the path.
+    final_dir: Vector3<f64>,
+    /// The path's end point.
+    end: Vector3<f64>,
+}
+
+impl WristAngles {
+    fn new(
+        traj: &super::TrajectoryConfig,
+        geo: &ObjectGeometry,
+        part_index: usize,
+        part: &GraspPart,
+        c: &Candidate,
+        stream: u64,
+    ) -> WristAngles {
+        let s = c.sample.as_ref().expect("accepted candidates have a path");
+        let mut wrist_rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "wrist"));
+        let schedule = WristSchedule::sample(traj, s.approach_tau, &mut wrist_rng);
+        let end = s.path.end();
+        let final_dir = (c.target - end)
+            .try_normalize(1e-12)
+            .unwrap_or_else(|| (c.target - s.path.position(1.0 - 1e-6)).normalize());
+        // Pronation-supination: turn the camera's X onto the box's X axis.
+        let q_end = look_toward(c.target, final_dir, &end);
+        let bx = &geo.boxes[part_index];
+        let box_x = c.placement.rotation * (bx.rotation * Vector3::x());
+        let ps_angle = match part.pronation {
+            Pronation::None => None,
+            rule => {
+                wrist::signed_angle_about(&final_dir, &wrist::right_axis(&q_end), &box_x).map(|a| {
+                    wrist::wrap_roll(
+                        a,
+                        if rule == Pronation::Supination {
+                            RollRule::Supination
+                        } else {
+                            RollRule::Shortest
+                        },
+                    )
+                })
+            }
+        }
+        .unwrap_or(0.0);
+        // Flexion-extension: pitch about the camera's X towards the other end.
+        let q_end_ps = wrist::roll(&q_end, ps_angle * schedule.pronation_fraction(1.0));
+        let fe_angle = wrist::signed_angle_about(
+            &wrist::right_axis(&q_end_ps),
+            &wrist::view_direction(&q_end_ps),
+            &(c.other_end - end),
+        )
+        .unwrap_or(0.0);
+        WristAngles {
+            schedule,
+            ps_angle,
+            fe_angle,
+            final_dir,
+            end,
+        }
+    }
+
+    /// The camera's orientation at `position` and normalised time `tau`:
+    /// looking at the target, risen from the floor-facing start, rolled and
+    /// pitched by the executed fractions of the wrist angles.
+    fn camera_rotation(
+        &self,
+        c: &Candidate,
+        sample: &PathSample,
+        position: &Vector3<f64>,
+        tau: f64,
+    ) -> UnitQuaternion<f64> {
+        let (up, forward) = (Vector3::z(), Vector3::x());
+        let mut q = look_toward(c.target, self.final_dir, position);
+        if let Some(t1) = sample.rise_until.filter(|t1| tau < *t1) {
+            let q_down = look_at(&-up, &up, &forward);
+            q = wrist::slerp(&q_down, &q, min_jerk(tau / t1));
+        }
+        wrist::pitch(
+            &wrist::roll(&q, self.ps_angle * self.schedule.pronation_fraction(tau)),
+            self.fe_angle * self.schedule.flexion_fraction(tau),
+        )
+    }
+}
+
+/// The camera at `position` looking at `target` (along `final_dir` when it
+/// is already there).
+fn look_toward(
+    target: Vector3<f64>,
+    final_dir: Vector3<f64>,
+    position: &Vector3<f64>,
+) -> UnitQuaternion<f64> {
+    let d = target - position;
+    let d = if d.norm() > 1e-9 { d } else { final_dir };
+    look_at(&d, &Vector3::z(), &Vector3::x())
+}
+
+/// The `n` frames' camera poses and labels: the part's class, then
+/// `no_grasp` for the tail.
+fn frame_poses(
+    traj: &super::TrajectoryConfig,
+    n: usize,
+    c: &Candidate,
+    wrist: &WristAngles,
+    class: Class,
+) -> Vec<FramePlan> {
+    let s = c.sample.as_ref().expect("accepted candidates have a path");
+    let tail = traj.tail_frames(n);
+    (0..n)
+        .map(|i| {
+            let tau = frame_tau(i, n);
+            let p = s.path.position(tau);
+            let q = wrist.camera_rotation(c, s, &p, tau);
+            FramePlan {
+                index: i as u32,
+                time_s: i as f64 / traj.fps,
+                camera: Pose {
+                    position: [p.x, p.y, p.z],
+                    rotation_wxyz: wrist::to_wxyz(&q),
+                },
+                class: if i >= n - tail { Class::NoGrasp } else { class },
+                head_camera: None,
+            }
+        })
+        .collect()
+}
+
+/// The plan's `sampled` record: every value drawn for the sequence and how
+/// the search went (attempts, rejections, tolerance use), for analysis and
+/// reproduction.
+fn sampled_record(
+    accepted: &Accepted,
+    draws: &SequenceDraws,
+    part: &GraspPart,
+    wrist: &WristAngles,
+) -> BTreeMap<String, serde_json::Value> {
+    let c = &accepted.candidate;
+    let s = c.sample.as_ref().expect("accepted candidates have a path");
+    let mut sampled = BTreeMap::new();
+    let mut put = |k: &str, v: serde_json::Value| {
+        sampled.insert(k.to_string(), v);
+    };
+    put("attempts", json!(accepted.attempts));
+    put(
+        "rejections",
+        json!(accepted
+            .rejections
+            .iter()
+            .map(|(r, n)| (format!("{r:?}"), *n))
+            .collect::<BTreeMap<_, _>>()),
+    );
+    put("object_x", json!(c.placement.position.x));
+    put("object_y", json!(c.placement.position.y));
+    put("object_yaw_deg", json!(c.placement.yaw.to_degrees()));
+    put("upside_down", json!(c.placement.upside_down));
+    put(
+        "target_end",
+        json!(if c.target_sign > 0.0 { "+z" } else { "-z" }),
+    );
+    for (k, v) in &s.sampled {
+        put(k, v.clone());
+    }
+    put("end", json!(wrist.end.as_slice()));
+    put("standoff_m", json!(draws.approach.standoff_m));
+    put("aim_offset", json!(draws.approach.aim));
+    if let Some((_, forced)) = draws.approach.end {
+        put("target_end_forced", json!(accepted.attempts <= forced));
+    }
+    put("fov_scale", json!(draws.fov_scale));
+    put("principal_point_shift", json!(draws.principal_point_shift));
+    put(
+        "mesh_tolerance_used",
+        json!(accepted.acceptance.mesh_contact_before_box_m.is_some()),
+    );
+    if let Some(gap) = accepted.acceptance.mesh_contact_before_box_m {
+        put("mesh_contact_before_box_m", json!(gap));
+    }
+    put(
+        "pronation_rule",
+        json!(format!("{:?}", part.pronation).to_lowercase()),
+    );
+    put("ps_angle_deg", json!(wrist.ps_angle.to_degrees()));
+    put("fe_angle_deg", json!(wrist.fe_angle.to_degrees()));
+    wrist.schedule.record(&mut put);
+    sampled
 }
 
 /// The object's bounding-sphere centre lies inside the image and the sphere
@@ -767,7 +852,7 @@ impl WristSchedule {
     }
 
     /// Executed fraction of the pronation-supination angle at `tau`.
-    fn ps(&self, tau: f64) -> f64 {
+    fn pronation_fraction(&self, tau: f64) -> f64 {
         let a = self.approach_tau;
         self.ps_fraction
             * match self.timing {
@@ -781,7 +866,7 @@ impl WristSchedule {
     }
 
     /// Executed fraction of the flexion-extension angle at `tau`.
-    fn fe(&self, tau: f64) -> f64 {
+    fn flexion_fraction(&self, tau: f64) -> f64 {
         let keep = 1.0 - self.fe_rate;
         let k = self.approach_frames(tau) - self.fe_onset_frame;
         match self.timing {
@@ -809,6 +894,6 @@ impl WristSchedule {
         put("ps_duration_frames", json!(self.ps_duration_frames));
         put("ps_fraction", json!(self.ps_fraction));
         put("fe_onset_frame", json!(self.fe_onset_frame));
-        put("fe_final_fraction", json!(self.fe(1.0)));
+        put("fe_final_fraction", json!(self.flexion_fraction(1.0)));
     }
 }

@@ -13,17 +13,16 @@ pub mod parts;
 pub mod planner_source;
 pub mod protocol;
 pub mod scene;
-pub mod shard;
 pub mod source;
 pub mod worker;
 
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 
+pub use crate::dataset::shard::Shard;
 pub use orchestrator::{render, RenderOptions, RenderSummary};
 pub use scene::SceneGeometry;
-pub use shard::Shard;
-pub use source::{PlanSource, PlannedKey};
+pub use source::RenderSource;
 
 /// Render engine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

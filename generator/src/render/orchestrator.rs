@@ -4,13 +4,14 @@
 //! sequences, shows progress, and stops cleanly when `stop` is raised.
 
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
-use super::source::PlanSource;
+use super::source::RenderSource;
 use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::lock::{self, OutputLock};
 use crate::dataset::storage;
-use crate::dataset::writer::{frame_files, write_atomic};
+use crate::dataset::writer::frame_files;
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use anyhow::{anyhow, bail, Context, Result};
+use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{RenderCost, SequenceRecord, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -103,7 +104,7 @@ enum Event {
 
 /// What every worker thread shares.
 struct Shared {
-    source: Arc<dyn PlanSource>,
+    source: Arc<dyn RenderSource>,
     dataset: DatasetDir,
     geometry: SceneGeometry,
     settings: serde_json::Value,
@@ -124,7 +125,7 @@ struct Shared {
 
 /// Renders every unfinished sequence of `shard` into `opts.out`.
 pub fn render(
-    source: Arc<dyn PlanSource>,
+    source: Arc<dyn RenderSource>,
     config: &RenderConfig,
     opts: &RenderOptions,
 ) -> Result<RenderSummary> {
@@ -251,7 +252,7 @@ fn finish_manifest(dataset: &DatasetDir, shard: Shard, lock: OutputLock) -> Resu
 /// Writes each needed object's mesh once, as raw little-endian arrays the
 /// workers pass to Blender without parsing.
 fn write_meshes(
-    source: &dyn PlanSource,
+    source: &dyn RenderSource,
     dataset: &DatasetDir,
     todo: &VecDeque<Job>,
 ) -> Result<BTreeMap<String, MeshFiles>> {

@@ -1,21 +1,14 @@
-//! Where the sequences to render come from: their keys in canonical order,
-//! their plans, the object meshes and the scene. The real source wraps the
-//! catalog and the planner; [`StaticSource`] renders given plans.
+//! What rendering needs besides the plans ([`crate::plan::PlanSource`]):
+//! the object meshes, their part boxes and the scene. The real source is
+//! the catalog and the planner (`planner_source`); [`StaticSource`] renders
+//! given plans.
 
 use super::parts::PartBox;
 use super::SceneGeometry;
+use crate::plan::{PlanSource, PlannedKey};
 use anyhow::{bail, Context, Result};
-use grasp_schema::taxonomy::Preshape;
 use grasp_schema::{SequenceKey, SequencePlan};
 use std::collections::BTreeMap;
-
-/// A key with what the dataset layout needs before planning.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlannedKey {
-    pub key: SequenceKey,
-    pub category: String,
-    pub preshape: Preshape,
-}
 
 /// A triangle mesh in the object frame (Z up, origin at the bottom centre).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -24,35 +17,16 @@ pub struct Mesh {
     pub faces: Vec<[u32; 3]>,
 }
 
-pub trait PlanSource: Send + Sync {
-    /// Every sequence of the dataset, in canonical order. Folder numbers and
-    /// shards derive from positions in this list, so it must not depend on
-    /// the shard or on what is already rendered.
-    fn keys(&self) -> Result<Vec<PlannedKey>>;
-    fn plan(&self, key: &SequenceKey) -> Result<SequencePlan>;
+/// A plan source that can also give what the renderer draws.
+pub trait RenderSource: PlanSource {
     fn mesh(&self, object: &str) -> Result<Mesh>;
     fn scene(&self) -> SceneGeometry;
     /// The object's grasp-part boxes in catalog order (the `part` pass).
     fn parts(&self, object: &str) -> Result<Vec<PartBox>>;
     /// The object's own colour (linear RGB), used when the plan keeps it.
     fn object_color(&self, object: &str) -> [f64; 3] {
-        default_object_color(object)
+        crate::appearance::default_object_color(object)
     }
-}
-
-/// A stable, muted colour per object id (the catalog carries no materials):
-/// a hue from a hash of the id.
-pub fn default_object_color(object: &str) -> [f64; 3] {
-    let [h, s, v] = default_object_hsv(object);
-    crate::appearance::hsv_to_linear_rgb(h, s, v)
-}
-
-/// [`default_object_color`] as HSV (of its sRGB colour).
-pub fn default_object_hsv(object: &str) -> [f64; 3] {
-    let hash = object.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    });
-    [(hash % 360) as f64 / 360.0, 0.55, 0.75]
 }
 
 /// Renders a fixed set of plans with given meshes (tests, re-renders).
@@ -84,7 +58,9 @@ impl PlanSource for StaticSource {
             .cloned()
             .with_context(|| format!("no plan for sequence {}", key.id()))
     }
+}
 
+impl RenderSource for StaticSource {
     fn mesh(&self, object: &str) -> Result<Mesh> {
         match self.meshes.get(object) {
             Some(m) => Ok(m.clone()),

@@ -20,22 +20,27 @@ pub fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_grasp-gen"))
 }
 
-/// Set to 1 (as `scripts/test.sh` does) to make a missing Blender venv a
-/// test failure instead of a skip.
-pub const REQUIRE_BLENDER_ENV: &str = "GRASP_REQUIRE_BLENDER";
-
-/// Whether the Python environment with bpy exists; tests skip without it,
-/// unless `GRASP_REQUIRE_BLENDER=1`, where its absence fails the test.
+/// Whether the Python environment with bpy exists. Without it the calling
+/// test is reported as skipped, or fails under `GRASP_REQUIRE_BLENDER=1`
+/// (`scripts/test.sh`): see `grasp_schema::prerequisite`.
 pub fn have_blender() -> bool {
-    let ok = generator::python::site_packages(&generator::python::venv_dir()).is_ok();
-    if !ok {
-        let hint = generator::python::setup_hint();
-        if std::env::var(REQUIRE_BLENDER_ENV).is_ok_and(|v| v == "1") {
-            panic!("{REQUIRE_BLENDER_ENV}=1 but there is no Python venv with bpy ({hint})");
-        }
-        eprintln!("skipping: no Python venv with bpy ({hint})");
-    }
-    ok
+    let missing = generator::python::site_packages(&generator::python::venv_dir())
+        .err()
+        .map(|_| {
+            format!(
+                "there is no Python venv with bpy ({})",
+                generator::python::setup_hint()
+            )
+        });
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("a Blender test")
+        .to_string();
+    grasp_schema::prerequisite::check(
+        &test,
+        grasp_schema::prerequisite::REQUIRE_BLENDER_ENV,
+        missing,
+    )
 }
 
 /// A box mesh `size` metres, resting on z = 0.

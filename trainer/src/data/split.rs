@@ -40,7 +40,8 @@ pub struct Split {
 
 impl Split {
     pub fn save(&self, path: &Path) -> Result<()> {
-        crate::checkpoint::write_atomic(path, serde_json::to_string_pretty(self)?.as_bytes())
+        let json = serde_json::to_string_pretty(self)?;
+        Ok(grasp_schema::atomic::write_atomic(path, json.as_bytes())?)
     }
 
     pub fn load(path: &Path) -> Result<Split> {

@@ -88,7 +88,7 @@ impl SyntheticSpec {
     }
 }
 
-const COLOURS: [[f32; 3]; 5] = [
+const COLOURS: [[f32; 3]; Class::COUNT] = [
     [200.0, 60.0, 60.0],
     [60.0, 190.0, 70.0],
     [70.0, 80.0, 210.0],

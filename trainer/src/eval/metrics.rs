@@ -40,37 +40,39 @@ pub struct VideoPrediction {
     /// Whether the object has several pre-shapes in the evaluated data.
     pub multi_grasp: bool,
     pub labels: Vec<Class>,
-    pub probs: Vec<[f32; 5]>,
+    pub probs: Vec<[f32; Class::COUNT]>,
     pub times_s: Vec<f64>,
 }
 
 /// The predicted class of a frame: argmax, ties to the lowest index.
-pub fn frame_class(p: &[f32; 5]) -> usize {
+pub fn frame_class(probs: &[f32; Class::COUNT]) -> usize {
     let mut best = 0;
-    for c in 1..5 {
-        if p[c] > p[best] {
-            best = c;
+    for class in 1..Class::COUNT {
+        if probs[class] > probs[best] {
+            best = class;
         }
     }
     best
 }
 
 /// The video's pre-shape by majority vote (see the module docs for ties).
-pub fn video_class(probs: &[[f32; 5]]) -> usize {
-    let mut votes = [0usize; 4];
-    let mut mass = [0f64; 4];
+pub fn video_class(probs: &[[f32; Class::COUNT]]) -> usize {
+    // The pre-shape classes come first; no_grasp (the last) never wins.
+    const PRESHAPES: usize = Preshape::ALL.len();
+    let mut votes = [0usize; PRESHAPES];
+    let mut mass = [0f64; PRESHAPES];
     for p in probs {
         let c = frame_class(p);
-        if c < 4 {
+        if c < PRESHAPES {
             votes[c] += 1;
         }
-        for k in 0..4 {
+        for k in 0..PRESHAPES {
             mass[k] += f64::from(p[k]);
         }
     }
     let top = *votes.iter().max().unwrap_or(&0);
     let mut best: Option<usize> = None;
-    for c in 0..4 {
+    for c in 0..PRESHAPES {
         if votes[c] == top && best.is_none_or(|b| mass[c] > mass[b]) {
             best = Some(c);
         }
@@ -284,7 +286,7 @@ fn opt_ratio(num: usize, den: usize) -> Option<f64> {
 
 pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
     let mut m = Metrics {
-        frame_confusion: vec![vec![0; 5]; 5],
+        frame_confusion: vec![vec![0; Class::COUNT]; Class::COUNT],
         video_confusion: vec![vec![0; 4]; 4],
         time: TimeCurves {
             bin_s,
@@ -433,17 +435,20 @@ pub fn mean_std(values: &[f64]) -> Option<MeanStd> {
 }
 
 /// The headline scalars of a run, by name, for aggregation over seeds.
-pub fn scalars(m: &Metrics) -> Vec<(&'static str, Option<f64>)> {
+pub fn scalars(metrics: &Metrics) -> Vec<(&'static str, Option<f64>)> {
     vec![
-        ("video_accuracy", Some(m.video_accuracy)),
-        ("video_accuracy_single", m.video_accuracy_single),
-        ("video_accuracy_multi", m.video_accuracy_multi),
-        ("frame_accuracy", Some(m.frame_accuracy)),
+        ("video_accuracy", Some(metrics.video_accuracy)),
+        ("video_accuracy_single", metrics.video_accuracy_single),
+        ("video_accuracy_multi", metrics.video_accuracy_multi),
+        ("frame_accuracy", Some(metrics.frame_accuracy)),
         (
             "frame_accuracy_without_no_grasp",
-            Some(m.frame_accuracy_without_no_grasp),
+            Some(metrics.frame_accuracy_without_no_grasp),
         ),
-        ("baseline_video_accuracy", Some(m.baseline.video_accuracy)),
+        (
+            "baseline_video_accuracy",
+            Some(metrics.baseline.video_accuracy),
+        ),
     ]
 }
 

@@ -1,11 +1,12 @@
 //! Runs a classifier over a dataset's videos.
 
 use super::VideoPrediction;
-use crate::checkpoint::{Classifier, TrainMode};
 use crate::data::{BadData, Dataset};
-use crate::features::{FeatureCache, FeatureExtractor};
+use crate::features::FeatureCache;
 use anyhow::Result;
 use candle_core::Tensor;
+use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::extractor::FeatureExtractor;
 
 /// Per-frame probabilities of every video of `data`. Frozen-pretrained
 /// checkpoints read features through `cache` (shared with training);

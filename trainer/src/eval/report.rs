@@ -120,7 +120,7 @@ impl Report {
                 }
             }
         }
-        let mut fc = vec![vec![0; 5]; 5];
+        let mut fc = vec![vec![0; Class::COUNT]; Class::COUNT];
         let mut vc = vec![vec![0; 4]; 4];
         let (mut single, mut multi) = (Curve::default(), Curve::default());
         for r in &runs {
@@ -174,13 +174,24 @@ fn add_curve(acc: &mut Curve, c: &Curve) {
 /// Writes the report's files into `dir`.
 pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    crate::checkpoint::write_atomic(
+    grasp_schema::atomic::write_atomic(
         &dir.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),
     )?;
-    super::plots::time_accuracy(report, &dir.join("time_accuracy.png"))?;
-    super::plots::confusion(&report.frame_confusion, &dir.join("confusion.png"))?;
-    crate::checkpoint::write_atomic(&dir.join("report.md"), markdown(report).as_bytes())
+    let time_accuracy = super::plots::time_accuracy(&super::plots::TimeAccuracy {
+        title: format!("Accuracy against time ({}, {})", report.mode, report.head),
+        bin_s: report.time_bin_s,
+        single: &report.time_single.accuracy(),
+        multi: &report.time_multi.accuracy(),
+    })?;
+    grasp_schema::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
+    let confusion =
+        super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
+    grasp_schema::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
+    Ok(grasp_schema::atomic::write_atomic(
+        &dir.join("report.md"),
+        markdown(report).as_bytes(),
+    )?)
 }
 
 fn pct(v: Option<f64>) -> String {
@@ -193,39 +204,39 @@ fn pct_ms(m: Option<&MeanStd>) -> String {
         .unwrap_or_else(|| "–".into())
 }
 
-pub fn markdown(r: &Report) -> String {
+pub fn markdown(report: &Report) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Evaluation report\n");
     let _ = writeln!(
         s,
         "- **Mode: {}** (head: {}{})\n- Dataset: `{}`\n- Videos: {} per run; runs (seeds): {}\n",
-        r.mode,
-        r.head,
-        if r.backbone.is_empty() {
+        report.mode,
+        report.head,
+        if report.backbone.is_empty() {
             String::new()
         } else {
-            format!("; {}", r.backbone)
+            format!("; {}", report.backbone)
         },
-        r.dataset.display(),
-        r.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
-        r.runs.len()
+        report.dataset.display(),
+        report.runs.first().map(|x| x.metrics.videos).unwrap_or(0),
+        report.runs.len()
     );
-    if !r.window.is_all() {
+    if !report.window.is_all() {
         let _ = writeln!(
             s,
             "- **Frames scored: {}** ({} video(s) with no frame in the window left out)\n",
-            r.window.describe(),
-            r.videos_outside_window
+            report.window.describe(),
+            report.videos_outside_window
         );
     }
-    if let Some(n) = r.train_sequences {
-        let cap = r
+    if let Some(n) = report.train_sequences {
+        let cap = report
             .sequences_per_pair
             .map(|k| format!(" (at most {k} per object-part pair)"))
             .unwrap_or_default();
         let _ = writeln!(s, "- Training set: {n} sequences{cap}\n");
     }
-    if let Some(b) = &r.bad_data {
+    if let Some(b) = &report.bad_data {
         let _ = writeln!(
             s,
             "- **Bad data skipped: {} problem(s)** (unreadable images, missing labels or \
@@ -238,7 +249,7 @@ pub fn markdown(r: &Report) -> String {
     let _ = writeln!(
         s,
         "## Accuracy (%), mean ± std over {} run(s)\n",
-        r.runs.len()
+        report.runs.len()
     );
     let _ = writeln!(s, "| metric | value |\n|---|---|");
     let rows = [
@@ -259,13 +270,13 @@ pub fn markdown(r: &Report) -> String {
         ),
     ];
     for (label, key) in rows {
-        let _ = writeln!(s, "| {label} | {} |", pct_ms(r.aggregate.get(key)));
+        let _ = writeln!(s, "| {label} | {} |", pct_ms(report.aggregate.get(key)));
     }
     let _ = writeln!(
         s,
         "\n## Runs\n\n| seed | checkpoint | video | single | multi | frame | frame w/o no_grasp | baseline |\n|---|---|---|---|---|---|---|---|"
     );
-    for run in &r.runs {
+    for run in &report.runs {
         let m = &run.metrics;
         let _ = writeln!(
             s,
@@ -280,20 +291,20 @@ pub fn markdown(r: &Report) -> String {
             pct(Some(m.baseline.video_accuracy)),
         );
     }
-    part_table(&mut s, r);
+    part_table(&mut s, report);
     let names: Vec<&str> = Class::names();
     let _ = writeln!(
         s,
         "\n## Frame confusion (rows: truth, columns: prediction; summed over runs)\n"
     );
-    matrix(&mut s, &r.frame_confusion, &names);
+    matrix(&mut s, &report.frame_confusion, &names);
     let pre: Vec<&str> = Preshape::ALL.iter().map(|p| p.name()).collect();
     let _ = writeln!(
         s,
         "\n## Video confusion (rows: truth, columns: vote; summed over runs)\n"
     );
-    matrix(&mut s, &r.video_confusion, &pre);
-    if let Some(first) = r.runs.first() {
+    matrix(&mut s, &report.video_confusion, &pre);
+    if let Some(first) = report.runs.first() {
         let _ = writeln!(
             s,
             "\n## Baseline object → pre-shape\n\n| object | pre-shape |\n|---|---|"
@@ -306,12 +317,12 @@ pub fn markdown(r: &Report) -> String {
         s,
         "\n## Accuracy against time (Fig. 5)\n\n![accuracy against time](time_accuracy.png)\n\n| time (s) | single-grasp (%) | multi-grasp (%) |\n|---|---|---|"
     );
-    let (a, b) = (r.time_single.accuracy(), r.time_multi.accuracy());
+    let (a, b) = (report.time_single.accuracy(), report.time_multi.accuracy());
     for i in 0..a.len().max(b.len()) {
         let _ = writeln!(
             s,
             "| {:.2} | {} | {} |",
-            i as f64 * r.time_bin_s,
+            i as f64 * report.time_bin_s,
             pct(a.get(i).copied().flatten()),
             pct(b.get(i).copied().flatten())
         );

@@ -92,7 +92,7 @@ impl SummarySpec {
         for (i, e) in spec.reports.iter_mut().enumerate() {
             e.check()
                 .with_context(|| format!("{}: report {} (`{}`)", path.display(), i + 1, e.label))?;
-            e.path = crate::backbone::resolve(&e.path, dir);
+            e.path = grasp_model::backbone::resolve(&e.path, dir);
         }
         Ok(spec)
     }
@@ -132,18 +132,18 @@ pub struct Row {
 }
 
 impl Row {
-    pub fn load(e: &Entry) -> Result<Row> {
-        let file = if e.path.is_dir() {
-            e.path.join("report.json")
+    pub fn load(entry: &Entry) -> Result<Row> {
+        let file = if entry.path.is_dir() {
+            entry.path.join("report.json")
         } else {
-            e.path.clone()
+            entry.path.clone()
         };
         let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("report `{}`: cannot read {}", e.label, file.display()))?;
+            .with_context(|| format!("report `{}`: cannot read {}", entry.label, file.display()))?;
         let r: Report = serde_json::from_str(&text).with_context(|| {
             format!(
                 "report `{}`: {} is not a report.json",
-                e.label,
+                entry.label,
                 file.display()
             )
         })?;
@@ -151,13 +151,13 @@ impl Row {
         let video = get("video_accuracy").with_context(|| {
             format!(
                 "report `{}`: {} has no aggregate.video_accuracy (no runs?)",
-                e.label,
+                entry.label,
                 file.display()
             )
         })?;
         Ok(Row {
-            label: e.label.clone(),
-            x: e.x,
+            label: entry.label.clone(),
+            x: entry.x,
             source: file,
             mode: r.mode,
             backbone: r.backbone,
@@ -232,14 +232,17 @@ impl Summary {
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         if self.has_x() {
-            let png = super::plots::error_against_x(self)?;
-            crate::checkpoint::write_atomic(&dir.join("error.png"), &png)?;
+            let png = super::plots::error_against_x(&self.error_plot()?)?;
+            grasp_schema::atomic::write_atomic(&dir.join("error.png"), &png)?;
         }
-        crate::checkpoint::write_atomic(
+        grasp_schema::atomic::write_atomic(
             &dir.join("summary.json"),
             serde_json::to_string_pretty(self)?.as_bytes(),
         )?;
-        crate::checkpoint::write_atomic(&dir.join("summary.md"), self.markdown().as_bytes())
+        Ok(grasp_schema::atomic::write_atomic(
+            &dir.join("summary.md"),
+            self.markdown().as_bytes(),
+        )?)
     }
 
     pub fn markdown(&self) -> String {
@@ -272,6 +275,37 @@ impl Summary {
         }
         self.sources(&mut s);
         s
+    }
+
+    /// The plot of per-video error against x: one series per label group.
+    fn error_plot(&self) -> Result<super::plots::ErrorAgainstX> {
+        let mut series: Vec<super::plots::Series> = Vec::new();
+        for r in &self.rows {
+            let Some(x) = r.x else { continue };
+            if self.spec.log_x && x <= 0.0 {
+                anyhow::bail!("report `{}`: x = {x} cannot go on a log axis", r.label);
+            }
+            let group = r.group_name().0.to_string();
+            let point = (x, r.video_error.mean * 100.0, r.video_error.std * 100.0);
+            match series.iter_mut().find(|(g, _)| *g == group) {
+                Some((_, v)) => v.push(point),
+                None => series.push((group, vec![point])),
+            }
+        }
+        for (_, v) in &mut series {
+            v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let title = self
+            .spec
+            .title
+            .clone()
+            .unwrap_or_else(|| format!("Per-video error against {}", self.x_label()));
+        Ok(super::plots::ErrorAgainstX {
+            title,
+            x_label: self.x_label().to_string(),
+            log_x: self.spec.log_x,
+            series,
+        })
     }
 
     pub fn x_label(&self) -> &str {

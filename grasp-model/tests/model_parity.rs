@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use trainer::model::{weights, MobileNetV2, MobileNetV2Config};
+use grasp_model::model::{weights, MobileNetV2, MobileNetV2Config};
 
 const TOL: f32 = 1e-4;
 

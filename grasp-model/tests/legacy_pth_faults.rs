@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
-use trainer::model::weights;
+use grasp_model::model::weights;
 
 /// One tensor of a written file: a view of storage `key`.
 #[derive(Clone)]
@@ -176,7 +176,7 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 }
 
 fn load(path: &Path) -> anyhow::Result<HashMap<String, Tensor>> {
-    weights::load_tensors(path, &Device::Cpu)
+    Ok(weights::load_tensors(path, &Device::Cpu)?)
 }
 
 /// The error of loading `bytes`, which must name the file and `tensor`.

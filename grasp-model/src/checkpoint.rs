@@ -5,12 +5,14 @@
 //! from scratch) and `best.json` ([`CheckpointMeta`]: classes, mode,
 //! preprocessing, backbone, training config). Both are written atomically.
 
-use crate::backbone::{Backbone, BackboneInfo, Preprocess};
-use crate::features::FeatureExtractor;
+use crate::backbone::{resolve, Backbone, BackboneInfo, Preprocess};
+use crate::error::{ModelError, Result};
+use crate::extractor::FeatureExtractor;
+use crate::hashing::file_sha256;
 use crate::heads::{Head, HeadConfig, HeadKind};
-use anyhow::{Context, Result};
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
+use grasp_schema::atomic::{write_atomic, write_atomic_with};
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
@@ -78,57 +80,91 @@ impl CheckpointMeta {
         } else {
             dir_or_json.to_path_buf()
         };
-        let text = std::fs::read_to_string(&json)
-            .with_context(|| format!("cannot read checkpoint {}", json.display()))?;
-        let meta: CheckpointMeta = serde_json::from_str(&text)
-            .with_context(|| format!("invalid checkpoint metadata {}", json.display()))?;
+        let text =
+            std::fs::read_to_string(&json).map_err(|e| ModelError::read("checkpoint", &json, e))?;
+        let meta: CheckpointMeta =
+            serde_json::from_str(&text).map_err(|e| ModelError::Corrupt {
+                path: json.clone(),
+                reason: format!("invalid checkpoint metadata: {e}"),
+            })?;
         if !(OLDEST_FORMAT_VERSION..=FORMAT_VERSION).contains(&meta.format_version) {
-            anyhow::bail!(
-                "{}: format_version {} (this build reads {OLDEST_FORMAT_VERSION} to \
-                 {FORMAT_VERSION})",
-                json.display(),
-                meta.format_version
-            );
+            return Err(ModelError::UnsupportedVersion {
+                path: json,
+                found: meta.format_version,
+                oldest: OLDEST_FORMAT_VERSION,
+                newest: FORMAT_VERSION,
+            });
         }
         let dir = json.parent().unwrap_or(Path::new(".")).to_path_buf();
         Ok((meta, dir))
     }
 }
 
+impl BackboneInfo {
+    /// A checkpoint's backbone, to be used frozen: the `backbone.*` tensors
+    /// of a from-scratch checkpoint, or the pretrained file a frozen one was
+    /// trained on. Also returns the checkpoint's preprocessing, which the
+    /// backbone was trained with and must keep.
+    pub fn from_checkpoint(dir_or_json: &Path) -> Result<(BackboneInfo, Preprocess)> {
+        if dir_or_json.is_dir() && !dir_or_json.join(META_FILE).is_file() {
+            return Err(ModelError::Invalid(format!(
+                "{} is not a checkpoint (no {META_FILE}){}",
+                dir_or_json.display(),
+                seed_hint(dir_or_json)
+            )));
+        }
+        let (meta, dir) = CheckpointMeta::load(dir_or_json)?;
+        let info = match meta.mode {
+            TrainMode::FromScratch => {
+                let weights = dir.join(WEIGHTS_FILE);
+                BackboneInfo {
+                    id: meta.backbone.id.clone(),
+                    arch: meta.backbone.arch,
+                    weights_sha256: Some(file_sha256(&weights)?),
+                    weights_path: Some(weights),
+                    width_mult: meta.backbone.width_mult,
+                    num_classes: meta.backbone.num_classes,
+                    weights_prefix: Some("backbone".to_string()),
+                    source_checkpoint: Some(dir),
+                }
+            }
+            TrainMode::FrozenPretrained => {
+                let mut info = meta.backbone.clone();
+                info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
+                info
+            }
+        };
+        Ok((info, meta.preprocessing))
+    }
+}
+
+/// ", e.g. RUN/seed-0" when `run` is a training run's directory.
+fn seed_hint(run: &Path) -> String {
+    let mut seeds: Vec<String> = std::fs::read_dir(run)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().join(META_FILE).is_file())
+        .map(|e| e.path().display().to_string())
+        .collect();
+    seeds.sort();
+    match seeds.first() {
+        Some(s) => format!("; its checkpoints are in seed folders, e.g. {s}"),
+        None => String::new(),
+    }
+}
+
 /// Writes the checkpoint atomically: tensors first, metadata last, so a
 /// `best.json` always describes a complete `best.safetensors`.
 pub fn save(dir: &Path, meta: &CheckpointMeta, tensors: &[(String, Tensor)]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let map: std::collections::HashMap<String, Tensor> = tensors.iter().cloned().collect();
-    let weights = dir.join(WEIGHTS_FILE);
-    let tmp = temp_path(&weights);
-    candle_core::safetensors::save(&map, &tmp)
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, &weights)
-        .with_context(|| format!("cannot move into {}", weights.display()))?;
-    write_atomic(
-        &dir.join(META_FILE),
-        serde_json::to_string_pretty(meta)?.as_bytes(),
-    )
-}
-
-/// A sibling temporary path, unique to this process.
-pub fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
-}
-
-/// Writes `bytes` to a temporary file and renames it over `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    let tmp = temp_path(path);
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot move into {}", path.display()))
+    write_atomic_with(&dir.join(WEIGHTS_FILE), |tmp| -> Result<()> {
+        Ok(candle_core::safetensors::save(&map, tmp)?)
+    })?;
+    let json = serde_json::to_string_pretty(meta).map_err(|e| {
+        ModelError::Invalid(format!("cannot serialize the checkpoint metadata: {e}"))
+    })?;
+    Ok(write_atomic(&dir.join(META_FILE), json.as_bytes())?)
 }
 
 /// A trained pre-shape classifier: backbone plus head, for inference.
@@ -146,10 +182,22 @@ impl Classifier {
     pub fn load(dir_or_json: &Path, device: &Device) -> Result<Classifier> {
         let (meta, dir) = CheckpointMeta::load(dir_or_json)?;
         let weights = dir.join(WEIGHTS_FILE);
+        if !weights.is_file() {
+            return Err(ModelError::Missing {
+                what: "checkpoint weights",
+                path: weights,
+            });
+        }
+        // SAFETY: the file is mapped read-only and not modified while mapped
+        // (checkpoints are replaced by rename, never rewritten in place).
         let vb = unsafe { VarBuilder::from_mmaped_safetensors(&[&weights], DType::F32, device) }
-            .with_context(|| format!("cannot read {}", weights.display()))?;
+            .map_err(|e| ModelError::Unreadable {
+                path: weights.clone(),
+                what: "not a readable safetensors file",
+                source: Box::new(e),
+            })?;
         let head = Head::new(meta.head, vb.pp("head"))
-            .with_context(|| format!("{}: head tensors", weights.display()))?;
+            .map_err(|e| ModelError::tensors(format!("{}: head tensors", weights.display()), e))?;
         let backbone = match meta.mode {
             TrainMode::FromScratch => Backbone::from_vb(
                 meta.backbone.clone(),
@@ -157,12 +205,16 @@ impl Classifier {
                 vb.pp("backbone"),
                 device,
             )
-            .with_context(|| format!("{}: backbone tensors", weights.display()))?,
+            .map_err(|e| match e {
+                ModelError::Tensors { context, source } => ModelError::tensors(
+                    format!("{}: backbone tensors: {context}", weights.display()),
+                    source,
+                ),
+                other => other,
+            })?,
             TrainMode::FrozenPretrained => {
                 let mut info = meta.backbone.clone();
-                info.weights_path = info
-                    .weights_path
-                    .map(|p| crate::backbone::resolve(&p, &dir));
+                info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
                 Backbone::load_pretrained(&info, meta.preprocessing.clone(), device)?
             }
         };
@@ -188,7 +240,7 @@ impl Classifier {
     /// Per-frame class probabilities (softmax by log-sum-exp). The FC head
     /// treats frames independently; an LSTM head reads them as one sequence
     /// in the given order, from a zero state.
-    pub fn predict(&self, frames: &[RgbImage]) -> Result<Vec<[f32; 5]>> {
+    pub fn predict(&self, frames: &[RgbImage]) -> Result<Vec<[f32; Class::COUNT]>> {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
@@ -197,7 +249,7 @@ impl Classifier {
     }
 
     /// Per-frame probabilities from precomputed features `(T, D)`.
-    pub fn predict_features(&self, feats: &Tensor) -> Result<Vec<[f32; 5]>> {
+    pub fn predict_features(&self, feats: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
         let logits = match self.head.cfg.kind {
             HeadKind::Fc => self.head.forward_frames(feats)?,
             HeadKind::Lstm => self
@@ -210,12 +262,17 @@ impl Classifier {
 }
 
 /// Rows of softmax probabilities as fixed arrays of the five classes.
-pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; 5]>> {
-    let p: Vec<Vec<f32>> = crate::loss::softmax(logits)?.to_vec2()?;
+pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
+    let p: Vec<Vec<f32>> = crate::softmax::softmax(logits)?.to_vec2()?;
     p.into_iter()
         .map(|row| {
-            row.try_into()
-                .map_err(|r: Vec<f32>| anyhow::anyhow!("expected 5 classes, got {}", r.len()))
+            row.try_into().map_err(|r: Vec<f32>| {
+                ModelError::Invalid(format!(
+                    "expected {} classes, got {}",
+                    Class::COUNT,
+                    r.len()
+                ))
+            })
         })
         .collect()
 }

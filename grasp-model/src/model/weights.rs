@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use crate::error::{ModelError, Result};
 use candle_core::{DType, Device, Shape, Tensor};
 use candle_nn::var_builder::SimpleBackend;
 use candle_nn::{Init, VarBuilder};
@@ -22,7 +22,7 @@ pub enum Format {
 }
 
 impl Format {
-    pub fn from_path(path: &Path) -> anyhow::Result<Self> {
+    pub fn from_path(path: &Path) -> Result<Self> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -30,51 +30,55 @@ impl Format {
         match ext.as_deref() {
             Some("pth") | Some("pt") => Ok(Self::Pth),
             Some("safetensors") => Ok(Self::Safetensors),
-            _ => bail!(
+            _ => Err(ModelError::Invalid(format!(
                 "weights file {}: unknown extension, expected .pth, .pt or .safetensors",
                 path.display()
-            ),
+            ))),
         }
     }
 }
 
 /// Reads every tensor of a checkpoint, keyed by parameter name.
-pub fn load_tensors(path: &Path, device: &Device) -> anyhow::Result<HashMap<String, Tensor>> {
+pub fn load_tensors(path: &Path, device: &Device) -> Result<HashMap<String, Tensor>> {
     let format = Format::from_path(path)?;
     if !path.is_file() {
-        bail!("weights file {} does not exist", path.display());
+        return Err(ModelError::Missing {
+            what: "weights file",
+            path: path.to_path_buf(),
+        });
     }
     let tensors = match format {
-        Format::Safetensors => candle_core::safetensors::load(path, device).with_context(|| {
-            format!(
-                "weights file {}: not a readable safetensors file",
-                path.display()
-            )
-        })?,
+        Format::Safetensors => {
+            candle_core::safetensors::load(path, device).map_err(|e| ModelError::Unreadable {
+                path: path.to_path_buf(),
+                what: "not a readable safetensors file",
+                source: Box::new(e),
+            })?
+        }
         Format::Pth => load_pth(path, device)?,
     };
     if tensors.is_empty() {
-        bail!("weights file {} holds no tensors", path.display());
+        return Err(ModelError::Corrupt {
+            path: path.to_path_buf(),
+            reason: "the weights file holds no tensors".into(),
+        });
     }
     Ok(tensors)
 }
 
-fn load_pth(path: &Path, device: &Device) -> anyhow::Result<HashMap<String, Tensor>> {
+fn load_pth(path: &Path, device: &Device) -> Result<HashMap<String, Tensor>> {
     if super::legacy_pth::is_legacy(path) {
-        return super::legacy_pth::load(path, device).with_context(|| {
-            format!(
-                "weights file {}: unreadable legacy (pre-1.6) PyTorch checkpoint",
-                path.display()
-            )
+        return super::legacy_pth::load(path, device).map_err(|source| ModelError::LegacyPth {
+            path: path.to_path_buf(),
+            source,
         });
     }
-    let context = || {
-        format!(
-            "weights file {}: not a readable PyTorch checkpoint (torch.save of a state_dict)",
-            path.display()
-        )
-    };
-    let mut entries = candle_core::pickle::read_all_with_key(path, None).with_context(context)?;
+    let mut entries =
+        candle_core::pickle::read_all_with_key(path, None).map_err(|e| ModelError::Unreadable {
+            path: path.to_path_buf(),
+            what: "not a readable PyTorch checkpoint (torch.save of a state_dict)",
+            source: Box::new(e),
+        })?;
     if entries.is_empty() {
         // Training checkpoints often wrap the weights: {"state_dict": {...}}.
         entries =
@@ -88,7 +92,7 @@ fn load_pth(path: &Path, device: &Device) -> anyhow::Result<HashMap<String, Tens
 
 /// A `VarBuilder` over the checkpoint at `path` (by extension: `.pth`/`.pt`
 /// or `.safetensors`), producing f32 tensors on `device`.
-pub fn var_builder(path: &Path, device: &Device) -> anyhow::Result<VarBuilder<'static>> {
+pub fn var_builder(path: &Path, device: &Device) -> Result<VarBuilder<'static>> {
     let tensors = load_tensors(path, device)?;
     let backend = CheckedTensors {
         path: path.to_path_buf(),

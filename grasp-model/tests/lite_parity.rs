@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
-use trainer::model::{weights, EfficientNetLite, EfficientNetLiteConfig};
+use grasp_model::model::{weights, EfficientNetLite, EfficientNetLiteConfig};
 
 const TOL: f32 = 1e-4;
 

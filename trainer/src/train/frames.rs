@@ -1,0 +1,88 @@
+//! A split's valid frames indexed by row: labels, the rows of each
+//! sequence, and where the rows' features come from (cached or decoded).
+
+use crate::data::{self, BadData, Dataset};
+use crate::features::SequenceFeatures;
+use anyhow::Result;
+use candle_core::{Device, Tensor};
+use image::RgbImage;
+
+/// Where a split's frame features come from.
+pub enum FrameSource {
+    /// Frozen mode: cached features, one row per valid frame.
+    Cached(Tensor),
+    /// From scratch: decoded frames, run through the trained backbone.
+    Images(Vec<RgbImage>),
+}
+
+/// A split's valid frames, indexed by row.
+pub struct SplitFrames {
+    pub labels: Vec<u32>,
+    /// Rows of each sequence, in frame order.
+    pub seq_rows: Vec<Vec<usize>>,
+    pub seq_class: Vec<u32>,
+    pub seq_ids: Vec<String>,
+    pub source: FrameSource,
+}
+
+impl SplitFrames {
+    pub fn from_features(data: &Dataset, feats: &[SequenceFeatures], dev: &Device) -> Result<Self> {
+        let table = crate::features::FrameTable::build(data, feats);
+        let x = Tensor::from_vec(table.x, (table.labels.len(), table.dim.max(1)), dev)?;
+        Ok(Self::index(
+            data,
+            |si, fi| feats[si].valid[fi],
+            FrameSource::Cached(x),
+        ))
+    }
+
+    /// Decodes every frame of `data` at `size` (unreadable ones per policy).
+    pub fn from_images(data: &Dataset, size: u32, bad: &BadData) -> Result<Self> {
+        let bar = crate::progress::bar(data.sequences.len() as u64, "frames");
+        let mut images = Vec::new();
+        let mut valid = Vec::new();
+        for seq in &data.sequences {
+            let mut v = Vec::with_capacity(seq.frames.len());
+            for f in &seq.frames {
+                let img = data::images::load_frame_cropped(f, seq.center_crop, bad)?;
+                v.push(img.is_some());
+                images.extend(img.map(|i| data::augment::resize(&i, size)));
+            }
+            valid.push(v);
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        Ok(Self::index(
+            data,
+            |si, fi| valid[si][fi],
+            FrameSource::Images(images),
+        ))
+    }
+
+    fn index(data: &Dataset, valid: impl Fn(usize, usize) -> bool, source: FrameSource) -> Self {
+        let mut s = SplitFrames {
+            labels: Vec::new(),
+            seq_rows: Vec::new(),
+            seq_class: Vec::new(),
+            seq_ids: Vec::new(),
+            source,
+        };
+        for (si, seq) in data.sequences.iter().enumerate() {
+            let mut rows = Vec::new();
+            for (fi, label) in seq.labels.iter().enumerate() {
+                if valid(si, fi) {
+                    rows.push(s.labels.len());
+                    s.labels.push(label.index() as u32);
+                }
+            }
+            s.seq_rows.push(rows);
+            s.seq_class.push(seq.grasp_class().index() as u32);
+            s.seq_ids.push(seq.id.clone());
+        }
+        s
+    }
+
+    pub fn frames(&self) -> usize {
+        self.labels.len()
+    }
+}

@@ -1,0 +1,252 @@
+//! The paper's training protocol (Sec. III): cross-entropy, Adam (lr 5e-4,
+//! coupled L2 5e-4), learning rate x0.1 after `plateau_patience` epochs
+//! without validation improvement, early stop after `early_stop_patience`,
+//! per-epoch random downsampling of every class to the smallest, the best
+//! checkpoint by validation loss.
+//!
+//! Two modes share the loop: frozen-pretrained (the paper's; heads on cached
+//! features) and from-scratch (the whole MobileNetV2, with augmentation).
+//!
+//! One module per concept: [`splits`] (loading and splitting the data),
+//! [`frames`] (the frame index), [`net`] (the network's forward pass and
+//! loss), [`balance`] (class balancing), [`plateau`] (the learning-rate
+//! schedule), [`prepare`] (backbone and features); this file holds the
+//! loop.
+
+mod balance;
+mod frames;
+mod net;
+mod plateau;
+mod prepare;
+mod splits;
+
+pub use balance::epoch_units;
+pub use frames::{FrameSource, SplitFrames};
+pub use net::Net;
+pub use plateau::{Plateau, PlateauStep};
+use prepare::build_net;
+pub use prepare::{detect_architecture, frozen_backbone, prepare, Prepared};
+pub use splits::{load_splits, Splits};
+
+use crate::config::TrainConfig;
+use crate::optim::Adam;
+use anyhow::Result;
+use candle_core::{Device, Tensor};
+use grasp_model::checkpoint::{self, CheckpointMeta};
+use grasp_model::heads::HeadKind;
+use grasp_schema::taxonomy::Class;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+/// One epoch's numbers, written to `history.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpochStats {
+    pub epoch: usize,
+    pub lr: f64,
+    pub train_loss: f64,
+    pub train_accuracy: f64,
+    pub train_frames: usize,
+    pub val_loss: f64,
+    pub val_accuracy: f64,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TrainOutcome {
+    pub checkpoint: PathBuf,
+    pub best_epoch: usize,
+    pub best_val_loss: f64,
+    pub stopped_early: bool,
+    pub history: Vec<EpochStats>,
+}
+
+/// Trains one model with `seed` into `out` (checkpoint, history).
+pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Result<TrainOutcome> {
+    let dev = Device::Cpu;
+    let (net, backbone_info) = build_net(cfg, prep, seed, &dev)?;
+    let mut opt = Adam::new(net.trainable(), cfg.optimizer)?;
+    let batch = cfg.batch_size_for(prep.real_data).max(1);
+    let mut plateau = Plateau::new(
+        cfg.plateau_patience,
+        cfg.plateau_factor,
+        cfg.early_stop_patience,
+    );
+    let mut history = Vec::new();
+    let mut outcome = TrainOutcome {
+        checkpoint: out.to_path_buf(),
+        best_epoch: 0,
+        best_val_loss: f64::INFINITY,
+        stopped_early: false,
+        history: Vec::new(),
+    };
+    let unit_classes: Vec<u32> = match cfg.head {
+        HeadKind::Fc => prep.train.labels.clone(),
+        HeadKind::Lstm => prep.train.seq_class.clone(),
+    };
+    for epoch in 1..=cfg.max_epochs {
+        let start = Instant::now();
+        let mut rng = crate::rng::stream(seed, &format!("epoch/{epoch}"));
+        let units = epoch_units(&unit_classes, cfg.balance_classes, &mut rng);
+        let (train_loss, train_acc, frames) =
+            train_epoch(&net, &prep.train, &units, batch, &mut opt, &mut rng, epoch)?;
+        let (val_loss, val_acc) = evaluate_split(&net, &prep.val, batch)?;
+        if !val_loss.is_finite() {
+            anyhow::bail!("non-finite validation loss ({val_loss}) after epoch {epoch}");
+        }
+        let lr = opt.learning_rate();
+        history.push(EpochStats {
+            epoch,
+            lr,
+            train_loss,
+            train_accuracy: train_acc,
+            train_frames: frames,
+            val_loss,
+            val_accuracy: val_acc,
+            seconds: start.elapsed().as_secs_f64(),
+        });
+        let decision = plateau.step(val_loss, lr);
+        if decision.improved {
+            outcome.best_epoch = epoch;
+            outcome.best_val_loss = val_loss;
+            let meta = CheckpointMeta {
+                format_version: checkpoint::FORMAT_VERSION,
+                classes: Class::ALL.to_vec(),
+                mode: cfg.mode,
+                head: net.head.cfg,
+                preprocessing: prep.preprocess.clone(),
+                backbone: backbone_info.clone(),
+                seed,
+                epoch,
+                val_loss,
+                val_accuracy: val_acc,
+                train_sequences: Some(prep.train.seq_rows.len()),
+                train_config: serde_json::to_value(cfg)?,
+            };
+            checkpoint::save(out, &meta, &net.tensors())?;
+        }
+        grasp_schema::atomic::write_atomic(
+            &out.join("history.json"),
+            serde_json::to_string_pretty(&history)?.as_bytes(),
+        )?;
+        tracing::info!(
+            "epoch {epoch}: loss {train_loss:.4} acc {:.1}% | val loss {val_loss:.4} acc {:.1}% | lr {lr:.1e}{}",
+            train_acc * 100.0,
+            val_acc * 100.0,
+            if decision.improved { " | saved" } else { "" }
+        );
+        if let Some(new_lr) = decision.new_lr {
+            tracing::info!("validation loss plateaued: learning rate {lr:.1e} -> {new_lr:.1e}");
+            opt.set_learning_rate(new_lr);
+        }
+        if decision.stop {
+            tracing::info!(
+                "early stop: no validation improvement for {} epochs",
+                cfg.early_stop_patience
+            );
+            outcome.stopped_early = true;
+            break;
+        }
+    }
+    outcome.history = history;
+    Ok(outcome)
+}
+
+fn train_epoch(
+    net: &Net,
+    frames: &SplitFrames,
+    units: &[usize],
+    batch: usize,
+    opt: &mut Adam,
+    rng: &mut impl Rng,
+    epoch: usize,
+) -> Result<(f64, f64, usize)> {
+    let bar = crate::progress::bar(
+        units.len().div_ceil(batch) as u64,
+        &format!("epoch {epoch}"),
+    );
+    let (mut loss_sum, mut correct, mut counted) = (0.0, 0usize, 0usize);
+    for (bi, chunk) in units.chunks(batch).enumerate() {
+        let b = net.forward(frames, chunk, true, rng)?;
+        let name = || batch_name(frames, chunk, net.head.cfg.kind, epoch, bi);
+        check_finite(&b.features, "feature", &name)?;
+        let loss = b.loss()?;
+        let v = loss.to_scalar::<f32>()?;
+        if !v.is_finite() {
+            anyhow::bail!("non-finite training loss ({v}) in {}", name());
+        }
+        opt.step(&loss.backward()?)?;
+        let (c, n) = b.correct()?;
+        let frames_in = b.frames()?;
+        loss_sum += f64::from(v) * frames_in as f64;
+        correct += c;
+        counted += n;
+        bar.set_message(format!(
+            "loss {:.4} acc {:.1}% lr {:.1e}",
+            loss_sum / counted.max(1) as f64,
+            100.0 * correct as f64 / counted.max(1) as f64,
+            opt.learning_rate()
+        ));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let n = counted.max(1) as f64;
+    Ok((loss_sum / n, correct as f64 / n, counted))
+}
+
+fn batch_name(
+    frames: &SplitFrames,
+    chunk: &[usize],
+    kind: HeadKind,
+    epoch: usize,
+    bi: usize,
+) -> String {
+    let first = chunk.first().map(|u| match kind {
+        HeadKind::Lstm => frames.seq_ids[*u].clone(),
+        HeadKind::Fc => {
+            let seq = frames
+                .seq_rows
+                .iter()
+                .position(|r| r.contains(u))
+                .unwrap_or(0);
+            frames.seq_ids.get(seq).cloned().unwrap_or_default()
+        }
+    });
+    format!(
+        "epoch {epoch}, batch {bi} ({} units, first from sequence {})",
+        chunk.len(),
+        first.unwrap_or_default()
+    )
+}
+
+fn check_finite(t: &Tensor, what: &str, name: &dyn Fn() -> String) -> Result<()> {
+    if let Some(bad) = grasp_model::model::first_non_finite(t)? {
+        anyhow::bail!("non-finite {what} value ({bad}) in {}", name());
+    }
+    Ok(())
+}
+
+/// Mean per-frame loss and accuracy over a whole split (no downsampling).
+pub fn evaluate_split(net: &Net, frames: &SplitFrames, batch: usize) -> Result<(f64, f64)> {
+    let units: Vec<usize> = match net.head.cfg.kind {
+        HeadKind::Fc => (0..frames.frames()).collect(),
+        HeadKind::Lstm => (0..frames.seq_rows.len()).collect(),
+    };
+    let mut rng = crate::rng::stream(0, "eval");
+    let (mut loss_sum, mut correct, mut counted) = (0.0, 0usize, 0usize);
+    let batch = if net.backbone.is_some() {
+        batch
+    } else {
+        batch.max(1024)
+    };
+    for chunk in units.chunks(batch) {
+        let b = net.forward(frames, chunk, false, &mut rng)?;
+        let n = b.frames()?;
+        loss_sum += f64::from(b.loss()?.to_scalar::<f32>()?) * n as f64;
+        let (c, k) = b.correct()?;
+        correct += c;
+        counted += k;
+    }
+    let n = counted.max(1) as f64;
+    Ok((loss_sum / n, correct as f64 / n))
+}

@@ -1,0 +1,228 @@
+//! The trainable network (a head, plus the backbone from scratch): its
+//! forward pass on a batch of rows or sequences, and the batch's loss.
+
+use super::{FrameSource, SplitFrames};
+use crate::data;
+use anyhow::{Context, Result};
+use candle_core::{Device, Tensor, D};
+use candle_nn::VarMap;
+use grasp_model::backbone::Backbone;
+use grasp_model::heads::{Head, HeadKind};
+use grasp_model::model::gather::gather_rows;
+use image::RgbImage;
+use rand::Rng;
+
+/// The trainable network: a head, plus the backbone in from-scratch mode.
+pub struct Net {
+    pub head: Head,
+    pub head_vars: VarMap,
+    /// From-scratch backbone and its variables.
+    pub backbone: Option<(Backbone, VarMap)>,
+    pub augment: crate::data::augment::AugmentConfig,
+    pub tbptt: usize,
+}
+
+impl Net {
+    pub(super) fn trainable(&self) -> Vec<candle_core::Var> {
+        let mut v = crate::init::trainable_vars(&self.head_vars);
+        if let Some((_, vm)) = &self.backbone {
+            v.extend(crate::init::trainable_vars(vm));
+        }
+        v
+    }
+
+    /// Features `(rows, D)` of `rows` of `frames` (`None`: a zero padding
+    /// row, for sequence batches).
+    fn features(
+        &self,
+        frames: &SplitFrames,
+        rows: &[Option<usize>],
+        train: bool,
+        rng: &mut impl Rng,
+    ) -> Result<Tensor> {
+        match (&frames.source, &self.backbone) {
+            (FrameSource::Cached(x), _) => Ok(gather_rows(x, rows)?),
+            (FrameSource::Images(images), Some((bb, _))) => {
+                let size = bb.preprocess.size;
+                let present: Vec<usize> = rows.iter().flatten().copied().collect();
+                let batch: Vec<RgbImage> = present
+                    .iter()
+                    .map(|r| {
+                        if train {
+                            data::augment::augment(&images[*r], size, &self.augment, rng)
+                        } else {
+                            data::augment::resize(&images[*r], size)
+                        }
+                    })
+                    .collect();
+                let x = bb.input(&batch)?;
+                let f = bb.net.features(&x, train)?;
+                if present.len() == rows.len() {
+                    return Ok(f);
+                }
+                // Padding rows: a zero row appended after the features.
+                let zero = Tensor::zeros((1, f.dim(1)?), f.dtype(), f.device())?;
+                let with_zero = Tensor::cat(&[&f, &zero], 0)?;
+                let mut next = 0u32;
+                let index: Vec<u32> = rows
+                    .iter()
+                    .map(|r| match r {
+                        Some(_) => {
+                            next += 1;
+                            next - 1
+                        }
+                        None => present.len() as u32,
+                    })
+                    .collect();
+                let index = Tensor::from_vec(index, rows.len(), f.device())?;
+                Ok(with_zero.index_select(&index, 0)?)
+            }
+            (FrameSource::Images(_), None) => {
+                anyhow::bail!("image frames need a trainable backbone")
+            }
+        }
+    }
+
+    /// Logits and targets (and a padding mask for sequences) of one batch of
+    /// units: rows for the FC head, sequences for the LSTM head.
+    pub(super) fn forward(
+        &self,
+        frames: &SplitFrames,
+        units: &[usize],
+        train: bool,
+        rng: &mut impl Rng,
+    ) -> Result<Batch> {
+        let dev = Device::Cpu;
+        match self.head.cfg.kind {
+            HeadKind::Fc => {
+                let rows: Vec<Option<usize>> = units.iter().map(|r| Some(*r)).collect();
+                let x = self.features(frames, &rows, train, rng)?;
+                let targets: Vec<u32> = units.iter().map(|r| frames.labels[*r]).collect();
+                Ok(Batch {
+                    logits: self.head.forward_frames(&x)?,
+                    features: x,
+                    targets: Tensor::from_vec(targets, units.len(), &dev)?,
+                    mask: None,
+                })
+            }
+            HeadKind::Lstm => self.forward_sequences(frames, units, train, rng),
+        }
+    }
+
+    /// A batch of sequences padded at the end to the longest, `(B, T, D)`.
+    fn forward_sequences(
+        &self,
+        frames: &SplitFrames,
+        seqs: &[usize],
+        train: bool,
+        rng: &mut impl Rng,
+    ) -> Result<Batch> {
+        let dev = Device::Cpu;
+        let t_max = seqs
+            .iter()
+            .map(|s| frames.seq_rows[*s].len())
+            .max()
+            .unwrap_or(0);
+        let (mut rows, mut targets, mut mask) = (Vec::new(), Vec::new(), Vec::new());
+        for s in seqs {
+            let r = &frames.seq_rows[*s];
+            let pad = t_max - r.len();
+            rows.extend(r.iter().map(|row| Some(*row)));
+            rows.extend(std::iter::repeat_n(None, pad));
+            targets.extend(r.iter().map(|row| frames.labels[*row]));
+            targets.extend(std::iter::repeat_n(0, pad));
+            mask.extend(std::iter::repeat_n(1f32, r.len()));
+            mask.extend(std::iter::repeat_n(0f32, pad));
+        }
+        let x = self.features(frames, &rows, train, rng)?;
+        let xs = x.reshape((seqs.len(), t_max, x.dim(1)?))?;
+        let logits = self.lstm_logits(&xs, train)?;
+        let n = seqs.len() * t_max;
+        Ok(Batch {
+            logits: logits.reshape((n, ()))?,
+            features: x,
+            targets: Tensor::from_vec(targets, n, &dev)?,
+            mask: Some(Tensor::from_vec(mask, n, &dev)?),
+        })
+    }
+
+    /// LSTM logits `(B, T, C)`; in training with `tbptt > 0` the sequence is
+    /// run in chunks whose state is detached, so gradients flow back at most
+    /// `tbptt` steps.
+    fn lstm_logits(&self, xs: &Tensor, train: bool) -> Result<Tensor> {
+        let (b, t, _) = xs.dims3()?;
+        let k = self.tbptt;
+        if !train || k == 0 || t <= k {
+            return Ok(self.head.forward_sequences(xs)?);
+        }
+        let mut state = self.head.zero_state(b, xs)?.context("LSTM state")?;
+        let mut outs = Vec::new();
+        for start in (0..t).step_by(k) {
+            let len = k.min(t - start);
+            let (l, s) = self
+                .head
+                .forward_chunk(&xs.narrow(1, start, len)?, &state)?;
+            outs.push(l);
+            state = s.detach();
+        }
+        Ok(Tensor::cat(&outs, 1)?)
+    }
+
+    /// Tensors of the checkpoint: `head.*`, plus `backbone.*` from scratch.
+    pub fn tensors(&self) -> Vec<(String, Tensor)> {
+        let mut out = Vec::new();
+        let mut add = |prefix: &str, vm: &VarMap| {
+            let data = vm.data().lock().expect("varmap");
+            for (name, var) in data.iter() {
+                out.push((format!("{prefix}.{name}"), var.as_tensor().detach()));
+            }
+        };
+        add("head", &self.head_vars);
+        if let Some((_, vm)) = &self.backbone {
+            add("backbone", vm);
+        }
+        out.sort_by(|a, b| a.0.cmp(&b.0));
+        out
+    }
+}
+
+pub(super) struct Batch {
+    pub(super) logits: Tensor,
+    pub(super) features: Tensor,
+    pub(super) targets: Tensor,
+    pub(super) mask: Option<Tensor>,
+}
+
+impl Batch {
+    pub(super) fn loss(&self) -> Result<Tensor> {
+        Ok(match &self.mask {
+            None => crate::loss::cross_entropy(&self.logits, &self.targets)?,
+            Some(m) => crate::loss::masked_cross_entropy(&self.logits, &self.targets, m)?,
+        })
+    }
+
+    /// (correct, counted) frames.
+    pub(super) fn correct(&self) -> Result<(usize, usize)> {
+        let pred: Vec<u32> = self.logits.argmax(D::Minus1)?.to_vec1()?;
+        let tgt: Vec<u32> = self.targets.to_vec1()?;
+        let mask: Vec<f32> = match &self.mask {
+            Some(m) => m.to_vec1()?,
+            None => vec![1.0; tgt.len()],
+        };
+        let mut c = (0, 0);
+        for ((p, t), m) in pred.iter().zip(&tgt).zip(&mask) {
+            if *m > 0.0 {
+                c.1 += 1;
+                c.0 += usize::from(p == t);
+            }
+        }
+        Ok(c)
+    }
+
+    pub(super) fn frames(&self) -> Result<usize> {
+        Ok(match &self.mask {
+            Some(m) => m.sum_all()?.to_scalar::<f32>()? as usize,
+            None => self.targets.dim(0)?,
+        })
+    }
+}

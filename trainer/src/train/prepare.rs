@@ -1,0 +1,170 @@
+//! What a run needs besides its seed: the frozen backbone (checkpoint,
+//! pretrained file, or the venv's ImageNet weights), the splits' frames
+//! or cached features, and the network built for a seed.
+
+use super::{Net, SplitFrames, Splits};
+use crate::config::TrainConfig;
+use crate::data::BadData;
+use crate::features::FeatureCache;
+use anyhow::{Context, Result};
+use candle_core::{DType, Device};
+use candle_nn::{VarBuilder, VarMap};
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
+use grasp_model::checkpoint::TrainMode;
+use grasp_model::heads::{Head, HeadConfig};
+use grasp_schema::taxonomy::Class;
+use std::path::Path;
+
+/// Everything a run needs besides its seed.
+pub struct Prepared {
+    pub train: SplitFrames,
+    pub val: SplitFrames,
+    pub real_data: bool,
+    /// Frozen mode: the pretrained backbone's description.
+    pub backbone: Option<BackboneInfo>,
+    pub feature_dim: usize,
+    /// The input preprocessing the checkpoints record.
+    pub preprocess: Preprocess,
+}
+
+/// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
+/// backbone and preprocessing are reused as they are; a pretrained weights
+/// file named by `cfg.weights`, its architecture detected from its tensor
+/// names; or, without `cfg.weights`, the venv's ImageNet file of
+/// `cfg.backbone` (EfficientNet-Lite0 by default). Pretrained files get
+/// their architecture's preprocessing at `cfg.input_size`.
+pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
+    let Some(path) = cfg.weights.as_ref() else {
+        let arch = cfg.backbone.unwrap_or(Architecture::EfficientNetLite0);
+        let variant = arch
+            .lite()
+            .with_context(|| format!("a frozen {} needs --weights FILE", arch.name()))?;
+        let path = grasp_model::backbone::venv_weights(variant)?;
+        return Ok((
+            BackboneInfo::pretrained(&path, arch, cfg.width_mult)?,
+            arch.preprocess(cfg.input_size),
+        ));
+    };
+    if grasp_model::backbone::is_checkpoint(path) {
+        return BackboneInfo::from_checkpoint(path)
+            .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()));
+    }
+    let arch = detect_architecture(path)?;
+    if let Some(asked) = cfg.backbone.filter(|a| *a != arch) {
+        anyhow::bail!(
+            "--backbone {} does not match the weights file {}, which is {}",
+            asked.name(),
+            path.display(),
+            arch.name()
+        );
+    }
+    Ok((
+        BackboneInfo::pretrained(path, arch, cfg.width_mult)?,
+        arch.preprocess(cfg.input_size),
+    ))
+}
+
+/// The architecture of a pretrained weights file, from its tensor names.
+pub fn detect_architecture(path: &Path) -> Result<Architecture> {
+    let vb = grasp_model::model::weights::var_builder(path, &Device::Cpu)?;
+    Architecture::detect(&vb).with_context(|| {
+        format!(
+            "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \
+             EfficientNet-Lite0/1/2 (_conv_stem.weight and the Lite blocks)",
+            path.display()
+        )
+    })
+}
+
+/// Loads the backbone and computes (or reads cached) features in frozen
+/// mode, or decodes the frames for training from scratch.
+pub fn prepare(
+    cfg: &TrainConfig,
+    splits: &Splits,
+    bad: &BadData,
+    dev: &Device,
+) -> Result<Prepared> {
+    let real_data = splits.train.is_real();
+    match cfg.mode {
+        TrainMode::FrozenPretrained => {
+            let (info, pre) = frozen_backbone(cfg)?;
+            let bb = Backbone::load_pretrained(&info, pre, dev)?;
+            let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
+            let tf = cache.dataset(&bb, &splits.train, bad)?;
+            let vf = cache.dataset(&bb, &splits.val, bad)?;
+            Ok(Prepared {
+                train: SplitFrames::from_features(&splits.train, &tf, dev)?,
+                val: SplitFrames::from_features(&splits.val, &vf, dev)?,
+                real_data,
+                feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
+                preprocess: bb.preprocess,
+                backbone: Some(bb.info),
+            })
+        }
+        TrainMode::FromScratch => {
+            let load = if cfg.augment.enabled {
+                cfg.input_size * 8 / 7
+            } else {
+                cfg.input_size
+            };
+            Ok(Prepared {
+                train: SplitFrames::from_images(&splits.train, load, bad)?,
+                val: SplitFrames::from_images(&splits.val, load, bad)?,
+                real_data,
+                backbone: None,
+                feature_dim: 0,
+                preprocess: Preprocess::imagenet(cfg.input_size),
+            })
+        }
+    }
+}
+
+pub(super) fn build_net(
+    cfg: &TrainConfig,
+    prep: &Prepared,
+    seed: u64,
+    dev: &Device,
+) -> Result<(Net, BackboneInfo)> {
+    let (backbone, info, feature_dim) = match &prep.backbone {
+        Some(info) => (None, info.clone(), prep.feature_dim),
+        None => {
+            let info = BackboneInfo {
+                id: BACKBONE_ID.to_string(),
+                arch: Architecture::MobileNetV2,
+                weights_path: None,
+                weights_sha256: None,
+                width_mult: cfg.width_mult,
+                num_classes: Class::COUNT,
+                weights_prefix: None,
+                source_checkpoint: None,
+            };
+            let vm = VarMap::new();
+            let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
+            let bb = Backbone::from_vb(info.clone(), prep.preprocess.clone(), vb, dev)?;
+            crate::init::reinit_backbone(&vm, seed)?;
+            let dim = grasp_model::extractor::FeatureExtractor::feature_dim(&bb);
+            (Some((bb, vm)), info, dim)
+        }
+    };
+    let head_cfg = HeadConfig {
+        kind: cfg.head,
+        feature_dim,
+        classes: Class::COUNT,
+        lstm_hidden: cfg.lstm_hidden,
+    };
+    let head_vars = crate::init::head_varmap(&head_cfg, seed, dev)?;
+    let head = Head::new(
+        head_cfg,
+        VarBuilder::from_varmap(&head_vars, DType::F32, dev),
+    )?;
+    Ok((
+        Net {
+            head,
+            head_vars,
+            backbone,
+            augment: cfg.augment.clone(),
+            tbptt: cfg.tbptt,
+        },
+        info,
+    ))
+}

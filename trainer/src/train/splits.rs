@@ -1,0 +1,81 @@
+//! Reading a run's data and splitting it into train, validation and test.
+
+use crate::config::TrainConfig;
+use crate::data::split::{self, Split};
+use crate::data::{self, BadData, Dataset};
+use anyhow::Result;
+use std::path::Path;
+
+/// The three splits of a run.
+#[derive(Debug, Clone, Default)]
+pub struct Splits {
+    pub train: Dataset,
+    pub val: Dataset,
+    pub test: Dataset,
+    pub split: Split,
+}
+
+/// Reads the data and splits it: separate validation/test roots when given,
+/// otherwise a stratified split of the training root.
+pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
+    let read = |root: &Path| -> Result<Dataset> {
+        let d = data::read_dataset(root, &cfg.reader, bad)?;
+        if d.sequences.is_empty() {
+            anyhow::bail!("no sequences found under {}", root.display());
+        }
+        Ok(d)
+    };
+    let all = read(&cfg.data)?;
+    let (train, val, test) = match (&cfg.val_data, &cfg.test_data) {
+        (Some(v), t) => {
+            let test = t.as_deref().map(read).transpose()?.unwrap_or_default();
+            (all, read(v)?, test)
+        }
+        (None, t) => {
+            let mut sc = cfg.split.clone();
+            let test = match t {
+                Some(t) => {
+                    sc.test_fraction = 0.0;
+                    Some(read(t)?)
+                }
+                None => None,
+            };
+            let s = split::stratified_split(&all, &sc);
+            let test = test.unwrap_or_else(|| split::select(&all, &s.test));
+            (
+                split::select(&all, &s.train),
+                split::select(&all, &s.val),
+                test,
+            )
+        }
+    };
+    let train = match cfg.sequences_per_pair {
+        Some(n) => {
+            let capped = split::cap_per_pair(&train, n, cfg.split.seed);
+            tracing::info!(
+                "at most {n} training sequence(s) per object-part pair: {} of {} kept",
+                capped.sequences.len(),
+                train.sequences.len()
+            );
+            capped
+        }
+        None => train,
+    };
+    if val.sequences.is_empty() {
+        anyhow::bail!(
+            "the validation split is empty: add sequences, raise split.val_fraction or pass --val-data"
+        );
+    }
+    let ids = |d: &Dataset| d.sequences.iter().map(|s| s.id.clone()).collect();
+    let split = Split {
+        train: ids(&train),
+        val: ids(&val),
+        test: ids(&test),
+    };
+    Ok(Splits {
+        train,
+        val,
+        test,
+        split,
+    })
+}
