@@ -10,6 +10,7 @@ use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
 use crate::heads::{Head, HeadConfig, HeadKind};
+use crate::model::preprocess::center_crop;
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
 use grasp_schema::atomic::{write_atomic, write_atomic_with};
@@ -172,6 +173,9 @@ pub struct Classifier {
     pub meta: CheckpointMeta,
     backbone: Backbone,
     head: Head,
+    /// The centre crop the head was trained on (`--center-crop`), applied
+    /// to every camera frame before the backbone.
+    center_crop: Option<f64>,
 }
 
 impl Classifier {
@@ -218,10 +222,12 @@ impl Classifier {
                 Backbone::load_pretrained(&info, meta.preprocessing.clone(), device)?
             }
         };
+        let center_crop = trained_center_crop(&meta, &dir)?;
         Ok(Classifier {
             meta,
             backbone,
             head: head.detached(),
+            center_crop,
         })
     }
 
@@ -237,14 +243,28 @@ impl Classifier {
         &self.backbone
     }
 
-    /// Per-frame class probabilities (softmax by log-sum-exp). The FC head
-    /// treats frames independently; an LSTM head reads them as one sequence
-    /// in the given order, from a zero state.
+    /// The centre crop (fraction of the shorter side) applied to camera
+    /// frames, as recorded at training; `None`: whole frames.
+    pub fn center_crop(&self) -> Option<f64> {
+        self.center_crop
+    }
+
+    /// Per-frame class probabilities of whole camera frames (softmax by
+    /// log-sum-exp), cropped first as the checkpoint was trained. The FC
+    /// head treats frames independently; an LSTM head reads them as one
+    /// sequence in the given order, from a zero state.
     pub fn predict(&self, frames: &[RgbImage]) -> Result<Vec<[f32; Class::COUNT]>> {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        let feats = self.backbone.extract(frames)?;
+        let feats = match self.center_crop {
+            Some(fraction) => {
+                let cropped: Vec<RgbImage> =
+                    frames.iter().map(|f| center_crop(f, fraction)).collect();
+                self.backbone.extract(&cropped)?
+            }
+            None => self.backbone.extract(frames)?,
+        };
         self.predict_features(&feats)
     }
 
@@ -275,4 +295,19 @@ pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
             })
         })
         .collect()
+}
+
+/// The trainer records its reader options in `train_config.reader`; a crop
+/// outside (0, 1] is a corrupt checkpoint, not a silent whole-frame model.
+fn trained_center_crop(meta: &CheckpointMeta, dir: &Path) -> Result<Option<f64>> {
+    match &meta.train_config["reader"]["center_crop"] {
+        serde_json::Value::Null => Ok(None),
+        value => match value.as_f64() {
+            Some(f) if f > 0.0 && f <= 1.0 => Ok(Some(f)),
+            _ => Err(ModelError::Invalid(format!(
+                "{}: train_config.reader.center_crop must be a fraction in (0, 1], got {value}",
+                dir.join(META_FILE).display()
+            ))),
+        },
+    }
 }

@@ -110,6 +110,16 @@ impl Preprocess {
 
 /// A normalized (N, 3, size, size) batch of `images`, each resized and
 /// normalized as `pre` says.
+/// The central square whose side is `fraction` of the shorter side (at
+/// least one pixel): the view a checkpoint trained with `--center-crop`
+/// expects.
+pub fn center_crop(img: &RgbImage, fraction: f64) -> RgbImage {
+    let (w, h) = img.dimensions();
+    let short = w.min(h);
+    let side = ((f64::from(short) * fraction.clamp(0.0, 1.0)).round() as u32).clamp(1, short);
+    image::imageops::crop_imm(img, (w - side) / 2, (h - side) / 2, side, side).to_image()
+}
+
 pub fn to_tensor(images: &[RgbImage], pre: &Preprocess, device: &Device) -> Result<Tensor> {
     if images.is_empty() {
         candle_core::bail!("to_tensor: no images");
@@ -139,6 +149,16 @@ fn write_chw(img: &RgbImage, out: &mut [f32], plane: usize, scale: [f32; 3], off
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn center_crop_takes_the_middle_square() {
+        let img = RgbImage::from_fn(10, 6, |x, y| image::Rgb([x as u8, y as u8, 0]));
+        let c = center_crop(&img, 0.5);
+        assert_eq!(c.dimensions(), (3, 3));
+        assert_eq!(c.get_pixel(0, 0).0, [3, 1, 0]);
+        assert_eq!(center_crop(&img, 1.0).dimensions(), (6, 6));
+        assert_eq!(center_crop(&img, 0.0).dimensions(), (1, 1));
+    }
 
     fn values(t: &Tensor) -> Vec<f32> {
         t.flatten_all().unwrap().to_vec1::<f32>().unwrap()

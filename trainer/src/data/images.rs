@@ -31,25 +31,4 @@ pub fn load_frame_cropped(
     })
 }
 
-/// The central square whose side is `fraction` of the shorter side (at
-/// least one pixel).
-pub fn center_crop(img: &RgbImage, fraction: f64) -> RgbImage {
-    let (w, h) = img.dimensions();
-    let side = ((f64::from(w.min(h)) * fraction.clamp(0.0, 1.0)).round() as u32).clamp(1, w.min(h));
-    image::imageops::crop_imm(img, (w - side) / 2, (h - side) / 2, side, side).to_image()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn center_crop_takes_the_middle_square() {
-        let img = RgbImage::from_fn(10, 6, |x, y| image::Rgb([x as u8, y as u8, 0]));
-        let c = center_crop(&img, 0.5);
-        assert_eq!(c.dimensions(), (3, 3));
-        assert_eq!(c.get_pixel(0, 0).0, [3, 1, 0]);
-        assert_eq!(center_crop(&img, 1.0).dimensions(), (6, 6));
-        assert_eq!(center_crop(&img, 0.0).dimensions(), (1, 1));
-    }
-}
+pub use grasp_model::model::preprocess::center_crop;
