@@ -12,7 +12,7 @@ use image::{Rgb, RgbImage};
 use std::path::{Path, PathBuf};
 
 /// A frozen-pretrained checkpoint on the width-0.1 MobileNetV2 fixture with
-/// a random FC head (outputs depend on the image), trained with `reader`.
+/// a fixed FC head whose outputs depend on the image, trained with `reader`.
 fn checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
     let fixture =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mnv2_w010.safetensors");
@@ -42,10 +42,15 @@ fn checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
         train_config: serde_json::json!({ "reader": reader }),
     };
     let dev = Device::Cpu;
+    // Small, fixed weights: the softmax stays far from saturation, so a
+    // different input shows in every probability.
+    let weights: Vec<f32> = (0..Class::COUNT * 1280)
+        .map(|i| 0.01 * (i as f32 * 0.7).sin())
+        .collect();
     let tensors = vec![
         (
             "head.fc.weight".to_string(),
-            Tensor::randn(0f32, 1.0, (Class::COUNT, 1280), &dev).unwrap(),
+            Tensor::from_vec(weights, (Class::COUNT, 1280), &dev).unwrap(),
         ),
         (
             "head.fc.bias".to_string(),
