@@ -153,6 +153,33 @@ pub struct Pose {
     pub rotation_wxyz: [f64; 4],
 }
 
+impl Pose {
+    /// A world point in this pose's frame (the inverse rotation of the
+    /// offset, quaternion form: v + 2u x (u x v + w v) with u = -q.xyz).
+    pub fn to_local(&self, world: [f64; 3]) -> [f64; 3] {
+        let [w, x, y, z] = self.rotation_wxyz;
+        let norm = (w * w + x * x + y * y + z * z).sqrt();
+        let (w, u) = (w / norm, [-x / norm, -y / norm, -z / norm]);
+        let v = [
+            world[0] - self.position[0],
+            world[1] - self.position[1],
+            world[2] - self.position[2],
+        ];
+        let uv = cross(u, v);
+        let inner = [uv[0] + w * v[0], uv[1] + w * v[1], uv[2] + w * v[2]];
+        let t = cross(u, inner);
+        [v[0] + 2.0 * t[0], v[1] + 2.0 * t[1], v[2] + 2.0 * t[2]]
+    }
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
 /// Pinhole intrinsics of the rendered camera.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CameraIntrinsics {
@@ -167,6 +194,20 @@ pub struct CameraIntrinsics {
     pub fov_y_deg: f64,
     pub clip_near: f64,
     pub clip_far: f64,
+}
+
+impl CameraIntrinsics {
+    /// Whether a point in the camera's frame (Blender's: looking along -Z,
+    /// +Y up in the image) projects inside the image, in front of the lens.
+    pub fn sees(&self, p: [f64; 3]) -> bool {
+        let depth = -p[2];
+        if !(depth.is_finite() && depth > 0.0) {
+            return false;
+        }
+        let u = self.cx + self.fx * p[0] / depth;
+        let v = self.cy - self.fy * p[1] / depth;
+        (0.0..f64::from(self.width)).contains(&u) && (0.0..f64::from(self.height)).contains(&v)
+    }
 }
 
 /// One planned frame.
@@ -246,5 +287,139 @@ impl SequencePlan {
     /// Frame classes in order.
     pub fn labels(&self) -> Vec<Class> {
         self.frames.iter().map(|f| f.class).collect()
+    }
+
+    /// Leading frames in which the target point is outside the wrist
+    /// camera's image: the lead-in of a `from_ground` reach, where the camera
+    /// faces the floor, which the paper trims at inference time. 0 when the
+    /// first frame sees the target, and when no frame does (nothing to
+    /// anchor a trim on).
+    pub fn lead_in_frames(&self) -> usize {
+        self.frames
+            .iter()
+            .position(|f| self.intrinsics.sees(f.camera.to_local(self.target)))
+            .unwrap_or(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HALF_TURN_ABOUT_X: [f64; 4] = [0.0, 1.0, 0.0, 0.0];
+
+    fn lens() -> CameraIntrinsics {
+        CameraIntrinsics {
+            width: 100,
+            height: 80,
+            fx: 100.0,
+            fy: 100.0,
+            cx: 50.0,
+            cy: 40.0,
+            fov_x_deg: 53.1,
+            fov_y_deg: 43.6,
+            clip_near: 0.01,
+            clip_far: 10.0,
+        }
+    }
+
+    fn pose(position: [f64; 3], rotation_wxyz: [f64; 4]) -> Pose {
+        Pose {
+            position,
+            rotation_wxyz,
+        }
+    }
+
+    fn close(a: [f64; 3], b: [f64; 3]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn to_local_undoes_the_pose() {
+        let at_origin = pose([0.0; 3], [1.0, 0.0, 0.0, 0.0]);
+        assert!(close(at_origin.to_local([1.0, 2.0, 3.0]), [1.0, 2.0, 3.0]));
+        let moved = pose([1.0, 1.0, 1.0], [1.0, 0.0, 0.0, 0.0]);
+        assert!(close(moved.to_local([1.0, 2.0, 3.0]), [0.0, 1.0, 2.0]));
+        // A quarter turn about Z maps the camera's +X onto the world's +Y,
+        // so the world's +Y is the camera's +X.
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let turned = pose([0.0; 3], [s, 0.0, 0.0, s]);
+        assert!(close(turned.to_local([0.0, 1.0, 0.0]), [1.0, 0.0, 0.0]));
+        // Half a turn about X: the camera looks along the world's +Z.
+        let up = pose([0.0; 3], HALF_TURN_ABOUT_X);
+        assert!(close(up.to_local([0.0, 0.0, 2.0]), [0.0, 0.0, -2.0]));
+        // An unnormalised quaternion is the same rotation.
+        let scaled = pose([0.0; 3], [2.0 * s, 0.0, 0.0, 2.0 * s]);
+        assert!(close(scaled.to_local([0.0, 1.0, 0.0]), [1.0, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn sees_only_points_in_front_and_inside_the_image() {
+        let k = lens();
+        assert!(k.sees([0.0, 0.0, -1.0]));
+        assert!(!k.sees([0.0, 0.0, 1.0]), "behind the lens");
+        assert!(!k.sees([0.0, 0.0, 0.0]), "at the lens");
+        assert!(k.sees([0.49, 0.0, -1.0]) && !k.sees([0.51, 0.0, -1.0]));
+        assert!(k.sees([0.0, 0.39, -1.0]) && !k.sees([0.0, 0.41, -1.0]));
+        assert!(!k.sees([f64::NAN, 0.0, -1.0]) && !k.sees([0.0, 0.0, f64::NAN]));
+    }
+
+    fn plan(cameras: &[Pose]) -> SequencePlan {
+        SequencePlan {
+            schema_version: PLAN_SCHEMA_VERSION,
+            dataset_seed: 0,
+            key: SequenceKey {
+                object: "o".into(),
+                part: "p".into(),
+                index: 0,
+                condition: Condition::FromGround,
+            },
+            stream_seed: 0,
+            category: "c".into(),
+            grasp_type: GraspType::MediumWrap,
+            preshape: Preshape::Power,
+            part_index: 0,
+            fps: 1.0,
+            duration_s: cameras.len() as f64,
+            intrinsics: lens(),
+            object: ObjectPlacement {
+                pose: pose([0.0; 3], [1.0, 0.0, 0.0, 0.0]),
+                yaw_deg: 0.0,
+                upside_down: false,
+                on_table_border: false,
+            },
+            target: [0.0, 0.0, 0.0],
+            other_end: [0.0, 0.0, 0.0],
+            frames: cameras
+                .iter()
+                .enumerate()
+                .map(|(i, c)| FramePlan {
+                    index: i as u32,
+                    time_s: i as f64,
+                    camera: *c,
+                    class: Class::from(Preshape::Power),
+                    head_camera: None,
+                })
+                .collect(),
+            sampled: BTreeMap::new(),
+            appearance: None,
+            distractors: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn lead_in_counts_the_frames_before_the_target_enters_the_view() {
+        // The target is at the origin. Looking down from above sees it;
+        // looking down from one metre to the side (at the floor) does not,
+        // nor does looking up from below.
+        let above = pose([0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 0.0]);
+        let beside = pose([1.0, 0.0, 1.0], [1.0, 0.0, 0.0, 0.0]);
+        let below = pose([0.0, 0.0, -1.0], [1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(plan(&[beside, below, above, beside]).lead_in_frames(), 2);
+        assert_eq!(plan(&[above, beside]).lead_in_frames(), 0);
+        assert_eq!(plan(&[beside, below]).lead_in_frames(), 0, "never seen");
+        assert_eq!(plan(&[]).lead_in_frames(), 0, "no frames");
+        let looking_up = pose([0.0, 0.0, -1.0], HALF_TURN_ABOUT_X);
+        assert_eq!(plan(&[below, looking_up]).lead_in_frames(), 1);
     }
 }
