@@ -159,6 +159,10 @@ def test_worker_applies_unseen_lights_world_tone_and_distractors(tmp_path):
     scene = bpy.context.scene
     assert scene.view_settings.view_transform == "Khronos PBR Neutral"
     assert scene.world.name == "world_hdri"
+    # A small importance map: the automatic one (the HDRI's own 1K) doubled
+    # the render time of a frame at 1 sample (docs/rendering.md).
+    assert scene.world.cycles.sampling_method == "MANUAL"
+    assert scene.world.cycles.sample_map_resolution == 256
     assert bpy.data.objects["ceiling"].hide_render, "the room opens to the sky"
     assert not bpy.data.objects["sun0"].hide_render
     assert sum(not bpy.data.objects[f"ring{i}"].hide_render for i in range(8)) == 5
