@@ -49,6 +49,7 @@ pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
         train: split(workload.sequences, workload.frames, workload.dim, 1)?,
         val: split(workload.val_sequences, workload.frames, workload.dim, 2)?,
         real_data: false,
+        train_sequences: workload.sequences,
         backbone: Some(BackboneInfo::generated("bench")),
         feature_dim: workload.dim,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),

@@ -3,6 +3,7 @@
 
 use crate::data::augment::AugmentConfig;
 use crate::data::split::SplitConfig;
+use crate::data::view::ViewConfig;
 use crate::data::{OnBadData, ReaderOptions};
 use crate::optim::AdamConfig;
 use anyhow::{Context, Result};
@@ -60,6 +61,9 @@ pub struct TrainConfig {
     pub sequences_per_pair: Option<usize>,
     pub reader: ReaderOptions,
     pub augment: AugmentConfig,
+    /// Frozen mode's augmentation: extra, seeded views of each training
+    /// sequence, cached like the frames themselves.
+    pub views: ViewConfig,
     pub cache_dir: PathBuf,
     /// Frames per backbone forward pass when extracting features.
     pub feature_batch: usize,
@@ -96,6 +100,7 @@ impl Default for TrainConfig {
             sequences_per_pair: None,
             reader: ReaderOptions::default(),
             augment: AugmentConfig::default(),
+            views: ViewConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
             on_bad_data: OnBadData::Skip,
@@ -130,6 +135,13 @@ impl TrainConfig {
     pub fn validate(&self) -> Result<()> {
         if self.data.as_os_str().is_empty() {
             anyhow::bail!("no training data: set `data` in the config or pass --data");
+        }
+        self.views.validate()?;
+        if self.views.count > 0 && self.mode != TrainMode::FrozenPretrained {
+            anyhow::bail!(
+                "views.count (--feature-views) augments cached features; from-scratch training \
+                 augments every epoch instead (the `augment` settings)"
+            );
         }
         use grasp_model::backbone::Architecture;
         match (self.mode, self.backbone, &self.weights) {

@@ -112,12 +112,16 @@ impl FeatureCache {
 }
 
 /// Hash of the frame files' absolute paths, sizes and modification times,
-/// and of the centre crop the backbone sees.
+/// and of the centre crop and augmented view the backbone sees.
 fn sequence_hash(seq: &Sequence) -> Result<String> {
     let mut h = Sha256::new();
     if let Some(c) = seq.center_crop {
         h.update(b"center_crop");
         h.update(c.to_le_bytes());
+    }
+    if let Some(v) = &seq.view {
+        h.update(b"view");
+        h.update(serde_json::to_vec(v)?);
     }
     for f in &seq.frames {
         let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());
@@ -143,10 +147,10 @@ fn compute(
     let dim = ex.feature_dim();
     let mut rows = Vec::with_capacity(seq.frames.len() * dim);
     let mut valid = Vec::with_capacity(seq.frames.len());
-    for chunk in seq.frames.chunks(batch) {
+    for (c, chunk) in seq.frames.chunks(batch).enumerate() {
         let mut images = Vec::with_capacity(chunk.len());
-        for path in chunk {
-            let img = crate::data::images::load_frame_cropped(path, seq.center_crop, bad)?;
+        for i in 0..chunk.len() {
+            let img = seq.load_frame(c * batch + i, bad)?;
             valid.push(img.is_some());
             images.extend(img);
         }

@@ -215,6 +215,10 @@ struct TrainArgs {
     /// each frame's shorter side; evaluation then crops the same way.
     #[arg(long, value_name = "FRACTION")]
     center_crop: Option<f64>,
+    /// Frozen mode: add N seeded views of every training sequence (the
+    /// centre crop scaled, shifted and colour-jittered), cached like frames.
+    #[arg(long, value_name = "N")]
+    feature_views: Option<usize>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
     #[arg(long)]
     hflip: bool,
@@ -292,6 +296,12 @@ struct EvalArgs {
     /// trained on, e.g. Head_d435 for an egocentric model).
     #[arg(long)]
     camera: Option<String>,
+    /// Keep each video's lead-in: the first frames, before the wrist camera
+    /// sees the target (a from_ground reach starts facing the floor). By
+    /// default they are dropped before inference, as the paper trims its
+    /// from-ground videos.
+    #[arg(long)]
+    keep_lead_in: bool,
 }
 
 fn stand_in(args: StandInArgs) -> Result<()> {
@@ -352,6 +362,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.reader.real_fps, args.real_fps);
     set!(cfg.reader.camera, args.camera);
     cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
+    set!(cfg.views.count, args.feature_views);
     set!(cfg.on_bad_data, args.on_bad_data);
     cfg.augment.hflip |= args.hflip;
     cfg.allow_missing_classes |= args.allow_missing_classes;
@@ -419,9 +430,14 @@ fn eval(args: EvalArgs) -> Result<()> {
             None => anyhow::bail!("no sequences to evaluate"),
         }
     }
+    let trimmed = (!args.keep_lead_in).then(|| {
+        let (videos, frames) = data.trim_lead_ins();
+        trainer::eval::report::LeadInTrim { videos, frames }
+    });
     let mut report =
         trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
             .context("evaluation failed")?;
+    report.lead_in_trimmed = trimmed;
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
     trainer::experiment::write_problems(&bad, &args.out)?;

@@ -6,6 +6,10 @@ use trainer::data::split::{select, stratified_split, SplitConfig};
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{read_dataset, BadData, LabelSource, OnBadData, ReaderOptions};
 
+#[path = "support/lead_in.rs"]
+mod lead_in;
+use lead_in::{look_away_first, sequence_json};
+
 fn generated() -> (tempfile::TempDir, SyntheticSpec) {
     let dir = tempfile::tempdir().unwrap();
     let spec = SyntheticSpec::small(Layout::Generated);
@@ -209,4 +213,34 @@ fn the_generators_bookkeeping_folders_are_not_read() {
     assert_eq!(data.sequences.len(), 5 * spec.sequences_per_part);
     assert!(data.sequences.iter().all(|s| !s.id.contains(".grasp-gen")));
     assert!(bad.problems().is_empty());
+}
+
+#[test]
+fn the_lead_in_before_the_target_is_in_view_is_found_and_trimmed() {
+    let (dir, spec) = generated();
+    look_away_first(&sequence_json(dir.path(), "handle"), 3);
+    let bad = BadData::new(OnBadData::Fail);
+    let mut data = read_dataset(dir.path(), &ReaderOptions::default(), &bad).unwrap();
+    let leads: Vec<usize> = data.sequences.iter().map(|s| s.lead_in).collect();
+    assert_eq!(leads.iter().filter(|n| **n == 3).count(), 1, "{leads:?}");
+    assert_eq!(leads.iter().sum::<usize>(), 3, "{leads:?}");
+    let before = data
+        .sequences
+        .iter()
+        .find(|s| s.lead_in == 3)
+        .unwrap()
+        .clone();
+
+    assert_eq!(data.trim_lead_ins(), (1, 3));
+    let after = data.sequences.iter().find(|s| s.id == before.id).unwrap();
+    assert_eq!(after.frames, before.frames[3..]);
+    assert_eq!(after.labels, before.labels[3..]);
+    assert_eq!(after.frames.len(), spec.frames - 3);
+    // Times stay the recording's: the first kept frame is at 3 / fps.
+    assert!((after.time_s(0) - 3.0 / spec.fps).abs() < 1e-12);
+    assert_eq!(
+        data.trim_lead_ins(),
+        (0, 0),
+        "trimming twice drops nothing more"
+    );
 }

@@ -6,6 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 
+#[path = "support/lead_in.rs"]
+mod lead_in;
+
 fn grasp_train(cwd: &Path, args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_grasp-train"))
         .current_dir(cwd)
@@ -209,4 +212,40 @@ fn eval_reads_the_camera_the_checkpoint_was_trained_on() {
     ];
     let (ok, text) = grasp_train(work, &args);
     assert!(!ok && text.contains("Wrist_d435"), "{text}");
+}
+
+#[test]
+fn eval_trims_the_lead_in_before_inference_unless_told_to_keep_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = train_tiny(dir.path());
+    let test = dir.path().join("test");
+    write_synthetic(&test, &SyntheticSpec::small(Layout::Generated)).unwrap();
+    lead_in::look_away_first(&lead_in::sequence_json(&test, "handle"), 4);
+    let eval = |extra: &[&str], out: &str| {
+        let mut args = vec!["eval", "-c", ckpt.to_str().unwrap(), "--data", "test"];
+        args.extend(["--out", out]);
+        args.extend(extra);
+        let (ok, text) = grasp_train(dir.path(), &args);
+        assert!(ok, "{text}");
+        let json: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(out).join("report.json")).unwrap(),
+        )
+        .unwrap();
+        let md = std::fs::read_to_string(dir.path().join(out).join("report.md")).unwrap();
+        (json, md)
+    };
+    let frames = |j: &serde_json::Value| j["runs"][0]["metrics"]["frames"].as_u64().unwrap();
+
+    let (trimmed, md) = eval(&[], "trimmed");
+    assert_eq!(trimmed["lead_in_trimmed"]["videos"], 1);
+    assert_eq!(trimmed["lead_in_trimmed"]["frames"], 4);
+    assert!(
+        md.contains("Lead-in trimmed before inference: 4 frame(s) of 1 video(s)"),
+        "{md}"
+    );
+
+    let (kept, md) = eval(&["--keep-lead-in"], "kept");
+    assert!(kept.get("lead_in_trimmed").is_none());
+    assert!(!md.contains("Lead-in"));
+    assert_eq!(frames(&kept), frames(&trimmed) + 4);
 }

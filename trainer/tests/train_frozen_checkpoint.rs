@@ -161,3 +161,43 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
         "{err:#}"
     );
 }
+
+#[test]
+fn feature_views_are_cached_extra_sequences_that_do_not_count_as_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let scratch = trainer::experiment::run(&scratch_cfg(root), 1).unwrap();
+    let backbone = &scratch.runs[0].checkpoint;
+    let count_entries = || std::fs::read_dir(&cache_keys(root)[0]).unwrap().count();
+
+    let plain =
+        trainer::experiment::run(&frozen_cfg(root, backbone, HeadKind::Fc, "plain"), 1).unwrap();
+    let plain_entries = count_entries();
+    let mut cfg = frozen_cfg(root, backbone, HeadKind::Fc, "views");
+    cfg.views.count = 2;
+    let viewed = trainer::experiment::run(&cfg, 1).unwrap();
+    let load = |r: &trainer::train::TrainOutcome| {
+        Classifier::load(&r.checkpoint, &candle_core::Device::Cpu).unwrap()
+    };
+    let (p, v) = (load(&plain.runs[0]), load(&viewed.runs[0]));
+    let train = p.meta.train_sequences.unwrap();
+    assert_eq!(
+        v.meta.train_sequences,
+        Some(train),
+        "views are not new data"
+    );
+    // Two new cache entries per training sequence, none for the others.
+    assert_eq!(count_entries(), plain_entries + 2 * train);
+    // A second run reuses them.
+    let mut again = cfg.clone();
+    again.out = root.join("views-again");
+    trainer::experiment::run(&again, 1).unwrap();
+    assert_eq!(count_entries(), plain_entries + 2 * train);
+
+    // From scratch, augmentation is per epoch: views are refused.
+    let mut bad = scratch_cfg(root);
+    bad.views.count = 1;
+    let err = format!("{:#}", trainer::experiment::run(&bad, 1).err().unwrap());
+    assert!(err.contains("--feature-views"), "{err}");
+}

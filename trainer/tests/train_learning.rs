@@ -51,6 +51,7 @@ fn learn(head: HeadKind) -> f64 {
         train: split(40, 1, &means),
         val: split(12, 2, &means),
         real_data: false,
+        train_sequences: 40,
         backbone: Some(grasp_model::backbone::BackboneInfo::generated(
             "generated-features",
         )),

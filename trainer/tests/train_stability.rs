@@ -85,6 +85,7 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         train: split(features.clone()),
         val: split(features),
         real_data: false,
+        train_sequences: n.div_ceil(5),
         backbone: Some(grasp_model::backbone::BackboneInfo::generated("test")),
         feature_dim: dim,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),

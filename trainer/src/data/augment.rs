@@ -77,7 +77,7 @@ fn factor(amplitude: f32, rng: &mut impl Rng) -> f32 {
 
 /// Brightness scales, contrast blends with the mean grey, saturation blends
 /// with the pixel's own grey (luma weights of ITU-R BT.601).
-fn jitter(img: &mut RgbImage, brightness: f32, contrast: f32, saturation: f32) {
+pub(crate) fn jitter(img: &mut RgbImage, brightness: f32, contrast: f32, saturation: f32) {
     let luma = |p: &image::Rgb<u8>| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
     let n = (img.width() * img.height()).max(1) as f32;
     let mean = img.pixels().map(luma).sum::<f32>() / n * brightness;

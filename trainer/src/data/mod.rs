@@ -8,6 +8,7 @@ pub mod images;
 pub mod reader;
 pub mod split;
 pub mod synthetic;
+pub mod view;
 
 pub use bad::{BadData, OnBadData};
 pub use reader::{read_dataset, ReaderOptions};
@@ -50,6 +51,18 @@ pub struct Sequence {
     /// shorter side (`ReaderOptions::center_crop`); `None`: whole frames.
     #[serde(default)]
     pub center_crop: Option<f64>,
+    /// Leading frames in which the wrist camera does not see the target
+    /// (`SequencePlan::lead_in_frames`; 0 for the authors' data).
+    #[serde(default)]
+    pub lead_in: usize,
+    /// Frames dropped from the front by [`Sequence::trim_lead_in`]: frame
+    /// `i` is the recording's frame `i + first_frame`.
+    #[serde(default)]
+    pub first_frame: usize,
+    /// An augmented view of the frames (frozen mode's training
+    /// augmentation, [`view::with_views`]); None: the frames as they are.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<view::ViewJitter>,
 }
 
 impl Sequence {
@@ -65,7 +78,11 @@ impl Sequence {
 
     /// Frame `i`, decoded and centre-cropped as the reader was told.
     pub fn load_frame(&self, i: usize, bad: &BadData) -> anyhow::Result<Option<image::RgbImage>> {
-        images::load_frame_cropped(&self.frames[i], self.center_crop, bad)
+        match &self.view {
+            None => images::load_frame_cropped(&self.frames[i], self.center_crop, bad),
+            Some(v) => Ok(images::load_frame(&self.frames[i], bad)?
+                .map(|img| v.apply(&img, self.center_crop))),
+        }
     }
 
     /// The sequence's grasp class (its pre-shape).
@@ -73,9 +90,21 @@ impl Sequence {
         Class::from(self.preshape)
     }
 
-    /// Time of frame `i` since the start of the sequence, in seconds.
+    /// Time of frame `i` since the start of the recording, in seconds.
     pub fn time_s(&self, i: usize) -> f64 {
-        i as f64 / self.fps
+        (i + self.first_frame) as f64 / self.fps
+    }
+
+    /// Drops the lead-in (the frames before the target enters the view), as
+    /// the paper trims its from-ground videos at inference time. Returns the
+    /// number of frames dropped.
+    pub fn trim_lead_in(&mut self) -> usize {
+        let n = self.lead_in.min(self.frames.len());
+        self.frames.drain(..n);
+        self.labels.drain(..n.min(self.labels.len()));
+        self.first_frame += n;
+        self.lead_in = 0;
+        n
     }
 }
 
@@ -95,6 +124,20 @@ impl Dataset {
                 .sequences
                 .iter()
                 .all(|s| s.label_source == LabelSource::PreshapeFolder)
+    }
+
+    /// Trims every sequence's lead-in ([`Sequence::trim_lead_in`]):
+    /// returns (videos trimmed, frames dropped).
+    pub fn trim_lead_ins(&mut self) -> (usize, usize) {
+        let dropped: Vec<usize> = self
+            .sequences
+            .iter_mut()
+            .map(|s| s.trim_lead_in())
+            .collect();
+        (
+            dropped.iter().filter(|n| **n > 0).count(),
+            dropped.iter().sum(),
+        )
     }
 
     pub fn frame_count(&self) -> usize {

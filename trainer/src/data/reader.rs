@@ -158,6 +158,9 @@ fn from_record(
         labels: plan.labels(),
         label_source: LabelSource::SequenceJson,
         center_crop: opts.center_crop,
+        lead_in: plan.lead_in_frames(),
+        first_frame: 0,
+        view: None,
     }
 }
 
@@ -181,6 +184,9 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         frames,
         label_source: LabelSource::PreshapeFolder,
         center_crop: opts.center_crop,
+        lead_in: 0,
+        first_frame: 0,
+        view: None,
     })
 }
 
@@ -210,6 +216,7 @@ fn check_frames(mut seq: Sequence, bad: &BadData) -> Result<Option<Sequence>> {
         keep.push(ok);
     }
     if keep.iter().any(|k| !k) {
+        seq.lead_in = keep.iter().take(seq.lead_in).filter(|k| **k).count();
         let mut k = keep.iter();
         seq.frames.retain(|_| *k.next().unwrap_or(&false));
         let mut k = keep.iter();

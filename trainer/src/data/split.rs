@@ -155,6 +155,9 @@ mod tests {
                     labels: Vec::new(),
                     label_source: LabelSource::SequenceJson,
                     center_crop: None,
+                    lead_in: 0,
+                    first_frame: 0,
+                    view: None,
                 });
             }
         }

@@ -90,12 +90,23 @@ pub struct Report {
     /// Videos left out because no frame of theirs lies in the window.
     #[serde(default)]
     pub videos_outside_window: usize,
+    /// Lead-in frames (before the target entered the view) dropped before
+    /// inference; None when `eval --keep-lead-in` kept them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lead_in_trimmed: Option<LeadInTrim>,
     /// Per-part accuracy of the multi-grasp objects, over runs.
     #[serde(default)]
     pub per_part: Vec<PartSummary>,
     /// Bad data left out (`--on-bad-data skip`): how much, and where listed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bad_data: Option<BadDataNote>,
+}
+
+/// What the lead-in trim dropped: frames, and the videos they came from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct LeadInTrim {
+    pub videos: usize,
+    pub frames: usize,
 }
 
 /// Problems skipped while reading or evaluating the data.
@@ -147,6 +158,7 @@ impl Report {
             bad_data: None,
             window: FrameWindow::default(),
             videos_outside_window: 0,
+            lead_in_trimmed: None,
             per_part,
         }
     }
@@ -227,6 +239,15 @@ pub fn markdown(report: &Report) -> String {
             "- **Frames scored: {}** ({} video(s) with no frame in the window left out)\n",
             report.window.describe(),
             report.videos_outside_window
+        );
+    }
+    if let Some(t) = report.lead_in_trimmed.filter(|t| t.frames > 0) {
+        let _ = writeln!(
+            s,
+            "- Lead-in trimmed before inference: {} frame(s) of {} video(s) in which the \
+             wrist camera did not yet see the target (the paper trims its from-ground \
+             videos so; `eval --keep-lead-in` keeps them)\n",
+            t.frames, t.videos
         );
     }
     if let Some(n) = report.train_sequences {

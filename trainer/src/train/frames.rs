@@ -43,8 +43,8 @@ impl SplitFrames {
         let mut valid = Vec::new();
         for seq in &data.sequences {
             let mut v = Vec::with_capacity(seq.frames.len());
-            for f in &seq.frames {
-                let img = data::images::load_frame_cropped(f, seq.center_crop, bad)?;
+            for i in 0..seq.frames.len() {
+                let img = seq.load_frame(i, bad)?;
                 v.push(img.is_some());
                 images.extend(img.map(|i| data::augment::resize(&i, size)));
             }

@@ -120,7 +120,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 epoch,
                 val_loss,
                 val_accuracy: val_acc,
-                train_sequences: Some(prep.train.seq_rows.len()),
+                train_sequences: Some(prep.train_sequences),
                 train_config: serde_json::to_value(cfg)?,
             };
             checkpoint::save(out, &meta, &net.tensors())?;

@@ -20,6 +20,8 @@ pub struct Prepared {
     pub train: SplitFrames,
     pub val: SplitFrames,
     pub real_data: bool,
+    /// Training sequences, not counting their augmented views.
+    pub train_sequences: usize,
     /// Frozen mode: the pretrained backbone's description.
     pub backbone: Option<BackboneInfo>,
     pub feature_dim: usize,
@@ -90,12 +92,14 @@ pub fn prepare(
             let (info, pre) = frozen_backbone(cfg)?;
             let bb = Backbone::load_pretrained(&info, pre, dev)?;
             let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
-            let tf = cache.dataset(&bb, &splits.train, bad)?;
+            let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
+            let tf = cache.dataset(&bb, &train, bad)?;
             let vf = cache.dataset(&bb, &splits.val, bad)?;
             Ok(Prepared {
-                train: SplitFrames::from_features(&splits.train, &tf, dev)?,
+                train: SplitFrames::from_features(&train, &tf, dev)?,
                 val: SplitFrames::from_features(&splits.val, &vf, dev)?,
                 real_data,
+                train_sequences: splits.train.sequences.len(),
                 feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
@@ -111,6 +115,7 @@ pub fn prepare(
                 train: SplitFrames::from_images(&splits.train, load, bad)?,
                 val: SplitFrames::from_images(&splits.val, load, bad)?,
                 real_data,
+                train_sequences: splits.train.sequences.len(),
                 backbone: None,
                 feature_dim: 0,
                 preprocess: Preprocess::imagenet(cfg.input_size),

@@ -1,0 +1,257 @@
+//! Augmented views for the frozen-backbone mode. The backbone's features are
+//! computed once and cached, so the from-scratch augmentation (a new draw
+//! every epoch) does not apply. Instead each training sequence gets `count`
+//! extra copies, each seen through a fixed, seeded variation of the centre
+//! crop: its size scaled, its centre shifted, its colours jittered. A view
+//! is one draw per sequence, the same for all its frames, as a slightly
+//! different lens, aim and white balance would be.
+
+use super::augment::jitter;
+use super::Dataset;
+use image::{imageops, RgbImage};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// How many views, and how far they stray from the plain centre crop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ViewConfig {
+    /// Extra views per training sequence (0: the frames as they are).
+    pub count: usize,
+    /// The crop side is scaled by a factor in [1 / (1 + scale), 1 + scale],
+    /// drawn log-uniformly.
+    pub scale: f64,
+    /// The crop centre moves by up to this fraction of the crop side, along
+    /// each axis.
+    pub shift: f64,
+    /// Brightness, contrast and saturation factors in [1 - color, 1 + color].
+    pub color: f32,
+}
+
+impl Default for ViewConfig {
+    fn default() -> Self {
+        ViewConfig {
+            count: 0,
+            scale: 0.25,
+            shift: 0.15,
+            color: 0.2,
+        }
+    }
+}
+
+impl ViewConfig {
+    pub fn validate(&self) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.scale.is_finite() && (0.0..=1.0).contains(&self.scale),
+            "views.scale must be in [0, 1], got {}",
+            self.scale
+        );
+        anyhow::ensure!(
+            self.shift.is_finite() && (0.0..=0.5).contains(&self.shift),
+            "views.shift must be in [0, 0.5], got {}",
+            self.shift
+        );
+        anyhow::ensure!(
+            self.color.is_finite() && (0.0..1.0).contains(&self.color),
+            "views.color must be in [0, 1), got {}",
+            self.color
+        );
+        Ok(())
+    }
+}
+
+/// One view's draws: applied to every frame of its sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ViewJitter {
+    /// Multiplies the crop side.
+    pub scale: f64,
+    /// Moves the crop centre, in crop sides.
+    pub shift: [f64; 2],
+    pub brightness: f32,
+    pub contrast: f32,
+    pub saturation: f32,
+}
+
+impl ViewJitter {
+    pub fn draw(cfg: &ViewConfig, rng: &mut impl Rng) -> ViewJitter {
+        let log_scale = (1.0 + cfg.scale).ln();
+        let mut within = |a: f64| if a > 0.0 { rng.gen_range(-a..=a) } else { 0.0 };
+        let scale = within(log_scale).exp();
+        let shift = [within(cfg.shift), within(cfg.shift)];
+        let c = f64::from(cfg.color);
+        let mut factor = || 1.0 + within(c) as f32;
+        ViewJitter {
+            scale,
+            shift,
+            brightness: factor(),
+            contrast: factor(),
+            saturation: factor(),
+        }
+    }
+
+    /// `img` through this view: the square the centre crop `crop` (a
+    /// fraction of the shorter side; None: all of it) would take, scaled and
+    /// shifted (kept inside the image), then colour-jittered.
+    pub fn apply(&self, img: &RgbImage, crop: Option<f64>) -> RgbImage {
+        let (w, h) = img.dimensions();
+        let short = f64::from(w.min(h));
+        let side = (short * crop.unwrap_or(1.0) * self.scale)
+            .round()
+            .clamp(1.0, short);
+        let place = |extent: u32, shift: f64| {
+            let start = f64::from(extent) / 2.0 + shift * side - side / 2.0;
+            start.round().clamp(0.0, f64::from(extent) - side) as u32
+        };
+        let (x, y) = (place(w, self.shift[0]), place(h, -self.shift[1]));
+        let s = side as u32;
+        let mut out = imageops::crop_imm(img, x, y, s, s).to_image();
+        jitter(&mut out, self.brightness, self.contrast, self.saturation);
+        out
+    }
+}
+
+/// `data` followed by `cfg.count` views of each of its sequences, drawn
+/// from `seed` and the sequence id (the same views on every run with that
+/// seed, so their features are cached once).
+pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
+    let mut sequences = data.sequences.clone();
+    for k in 1..=cfg.count {
+        for seq in &data.sequences {
+            let mut rng = crate::rng::stream(seed, &format!("view/{k}/{}", seq.id));
+            let mut v = seq.clone();
+            v.id = format!("{}#view{k}", seq.id);
+            v.view = Some(ViewJitter::draw(cfg, &mut rng));
+            sequences.push(v);
+        }
+    }
+    Dataset {
+        root: data.root.clone(),
+        sequences,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plain() -> ViewJitter {
+        ViewJitter {
+            scale: 1.0,
+            shift: [0.0, 0.0],
+            brightness: 1.0,
+            contrast: 1.0,
+            saturation: 1.0,
+        }
+    }
+
+    fn ramp(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8, y as u8, 0]))
+    }
+
+    #[test]
+    fn the_plain_view_is_the_centre_crop() {
+        let img = ramp(100, 80);
+        let out = plain().apply(&img, Some(0.5));
+        assert_eq!(out, crate::data::images::center_crop(&img, 0.5));
+        assert_eq!(plain().apply(&img, None).dimensions(), (80, 80));
+    }
+
+    #[test]
+    fn scale_and_shift_move_the_crop_and_stay_inside() {
+        let img = ramp(100, 100);
+        let v = ViewJitter {
+            scale: 1.2,
+            shift: [0.1, 0.1],
+            ..plain()
+        };
+        let out = v.apply(&img, Some(0.5));
+        assert_eq!(out.dimensions(), (60, 60));
+        // Centre 50 + 6 right and 6 up: the crop starts at x 26, y 14.
+        assert_eq!(out.get_pixel(0, 0), &image::Rgb([26, 14, 0]));
+        let far = ViewJitter {
+            scale: 3.0,
+            shift: [0.5, -0.5],
+            ..plain()
+        };
+        let out = far.apply(&img, Some(0.5));
+        assert_eq!(out.dimensions(), (100, 100), "clamped to the image");
+        let tiny = ViewJitter {
+            scale: 1e-9,
+            ..plain()
+        };
+        assert_eq!(tiny.apply(&img, Some(0.5)).dimensions(), (1, 1));
+    }
+
+    #[test]
+    fn views_are_seeded_and_within_range() {
+        let cfg = ViewConfig {
+            count: 2,
+            ..Default::default()
+        };
+        let mut a = crate::rng::stream(7, "v");
+        let mut b = crate::rng::stream(7, "v");
+        for _ in 0..200 {
+            let v = ViewJitter::draw(&cfg, &mut a);
+            assert_eq!(v, ViewJitter::draw(&cfg, &mut b));
+            assert!(v.scale >= 1.0 / 1.25 - 1e-12 && v.scale <= 1.25 + 1e-12);
+            assert!(v.shift.iter().all(|s| s.abs() <= 0.15));
+            assert!((0.8..=1.2).contains(&v.brightness));
+        }
+        let none = ViewConfig {
+            scale: 0.0,
+            shift: 0.0,
+            color: 0.0,
+            ..cfg
+        };
+        assert_eq!(ViewJitter::draw(&none, &mut a), plain());
+        assert!(ViewConfig { scale: 2.0, ..cfg }.validate().is_err());
+        assert!(ViewConfig {
+            color: f32::NAN,
+            ..cfg
+        }
+        .validate()
+        .is_err());
+        assert!(cfg.validate().is_ok());
+    }
+
+    #[test]
+    fn with_views_appends_labelled_copies() {
+        let seq = |id: &str| crate::data::Sequence {
+            id: id.into(),
+            dir: Default::default(),
+            category: "c".into(),
+            object: "o".into(),
+            part: Some("p".into()),
+            preshape: grasp_schema::taxonomy::Preshape::Power,
+            condition: "default".into(),
+            fps: 30.0,
+            frames: vec!["a.png".into(), "b.png".into()],
+            labels: vec![grasp_schema::taxonomy::Class::NoGrasp; 2],
+            label_source: crate::data::LabelSource::SequenceJson,
+            center_crop: Some(0.5),
+            lead_in: 0,
+            first_frame: 0,
+            view: None,
+        };
+        let data = Dataset {
+            root: Default::default(),
+            sequences: vec![seq("s0"), seq("s1"), seq("s2")],
+        };
+        let n = data.sequences.len();
+        let cfg = ViewConfig {
+            count: 2,
+            ..Default::default()
+        };
+        let out = with_views(&data, &cfg, 1);
+        assert_eq!(out.sequences.len(), 3 * n);
+        assert!(out.sequences[..n].iter().all(|s| s.view.is_none()));
+        for (i, v) in out.sequences[n..].iter().enumerate() {
+            let src = &data.sequences[i % n];
+            assert_eq!(v.labels, src.labels);
+            assert_eq!(v.frames, src.frames);
+            assert!(v.view.is_some() && v.id.starts_with(&src.id));
+        }
+        assert_ne!(out.sequences[n].view, out.sequences[2 * n].view);
+        assert_eq!(with_views(&data, &cfg, 1).sequences, out.sequences);
+    }
+}
