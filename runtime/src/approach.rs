@@ -8,9 +8,21 @@
 //! link waits no longer, the hand refuses a late copy), no closure follows,
 //! and the hand is opened if a copy may have reached it. The closure has
 //! the same limit, counted from its trigger.
+//!
+//! The age of a decision is the time since the vote was settled
+//! ([`WindowReport::decided_at`]), not since the capture of the frames it
+//! was taken on: the limit bounds the delay the host and the link add
+//! before the hand moves, which eats into the reach. How old the newest
+//! frame is at the decision depends on the source (up to one frame
+//! interval: 33 ms for a 30 frames/s camera, 400 ms for a recording at 2.5
+//! frames/s) and is reported with each prediction's `time_s`; it does not
+//! count against the limit. Nothing between the decision and the first
+//! transmission waits for the source: [`classify_window`] hands back a
+//! [`StoppedFeed`] whose capture thread may still be fetching the frame
+//! after the window, to be joined after [`actuate`].
 
 use crate::classifier::{FrameClassifier, Probabilities};
-use crate::feed::{FeedItem, FeedMode, FeedStats, FrameFeed};
+use crate::feed::{FeedItem, FeedMode, FeedStats, FrameFeed, StoppedFeed};
 use crate::link::{Hand, LinkError};
 use crate::policy::{Decision, PolicyConfig, Step, Vote};
 use crate::protocol::{preshape_command, Command, HandState, Status};
@@ -42,10 +54,11 @@ pub struct FramePrediction {
 pub struct WindowReport {
     pub decision: Decision,
     pub predictions: Vec<FramePrediction>,
+    /// The frames of the window, as of the decision.
     pub feed: FeedStats,
     /// From the trigger to the decision.
     pub decision_ms: f64,
-    /// When the decision was taken: the start of its age.
+    /// When the vote was settled: the start of the decision's age.
     #[serde(skip)]
     pub decided_at: Instant,
 }
@@ -97,8 +110,9 @@ pub struct ApproachReport {
     pub link_error: Option<String>,
 }
 
-/// Classifies the approach window. `t0` is the trigger time. Returns the
-/// source for the next approach.
+/// Classifies the approach window. `t0` is the trigger time. Returns as
+/// soon as the vote is settled, with the stopped feed: join it (after
+/// actuating) for the source of the next approach.
 pub fn classify_window(
     source: Box<dyn FrameSource>,
     mode: FeedMode,
@@ -106,7 +120,7 @@ pub fn classify_window(
     policy: &PolicyConfig,
     t0: Instant,
     on_frame: &mut dyn FnMut(&FramePrediction),
-) -> Result<(Box<dyn FrameSource>, WindowReport)> {
+) -> Result<(StoppedFeed, WindowReport)> {
     let feed = FrameFeed::start(source, mode)?;
     let window = Duration::from_secs_f64(policy.window_s);
     let deadline = match mode {
@@ -161,7 +175,9 @@ pub fn classify_window(
     };
     let decided_at = Instant::now();
     let decision_ms = decided_at.duration_since(t0).as_secs_f64() * 1e3;
-    let (source, feed) = feed.finish();
+    // Not joined: the capture thread may be inside the source for another
+    // frame interval, and the decision's age is running.
+    let (stopped, feed) = feed.stop();
     if feed.dropped > 0 {
         tracing::info!(
             dropped = feed.dropped,
@@ -176,7 +192,7 @@ pub fn classify_window(
         decision_ms,
         decided_at,
     };
-    Ok((source, report))
+    Ok((stopped, report))
 }
 
 /// Sends the decided pre-shape, then the closure once `closure` fires;

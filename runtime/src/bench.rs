@@ -145,7 +145,7 @@ pub fn approaches(
     let window = Duration::from_secs_f64(policy.window_s);
     for _ in 0..runs {
         let t0 = Instant::now();
-        let (s, report) = classify_window(
+        let (feed, report) = classify_window(
             source,
             FeedMode::Latest,
             classifier,
@@ -153,10 +153,10 @@ pub fn approaches(
             t0,
             &mut |_| {},
         )?;
-        source = s;
         classified += report.feed.delivered;
         dropped += report.feed.dropped;
         let report = actuate(&hand, report, None, &stop, t0, policy.max_decision_age())?;
+        source = feed.join(); // as `hannes-run run`: after the command
         let acked = report.preshape.ok_or_else(|| {
             anyhow::anyhow!(
                 "approach sent no pre-shape: {:?}, expired: {:?}",

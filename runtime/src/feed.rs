@@ -4,6 +4,13 @@
 //! classifier always works on the freshest frame instead of a growing queue.
 //! In [`FeedMode::Lockstep`] the source waits for the classifier (offline
 //! replay: every frame is classified, none dropped).
+//!
+//! Stopping the feed ([`FrameFeed::stop`]) never waits for the source: the
+//! capture thread may be inside `next_frame`, for up to a frame interval (a
+//! paced replay sleeping until its next frame is due, 400 ms at 2.5
+//! frames/s; a camera waiting for its next frame). Whatever comes after the
+//! decision must not wait for that; the source is handed back later by
+//! [`StoppedFeed::join`].
 
 use crate::source::{Frame, FrameSource};
 use anyhow::Result;
@@ -128,15 +135,29 @@ impl FrameFeed {
         self.shared.lock().stats
     }
 
-    /// Stops capturing and hands the source back. A frame left in the slot
-    /// was never classified and counts as dropped.
-    pub fn finish(mut self) -> (Box<dyn FrameSource>, FeedStats) {
-        let source = self.halt();
-        let mut slot = self.shared.lock();
-        if slot.frame.take().is_some() {
-            slot.stats.dropped += 1;
-        }
-        (source.expect("feed thread joined once"), slot.stats)
+    /// Stops capturing and returns at once, without waiting for the capture
+    /// thread (see the module docs), with the statistics as of now: a frame
+    /// left in the slot was never classified and counts as dropped; a frame
+    /// the source returns later is discarded and not counted.
+    pub fn stop(self) -> (StoppedFeed, FeedStats) {
+        let stats = {
+            let mut slot = self.shared.lock();
+            // Set under the lock: the capture thread looks at it under the
+            // lock before storing a frame, so nothing is counted after now.
+            self.shared.stop.store(true, Ordering::Relaxed);
+            if slot.frame.take().is_some() {
+                slot.stats.dropped += 1;
+            }
+            slot.stats
+        };
+        self.shared.changed.notify_all();
+        (StoppedFeed { feed: self }, stats)
+    }
+
+    /// [`FrameFeed::stop`], then [`StoppedFeed::join`].
+    pub fn finish(self) -> (Box<dyn FrameSource>, FeedStats) {
+        let (stopped, stats) = self.stop();
+        (stopped.join(), stats)
     }
 
     fn halt(&mut self) -> Option<Box<dyn FrameSource>> {
@@ -148,6 +169,20 @@ impl FrameFeed {
     }
 }
 
+/// A stopped feed whose capture thread may still be inside the source's
+/// `next_frame`. Dropping it waits for that call too.
+pub struct StoppedFeed {
+    feed: FrameFeed,
+}
+
+impl StoppedFeed {
+    /// Waits for the capture thread's last `next_frame` (at most a frame
+    /// interval of the source) and hands the source back.
+    pub fn join(mut self) -> Box<dyn FrameSource> {
+        self.feed.halt().expect("feed thread joined once")
+    }
+}
+
 impl Drop for FrameFeed {
     fn drop(&mut self) {
         self.halt();
@@ -155,14 +190,21 @@ impl Drop for FrameFeed {
 }
 
 fn produce(source: &mut dyn FrameSource, shared: &Shared, mode: FeedMode) {
-    while !shared.stop.load(Ordering::Relaxed) {
+    let stopped = || shared.stop.load(Ordering::Relaxed);
+    while !stopped() {
         let next = source.next_frame();
         let mut slot = shared.lock();
+        if stopped() {
+            return; // fetched after the feed stopped: not part of the window
+        }
         match next {
             Ok(Some(frame)) => {
                 if mode == FeedMode::Lockstep {
-                    while slot.frame.is_some() && !shared.stop.load(Ordering::Relaxed) {
+                    while slot.frame.is_some() && !stopped() {
                         slot = shared.changed.wait(slot).unwrap_or_else(|p| p.into_inner());
+                    }
+                    if stopped() {
+                        return;
                     }
                 }
                 slot.stats.captured += 1;
@@ -228,6 +270,67 @@ mod tests {
         assert_eq!(stats.delivered + stats.dropped, stats.captured);
         // Dropping, not queueing: the last frame seen is the last captured.
         assert_eq!(*got.last().unwrap(), 29);
+    }
+
+    /// A source whose second frame is fetched only once `gate` opens (or
+    /// after a bound for a stuck test); it tells `holding` when it waits.
+    struct Held {
+        next: u64,
+        holding: std::sync::mpsc::Sender<()>,
+        gate: std::sync::mpsc::Receiver<()>,
+        opened_by_the_gate: Arc<AtomicBool>,
+    }
+
+    impl FrameSource for Held {
+        fn begin(&mut self) -> Result<()> {
+            Ok(())
+        }
+        fn next_frame(&mut self) -> Result<Option<Frame>> {
+            if self.next == 1 {
+                self.holding.send(()).unwrap();
+                let opened = self.gate.recv_timeout(Duration::from_secs(10)).is_ok();
+                self.opened_by_the_gate.store(opened, Ordering::Relaxed);
+            }
+            self.next += 1;
+            Ok(Some(Frame {
+                index: self.next - 1,
+                time_s: 0.0,
+                image: RgbImage::new(2, 2),
+            }))
+        }
+        fn describe(&self) -> String {
+            "held".into()
+        }
+    }
+
+    #[test]
+    fn stopping_does_not_wait_for_a_source_inside_next_frame() {
+        for mode in [FeedMode::Latest, FeedMode::Lockstep] {
+            let (holding, held) = std::sync::mpsc::channel();
+            let (open, gate) = std::sync::mpsc::channel();
+            let opened_by_the_gate = Arc::new(AtomicBool::new(false));
+            let source = Held {
+                next: 0,
+                holding,
+                gate,
+                opened_by_the_gate: opened_by_the_gate.clone(),
+            };
+            let feed = FrameFeed::start(Box::new(source), mode).unwrap();
+            assert!(matches!(feed.next(None), FeedItem::Frame(f) if f.index == 0));
+            held.recv().unwrap(); // the capture thread is inside next_frame
+            let (stopped, stats) = feed.stop();
+            // Reached while the source is still held: stop did not wait.
+            open.send(()).unwrap();
+            let _source = stopped.join();
+            assert!(opened_by_the_gate.load(Ordering::Relaxed), "{mode:?}");
+            // The frame fetched after the stop is not counted.
+            let expected = FeedStats {
+                captured: 1,
+                delivered: 1,
+                dropped: 0,
+            };
+            assert_eq!(stats, expected, "{mode:?}");
+        }
     }
 
     #[test]

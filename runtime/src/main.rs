@@ -64,8 +64,8 @@ struct PolicyArgs {
     #[arg(long)]
     window: Option<f64>,
     /// A decision older than this (ms) is never executed: the pre-shape
-    /// must be acknowledged within it, the closure within it of its trigger
-    /// (default 300).
+    /// must be acknowledged within it of the vote (not of the frames'
+    /// capture), the closure within it of its trigger (default 300).
     #[arg(long)]
     max_decision_age_ms: Option<u64>,
     /// Decide early once the leading pre-shape is this many votes ahead.

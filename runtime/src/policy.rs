@@ -40,7 +40,10 @@ pub struct PolicyConfig {
     pub fallback: Option<Preshape>,
     pub on_invalid: OnInvalid,
     /// A decision older than this is never sent: the pre-shape must be
-    /// acknowledged within it (the closure within it of its trigger).
+    /// acknowledged within it (the closure within it of its trigger). The
+    /// age counts from the moment the vote is settled, not from the capture
+    /// of the frames voted on, so a slow source (a recording at 2.5
+    /// frames/s) needs no allowance for its frame interval.
     pub max_decision_age_ms: u64,
 }
 
@@ -51,7 +54,9 @@ pub struct PolicyConfig {
 /// leaves them the rest. A healthy link acknowledges in one round trip (2.3
 /// ms of wire time at 115200 baud), over a hundred times less, and 300 ms
 /// still covers the first transmission and two retransmissions at the
-/// default 100 ms ACK timeout.
+/// default 100 ms ACK timeout. It bounds what the host and the link add
+/// after the decision; how old the newest frame is at the decision (up to
+/// one frame interval) is part of the window, not of this budget.
 pub const DEFAULT_MAX_DECISION_AGE_MS: u64 = 300;
 
 impl Default for PolicyConfig {

@@ -229,7 +229,7 @@ impl Session<'_> {
                 break;
             }
             let t0 = Instant::now();
-            let (s, window) = classify_window(
+            let (feed, window) = classify_window(
                 source,
                 self.mode,
                 &mut *self.classifier,
@@ -237,13 +237,16 @@ impl Session<'_> {
                 t0,
                 &mut |p| observer.frame(p),
             )?;
-            source = s;
             let closure: Option<&mut dyn Trigger> = match &mut closure {
                 Some(c) => Some(&mut **c),
                 None => None,
             };
             let max_age = self.policy.max_decision_age();
             let report = actuate(self.hand, window, closure, self.stop, t0, max_age)?;
+            // Only now: the capture thread may have been inside the source
+            // (a replay sleeping until its next frame is due) since the
+            // decision, whose age must not wait for it.
+            source = feed.join();
             summary.record(n, &report);
             observer.approach(n, &report)?;
             if self.stop.load(Ordering::Relaxed) {
