@@ -63,3 +63,48 @@ fn stopped_then_resumed_equals_uninterrupted() {
     let report = verify(resumed.path(), Some(src.as_ref()), true).unwrap();
     assert!(report.ok(), "{}", report.render_text());
 }
+
+/// A folder rendered with other settings (here: a dataset of 4 sequences
+/// grown to 6, which numbers the folders differently) holds another
+/// sequence than the one planned there: resuming is refused before anything
+/// is rendered or overwritten, naming the folder and both sequences.
+#[test]
+fn resuming_with_settings_that_number_folders_differently_is_refused() {
+    use generator::dataset::assign_folders;
+    use generator::plan::PlanSource;
+    use grasp_schema::dataset::{SequenceRecord, SEQUENCE_FILE};
+    let out = tempfile::tempdir().unwrap();
+    let src = source(6, 2, 16);
+    let assigned = assign_folders(&src.keys().unwrap());
+    // Another sequence sits in the folder planned for the second one.
+    let (planned, other) = (&assigned[1], src.plans[4].clone());
+    assert_ne!(planned.planned.key, other.key);
+    let dir = out.path().join(&planned.rel_dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let record = SequenceRecord {
+        plan: other.clone(),
+        frame_files: vec!["00000.png".into(), "00001.png".into()],
+        render: serde_json::json!({}),
+        generator_version: "test".into(),
+    };
+    std::fs::write(
+        dir.join(SEQUENCE_FILE),
+        serde_json::to_vec(&record).unwrap(),
+    )
+    .unwrap();
+    let written = std::fs::read(dir.join(SEQUENCE_FILE)).unwrap();
+
+    let mut opts = options(out.path(), 1);
+    opts.resume = true;
+    let err = format!(
+        "{:#}",
+        render(Arc::new(src), &workbench(), &opts).unwrap_err()
+    );
+    assert!(err.contains(&planned.rel_dir), "{err}");
+    assert!(err.contains(&other.key.id()), "{err}");
+    assert!(err.contains(&planned.planned.key.id()), "{err}");
+    assert!(err.contains("other settings"), "{err}");
+    // Nothing was overwritten, and nothing rendered.
+    assert_eq!(std::fs::read(dir.join(SEQUENCE_FILE)).unwrap(), written);
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+}

@@ -143,6 +143,7 @@ pub fn render(
         .map(|a| dataset.is_finished(&a.rel_dir))
         .collect();
     let finished_count = finished.iter().filter(|f| **f).count();
+    refuse_other_sequences(&dataset, &in_shard, &finished)?;
     if finished_count > 0 && !opts.resume {
         bail!(
             "{} already holds {finished_count} finished sequences of this dataset; pass \
@@ -198,6 +199,42 @@ pub fn render(
 /// The jobs of this run: the unfinished sequences of the shard, and the
 /// finished-looking ones whose files are missing or damaged (re-rendered,
 /// with a message).
+/// Fails when a finished folder holds another sequence than the one this
+/// config plans there: the folder was rendered with other settings (more or
+/// fewer sequences per pair, other objects, parts or conditions), which
+/// number the folders differently. Keeping it would leave one sequence
+/// twice and another missing; rendering over it would destroy it.
+fn refuse_other_sequences(
+    dataset: &DatasetDir,
+    in_shard: &[Assigned],
+    finished: &[bool],
+) -> Result<()> {
+    let mut other = in_shard
+        .iter()
+        .zip(finished)
+        .filter(|(_, done)| **done)
+        .filter_map(|(a, _)| {
+            let path = dataset
+                .root
+                .join(&a.rel_dir)
+                .join(grasp_schema::dataset::SEQUENCE_FILE);
+            let held = crate::dataset::writer::read_record(&path).ok()?.plan.key;
+            (held != a.planned.key).then(|| (a, held))
+        });
+    let Some((first, held)) = other.next() else {
+        return Ok(());
+    };
+    bail!(
+        "{} holds sequence {}, but this config plans {} there ({} more such folder(s)): the \
+         dataset was rendered with other settings (sequences per pair, objects, parts or \
+         conditions number the folders); render into a new folder, or back to the old settings",
+        dataset.root.join(&first.rel_dir).display(),
+        held.id(),
+        first.planned.key.id(),
+        other.count()
+    )
+}
+
 fn unfinished_jobs(
     dataset: &DatasetDir,
     in_shard: &[Assigned],
