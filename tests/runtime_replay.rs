@@ -13,12 +13,11 @@ use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use grasp_schema::dataset::{ManifestEntry, MANIFEST_FILE};
 use grasp_schema::taxonomy::Preshape;
-use runtime::approach::ApproachReport;
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink, LinkConfig};
 use runtime::policy::PolicyConfig;
 use runtime::protocol::HandState;
-use runtime::session::{Session, SessionObserver};
+use runtime::session::{ReportLog, Session};
 use runtime::simhand::{HandEvent, PtyHand};
 use runtime::source::{Pacing, SequenceFolder};
 use runtime::transport::SerialConnector;
@@ -115,7 +114,7 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
         // One approach, as `hannes-run run` makes it: triggered at once,
         // closed 10 ms after the pre-shape.
         let mut closure = Timer(Duration::from_millis(10));
-        let mut reports = Reports::default();
+        let mut reports = ReportLog::default();
         let (_, summary) = session
             .run(
                 Box::new(source),
@@ -149,15 +148,4 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
     let mut expected: Vec<Option<Preshape>> = Preshape::ALL.iter().map(|p| Some(*p)).collect();
     expected.sort();
     assert_eq!(commanded, expected);
-}
-
-/// Keeps every approach's report.
-#[derive(Default)]
-struct Reports(Vec<ApproachReport>);
-
-impl SessionObserver for Reports {
-    fn approach(&mut self, _approach: usize, report: &ApproachReport) -> anyhow::Result<()> {
-        self.0.push(report.clone());
-        Ok(())
-    }
 }

@@ -201,6 +201,17 @@ pub trait SessionObserver {
     }
 }
 
+/// An observer that keeps every approach's report, in order (tests, tools).
+#[derive(Debug, Default)]
+pub struct ReportLog(pub Vec<ApproachReport>);
+
+impl SessionObserver for ReportLog {
+    fn approach(&mut self, _approach: usize, report: &ApproachReport) -> Result<()> {
+        self.0.push(report.clone());
+        Ok(())
+    }
+}
+
 /// Everything an approach needs besides its frames and triggers.
 pub struct Session<'a> {
     pub hand: &'a Hand,

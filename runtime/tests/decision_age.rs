@@ -15,11 +15,10 @@ mod common;
 use common::{fast_link, frames_of, start_hand, FakeModel};
 use grasp_schema::taxonomy::{Class, Preshape};
 use image::RgbImage;
-use runtime::approach::ApproachReport;
 use runtime::classifier::FrameClassifier;
 use runtime::feed::FeedMode;
 use runtime::policy::{Outcome, PolicyConfig};
-use runtime::session::{ApproachResult, Session, SessionObserver};
+use runtime::session::{ApproachResult, ReportLog, Session};
 use runtime::simhand::{HandEvent, PtyHand};
 use runtime::source::{Frame, FrameSource, MemorySource, Pacing};
 use runtime::trigger::Timer;
@@ -109,16 +108,6 @@ impl FrameClassifier for WaitsForTheHold {
     }
 }
 
-#[derive(Default)]
-struct Reports(Vec<ApproachReport>);
-
-impl SessionObserver for Reports {
-    fn approach(&mut self, _n: usize, report: &ApproachReport) -> anyhow::Result<()> {
-        self.0.push(report.clone());
-        Ok(())
-    }
-}
-
 #[test]
 fn a_decision_does_not_wait_for_the_frame_after_the_window() {
     let dir = tempfile::tempdir().unwrap();
@@ -157,7 +146,7 @@ fn a_decision_does_not_wait_for_the_frame_after_the_window() {
         mode: FeedMode::Lockstep,
         stop: &stop,
     };
-    let mut reports = Reports::default();
+    let mut reports = ReportLog::default();
     let (_, summary) = session
         .run(
             Box::new(source),
