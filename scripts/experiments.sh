@@ -18,8 +18,9 @@
 #             LSTM against FC, on the study's 224 px / 5 frames/s set.
 #   egocentric  Table 2's columns: wrist against head camera, same plans.
 #   main      scripts/main.sh into $OUT/main: Table 3, Table 2's rows, Fig. 5.
-#   size      error against training sequences per pair: nested subsets of
-#             the main job's training set.
+#   size      error against training sequences per pair: nested subsets
+#             (1, 2, 4, 8 of 16) of the main job's training set, every
+#             test condition.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -178,7 +179,7 @@ stage_main() {
 
 stage_size() {
   local n s c main="$OUT/main"
-  for n in 1 2 4; do
+  for n in 1 2 4 8; do
     local runs="$OUT/size-$n" ckpts=()
     [ -f "$runs/.done" ] || {
       run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
@@ -187,7 +188,7 @@ stage_size() {
       touch "$runs/.done"
     }
     for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
-    for c in default unseen_look; do
+    for c in default fast from_ground seated background unseen_look; do
       [ -f "$runs/report/$c/report.json" ] ||
         run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
           --cache-dir "$main/features"
@@ -220,9 +221,9 @@ stage_summary() {
   run "$BIN/grasp-train" summarize --x-label "render CPU seconds per training set" \
     --title "Randomisation ablation (FC head, centre crop)" --out "$s/ablation" "${reports[@]}"
   reports=()
-  for t in default unseen_look; do
-    for n in 1 2 4; do reports+=(--report "$t/$n=$n:$OUT/size-$n/report/$t"); done
-    reports+=(--report "$t/8=8:$OUT/main/report/fc/$t")
+  for t in default fast from_ground seated background unseen_look; do
+    for n in 1 2 4 8; do reports+=(--report "$t/$n=$n:$OUT/size-$n/report/$t"); done
+    reports+=(--report "$t/16=16:$OUT/main/report/fc/$t")
   done
   run "$BIN/grasp-train" summarize --x-label "training sequences per pair" --log-x \
     --title "Error against training set size (FC head, frozen Lite0)" --out "$s/size" "${reports[@]}"

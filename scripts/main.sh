@@ -10,12 +10,12 @@
 #   scripts/main.sh [--from-scratch] [--paper-scale] [--ycb DIR] [--weights FILE] [OUT]
 #
 #   (default)       built-in objects, configs/main.toml: all 31 pairs, Cycles
-#                   (1 sample, denoised) at 160 x 160 and 2.5 frames/s, 8
+#                   (1 sample, denoised) at 160 x 160 and 2.5 frames/s, 16
 #                   training sequences per pair, 2 test sequences per pair and
 #                   condition (62 videos each). The backbone is the ImageNet
 #                   EfficientNet-Lite0 that scripts/setup.sh pip-installs; the
 #                   heads see the central 42 % of each frame (--center-crop,
-#                   EXPERIMENTS.md). About 18 minutes on 2 cores after setup.
+#                   EXPERIMENTS.md). About 17 minutes on 2 cores after setup.
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
 #                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
 #                   MobileNetV2 at width 0.35 on 64 px trained end to end.
@@ -59,7 +59,7 @@ if [ "$PAPER" = 1 ]; then
 elif [ "$SCRATCH" = 1 ]; then
   CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=${TRAIN_SEQ:-4} TEST_SEQ=${TEST_SEQ:-1}
 else
-  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-8} TEST_SEQ=${TEST_SEQ:-2}
+  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-16} TEST_SEQ=${TEST_SEQ:-2}
 fi
 if [ "$SCRATCH" = 1 ]; then
   HEADS=(fc) SEEDS=1
