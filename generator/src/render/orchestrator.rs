@@ -219,7 +219,7 @@ fn refuse_other_sequences(
                 .join(&a.rel_dir)
                 .join(grasp_schema::dataset::SEQUENCE_FILE);
             let held = crate::dataset::writer::read_record(&path).ok()?.plan.key;
-            (held != a.planned.key).then(|| (a, held))
+            (held != a.planned.key).then_some((a, held))
         });
     let Some((first, held)) = other.next() else {
         return Ok(());
