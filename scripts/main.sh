@@ -7,7 +7,7 @@
 # both on every test condition, and replay one test sequence through the
 # runtime against the simulated hand.
 #
-#   scripts/main.sh [--from-scratch] [--paper-scale] [--ycb DIR] [--weights FILE] [OUT]
+#   scripts/main.sh [--large | --paper-scale | --from-scratch] [--ycb DIR] [--weights FILE] [OUT]
 #
 #   (default)       built-in objects, configs/main.toml: all 31 pairs, Cycles
 #                   (1 sample, denoised) at 160 x 160 and 2.5 frames/s, 16
@@ -16,6 +16,9 @@
 #                   EfficientNet-Lite0 that scripts/setup.sh pip-installs; the
 #                   heads see the central 42 % of each frame (--center-crop,
 #                   EXPERIMENTS.md). About 17 minutes on 2 cores after setup.
+#   --large         configs/main-224.toml: the same at 224 x 224 (16 per
+#                   pair). About 30 minutes after setup; better on the
+#                   held-out look (EXPERIMENTS.md, section 4).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
 #                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
 #                   MobileNetV2 at width 0.35 on 64 px trained end to end.
@@ -37,14 +40,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-PAPER=0 SCRATCH=0 YCB='' WEIGHTS='' OUT=runs/main
+PAPER=0 LARGE=0 SCRATCH=0 YCB='' WEIGHTS='' OUT=runs/main
 while [ $# -gt 0 ]; do
   case $1 in
     --paper-scale) PAPER=1 ;;
+    --large) LARGE=1 ;;
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,37p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,39p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -56,6 +60,8 @@ SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
+elif [ "$LARGE" = 1 ]; then
+  CONFIG=${CONFIG:-configs/main-224.toml} TRAIN_SEQ=${TRAIN_SEQ:-16} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$SCRATCH" = 1 ]; then
   CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=${TRAIN_SEQ:-4} TEST_SEQ=${TEST_SEQ:-1}
 else
