@@ -28,26 +28,17 @@ fn grasp_train(cwd: &Path, args: &[&str]) -> (bool, String) {
 /// from `work` as a user would type them; returns the checkpoint.
 fn train_tiny(work: &Path) -> PathBuf {
     write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
-    let (ok, text) = grasp_train(
-        work,
-        &[
-            "--threads",
-            "2",
-            "train",
-            "--data",
-            "data",
-            "--out",
-            "run",
-            "--mode",
-            "from-scratch",
-            "--width-mult",
-            "0.25",
-            "--input-size",
-            "32",
-            "--max-epochs",
-            "1",
-        ],
-    );
+    train_tiny_on_data(work, &[])
+}
+
+/// [`train_tiny`] on the data already in `work/data`, with `extra` train
+/// flags.
+fn train_tiny_on_data(work: &Path, extra: &[&str]) -> PathBuf {
+    let mut args = vec!["--threads", "2", "train", "--data", "data", "--out", "run"];
+    args.extend(["--mode", "from-scratch", "--width-mult", "0.25"]);
+    args.extend(["--input-size", "32", "--max-epochs", "1"]);
+    args.extend(extra);
+    let (ok, text) = grasp_train(work, &args);
     assert!(ok, "{text}");
     work.join("run/seed-0")
 }
@@ -171,27 +162,7 @@ fn eval_reads_the_camera_the_checkpoint_was_trained_on() {
     let work = dir.path();
     write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
     as_head_camera(&work.join("data"));
-    let train = [
-        "--threads",
-        "2",
-        "train",
-        "--data",
-        "data",
-        "--camera",
-        "Head_d435",
-        "--out",
-        "run",
-        "--mode",
-        "from-scratch",
-        "--width-mult",
-        "0.25",
-        "--input-size",
-        "32",
-        "--max-epochs",
-        "1",
-    ];
-    let (ok, text) = grasp_train(work, &train);
-    assert!(ok, "{text}");
+    train_tiny_on_data(work, &["--camera", "Head_d435"]);
     // No --camera: the checkpoint's own camera, so the head frames are found.
     let (ok, text) = grasp_train(
         work,
