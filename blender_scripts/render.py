@@ -17,7 +17,12 @@ def configure(settings):
     if engine not in ENGINES:
         raise ValueError(f"unknown engine '{engine}' (expected one of {sorted(ENGINES)})")
     scene.render.engine = ENGINES[engine]
-    scene.render.use_persistent_data = bool(settings.get("persistent_data", True))
+    # No persistent data: Cycles' state kept from a worker's earlier
+    # sequences leaked into later ones, so a frame depended on which
+    # sequences its worker had rendered before (half the unseen_look frames
+    # changed between a 1- and a 2-worker render). Without it both are
+    # byte-identical, at the same speed (docs/rendering.md).
+    scene.render.use_persistent_data = bool(settings.get("persistent_data", False))
     scene.render.threads_mode = "FIXED" if settings.get("threads", 0) else "AUTO"
     if settings.get("threads", 0):
         scene.render.threads = int(settings["threads"])

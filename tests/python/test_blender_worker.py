@@ -159,6 +159,8 @@ def test_worker_applies_unseen_lights_world_tone_and_distractors(tmp_path):
     scene = bpy.context.scene
     assert scene.view_settings.view_transform == "Khronos PBR Neutral"
     assert scene.world.name == "world_hdri"
+    # Nothing of a worker's earlier sequences carries over (determinism).
+    assert not scene.render.use_persistent_data
     # A small importance map: the automatic one (the HDRI's own 1K) doubled
     # the render time of a frame at 1 sample (docs/rendering.md).
     assert scene.world.cycles.sampling_method == "MANUAL"
