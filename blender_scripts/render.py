@@ -8,6 +8,8 @@ ENGINES = {"cycles": "CYCLES", "workbench": "BLENDER_WORKBENCH", "eevee": "BLEND
 PASSES = ("rgb", "depth", "instance", "part")
 # Object pass indices written to the `instance` pass (IndexOB).
 INDEX_OBJECT, INDEX_HAND, INDEX_TABLE = 1, 2, 3
+# Scene property holding `center_region` (see apply_center_region).
+CENTER_REGION = "grasp_center_region"
 
 
 def configure(settings):
@@ -39,6 +41,8 @@ def configure(settings):
     scene.render.image_settings.compression = int(settings.get("png_compression", 15))
     scene.view_settings.view_transform = settings.get("view_transform", "AgX")
     scene.view_settings.look = "None"
+    scene[CENTER_REGION] = float(settings.get("center_region", 1.0))
+    apply_center_region(scene)
     if engine == "cycles":
         _cycles(scene, settings)
     elif engine == "workbench":
@@ -54,6 +58,22 @@ def configure(settings):
     # index where the engine has one (Cycles).
     layer.use_pass_z = "depth" in passes or "part" in passes
     layer.use_pass_object_index = "instance" in passes or ("part" in passes and engine == "cycles")
+
+
+def apply_center_region(scene):
+    """Renders only the centred square whose side is the configured fraction
+    of the shorter image side (the rest stays black): the part a model that
+    crops the centre looks at. Called again whenever the image size changes."""
+    fraction = scene.get(CENTER_REGION, 1.0)
+    r = scene.render
+    r.use_border = fraction < 1.0
+    r.use_crop_to_border = False
+    if r.use_border:
+        short = min(r.resolution_x, r.resolution_y)
+        half_x = fraction * short / r.resolution_x / 2
+        half_y = fraction * short / r.resolution_y / 2
+        r.border_min_x, r.border_max_x = 0.5 - half_x, 0.5 + half_x
+        r.border_min_y, r.border_max_y = 0.5 - half_y, 0.5 + half_y
 
 
 def _cycles(scene, s):

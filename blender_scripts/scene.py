@@ -8,7 +8,7 @@ along local -Z, +Y up in the image.
 import bpy
 from mathutils import Vector
 
-from blender_scripts import materials
+from blender_scripts import materials, render
 
 # Hand and forearm in the camera frame. The camera sits below the wrist,
 # looking along the forearm, so the hand's back and fingers enter the top of
@@ -294,3 +294,4 @@ def apply_intrinsics(cam, k):
     scene.render.resolution_percentage = 100
     scene.render.pixel_aspect_x = 1.0
     scene.render.pixel_aspect_y = k["fx"] / k["fy"] if k["fy"] else 1.0
+    render.apply_center_region(scene)

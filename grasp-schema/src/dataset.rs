@@ -88,6 +88,10 @@ pub fn part_file_name(frame_file: &str) -> String {
 /// [`SequenceRecord::render`], present when the `part` pass was rendered.
 pub const PART_LABELS_KEY: &str = "part_labels";
 
+/// Key of the rendered centre region inside [`SequenceRecord::render`]
+/// (`[render] center_region`), present when it is below 1.
+pub const CENTER_REGION_KEY: &str = "center_region";
+
 /// Key of [`RenderCost`] inside [`SequenceRecord::render`].
 pub const RENDER_COST_KEY: &str = "cost";
 
@@ -127,6 +131,17 @@ impl SequenceRecord {
     pub fn part_labels(&self) -> Option<Vec<String>> {
         let v = self.render.get(PART_LABELS_KEY)?;
         serde_json::from_value(v.clone()).ok()
+    }
+
+    /// The side of the centred square that was rendered, as a fraction of
+    /// the shorter image side (pixels outside it are black); 1 when the
+    /// whole frame was rendered. `None` when the record's value is not a
+    /// fraction in (0, 1].
+    pub fn center_region(&self) -> Option<f64> {
+        match self.render.get(CENTER_REGION_KEY) {
+            None => Some(1.0),
+            Some(v) => v.as_f64().filter(|f| *f > 0.0 && *f <= 1.0),
+        }
     }
 
     /// Whether the plan has an egocentric view (a `Head_d435` folder).

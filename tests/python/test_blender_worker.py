@@ -100,6 +100,26 @@ def test_worker_renders_a_sequence(tmp_path):
     json.dumps(plan())  # the plan stays plain JSON
 
 
+def test_center_region_renders_only_the_central_square(tmp_path):
+    settings = dict(SETTINGS, engine="cycles", samples=1, denoiser="none", center_region=0.5)
+    worker = Worker(GEOMETRY, settings)
+    worker.add_mesh("cube", *cube_bytes())
+    worker.render(plan(frames=1), str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
+    image = bpy.data.images.load(str(tmp_path / "00000.png"))
+    assert tuple(image.size) == (32, 24)
+    # Rows bottom-up; the square is 0.5 x 24 = 12 px: columns 10-21, rows 6-17.
+    rgb = np.array(image.pixels[:]).reshape(24, 32, 4)[:, :, :3]
+    inside = rgb[7:17, 11:21]
+    assert (inside.sum(axis=2) > 0).mean() > 0.9, "the central square is rendered"
+    outside = np.ones((24, 32), bool)
+    outside[5:19, 9:23] = False  # one pixel of slack around the square
+    # Black, up to Blender's dither of one grey level.
+    assert rgb[outside].max() <= 1.5 / 255, "everything else stays black"
+    # Whole frames again for the next worker.
+    Worker(GEOMETRY, SETTINGS)
+    assert not bpy.context.scene.render.use_border
+
+
 def test_bad_meshes_are_refused():
     worker = Worker(GEOMETRY, SETTINGS)
     v, _ = cube_bytes()

@@ -244,3 +244,43 @@ fn the_lead_in_before_the_target_is_in_view_is_found_and_trimmed() {
         "trimming twice drops nothing more"
     );
 }
+
+/// Sets `render.center_region` of one sequence's record.
+fn set_center_region(json: &std::path::Path, value: serde_json::Value) {
+    let mut record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    record["render"]["center_region"] = value;
+    std::fs::write(json, record.to_string()).unwrap();
+}
+
+#[test]
+fn a_crop_wider_than_the_rendered_centre_is_refused_naming_the_file() {
+    let (dir, _) = generated();
+    let fail = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
+    let json = data.sequences[1].dir.join("sequence.json");
+    set_center_region(&json, serde_json::json!(0.5));
+    let crop = |c: Option<f64>| ReaderOptions {
+        center_crop: c,
+        ..ReaderOptions::default()
+    };
+    // Inside the rendered centre: read as before.
+    let inside = read_dataset(dir.path(), &crop(Some(0.42)), &fail).unwrap();
+    assert_eq!(inside.sequences.len(), data.sequences.len());
+    assert!(read_dataset(dir.path(), &crop(Some(0.5)), &fail).is_ok());
+    // Wider, or whole frames: the model would see the black surround.
+    for c in [Some(0.6), None] {
+        let err = format!(
+            "{:#}",
+            read_dataset(dir.path(), &crop(c), &fail).unwrap_err()
+        );
+        assert!(err.contains(&json.display().to_string()), "{err}");
+        assert!(err.contains("rendered only in their central 0.5"), "{err}");
+    }
+    // A value that is no fraction is bad data: skipped and reported.
+    set_center_region(&json, serde_json::json!(-2));
+    let skip = BadData::new(OnBadData::Skip);
+    let read = read_dataset(dir.path(), &crop(Some(0.42)), &skip).unwrap();
+    assert_eq!(read.sequences.len(), data.sequences.len() - 1);
+    assert_eq!(skip.problems()[0].path, json);
+}

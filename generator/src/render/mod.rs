@@ -17,6 +17,7 @@ pub mod source;
 pub mod worker;
 
 use anyhow::{bail, Result};
+use grasp_schema::dataset::CENTER_REGION_KEY;
 use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
@@ -104,6 +105,11 @@ pub struct RenderConfig {
     pub one_call: bool,
     /// PNG compression, 0 to 100.
     pub png_compression: u32,
+    /// Side of the centred square that is rendered, as a fraction of the
+    /// image's shorter side; outside it frames stay black. 1 renders the
+    /// whole frame. A model that sees only the centre (`grasp-train
+    /// --center-crop`) needs no more, and Cycles' cost scales with pixels.
+    pub center_region: f64,
     /// Worker processes (the `--workers` flag overrides it).
     pub workers: usize,
     /// A worker is restarted after this many sequences (Blender's memory
@@ -129,6 +135,7 @@ impl Default for RenderConfig {
             threads: 0,
             one_call: true,
             png_compression: 15,
+            center_region: 1.0,
             workers: 1,
             recycle_every: 50,
             max_retries: 2,
@@ -166,6 +173,20 @@ impl RenderConfig {
         if self.png_compression > 100 {
             bail!("[render] png_compression: must be 0 to 100");
         }
+        if !(self.center_region > 0.0 && self.center_region <= 1.0) {
+            bail!(
+                "[render] center_region: must be in (0, 1], got {}",
+                self.center_region
+            );
+        }
+        if self.center_region < 1.0 && self.passes != [Pass::Rgb] {
+            bail!(
+                "[render] center_region {} renders only part of each frame; the depth, \
+                 instance and part passes need whole frames (use passes = [\"rgb\"] or \
+                 center_region = 1)",
+                self.center_region
+            );
+        }
         if self.workers == 0 || self.recycle_every == 0 {
             bail!("[render] workers and recycle_every must be at least 1");
         }
@@ -186,7 +207,7 @@ impl RenderConfig {
     /// (workers, recycling, retries) are left out: they do not change pixels.
     pub fn blender_settings(&self) -> serde_json::Value {
         let prefilter = self.denoising_prefilter.to_ascii_uppercase();
-        serde_json::json!({
+        let mut settings = serde_json::json!({
             "engine": self.engine,
             "samples": self.samples,
             "denoiser": self.denoiser,
@@ -201,7 +222,13 @@ impl RenderConfig {
             "one_call": self.one_call,
             "png_compression": self.png_compression,
             "blender": "5.0",
-        })
+        });
+        // Recorded only when it crops, so records of whole frames written
+        // before the field existed compare equal.
+        if self.center_region < 1.0 {
+            settings[CENTER_REGION_KEY] = self.center_region.into();
+        }
+        settings
     }
 }
 
@@ -217,6 +244,32 @@ mod tests {
         assert_eq!(s["engine"], "cycles");
         assert_eq!(s["passes"], serde_json::json!(["rgb"]));
         assert_eq!(s["denoising_prefilter"], "FAST");
+    }
+
+    #[test]
+    fn center_region_is_recorded_only_when_it_crops() {
+        let whole = RenderConfig::default();
+        assert!(whole.blender_settings().get(CENTER_REGION_KEY).is_none());
+        let part = RenderConfig {
+            center_region: 0.5,
+            ..Default::default()
+        };
+        part.validate().unwrap();
+        assert_eq!(part.blender_settings()[CENTER_REGION_KEY], 0.5);
+        for bad in [0.0, 1.5, f64::NAN] {
+            let c = RenderConfig {
+                center_region: bad,
+                ..Default::default()
+            };
+            let e = format!("{:#}", c.validate().unwrap_err());
+            assert!(e.contains("[render] center_region"), "{e}");
+        }
+        let with_depth = RenderConfig {
+            passes: vec![Pass::Rgb, Pass::Depth],
+            ..part
+        };
+        let e = format!("{:#}", with_depth.validate().unwrap_err());
+        assert!(e.contains("need whole frames"), "{e}");
     }
 
     #[test]

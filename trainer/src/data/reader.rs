@@ -107,7 +107,16 @@ fn read_sequence(
     let json = dir.join(SEQUENCE_FILE);
     let seq = if json.is_file() {
         match read_record(&json) {
-            Ok(record) => from_record(dir, ctx, &record, opts),
+            Ok(record) => match record.center_region() {
+                Some(region) => {
+                    check_center_region(&json, region, opts)?;
+                    from_record(dir, ctx, &record, opts)
+                }
+                None => {
+                    bad.report(&json, "render.center_region must be a fraction in (0, 1]")?;
+                    return Ok(None);
+                }
+            },
             Err(e) => {
                 bad.report(&json, format!("{e:#}"))?;
                 return Ok(None);
@@ -123,6 +132,21 @@ fn read_sequence(
         from_folder(dir, ctx, opts)?
     };
     check_frames(seq, bad)
+}
+
+/// Frames rendered only in their centre (`[render] center_region`) are
+/// black outside it, so a model must not look further out than that.
+fn check_center_region(json: &Path, region: f64, opts: &ReaderOptions) -> Result<()> {
+    let seen = opts.center_crop.unwrap_or(1.0);
+    if seen > region + 1e-9 {
+        anyhow::bail!(
+            "{}: the frames were rendered only in their central {region} ([render] \
+             center_region) but the model looks at the central {seen} (--center-crop; 1 is \
+             the whole frame): crop at most {region}, or render with a larger center_region",
+            json.display()
+        );
+    }
+    Ok(())
 }
 
 fn read_record(path: &Path) -> Result<SequenceRecord> {
