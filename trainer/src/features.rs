@@ -112,7 +112,8 @@ impl FeatureCache {
 }
 
 /// Hash of the frame files' absolute paths, sizes and modification times,
-/// and of the centre crop and augmented view the backbone sees.
+/// and of the centre crop, augmented view and sensor probe the backbone
+/// sees.
 fn sequence_hash(seq: &Sequence) -> Result<String> {
     let mut h = Sha256::new();
     if let Some(c) = seq.center_crop {
@@ -122,6 +123,10 @@ fn sequence_hash(seq: &Sequence) -> Result<String> {
     if let Some(v) = &seq.view {
         h.update(b"view");
         h.update(serde_json::to_vec(v)?);
+    }
+    if let Some(p) = &seq.probe {
+        h.update(b"probe");
+        h.update(serde_json::to_vec(p)?);
     }
     for f in &seq.frames {
         let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());

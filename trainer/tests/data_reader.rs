@@ -284,3 +284,27 @@ fn a_crop_wider_than_the_rendered_centre_is_refused_naming_the_file() {
     assert_eq!(read.sequences.len(), data.sequences.len() - 1);
     assert_eq!(skip.problems()[0].path, json);
 }
+
+#[test]
+fn a_sensor_probe_degrades_each_frame_before_the_crop() {
+    use trainer::data::probe::SensorProbe;
+    let (dir, _) = generated();
+    let opts = ReaderOptions {
+        center_crop: Some(0.5),
+        ..ReaderOptions::default()
+    };
+    let bad = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &opts, &bad).unwrap();
+    let mut seq = data.sequences[0].clone();
+    let plain = seq.load_frame(1, &bad).unwrap().unwrap();
+    let probe = SensorProbe::new(Some(0.05), Some(1.0)).unwrap().unwrap();
+    seq.probe = Some(probe);
+    let probed = seq.load_frame(1, &bad).unwrap().unwrap();
+    assert_eq!(probed.dimensions(), plain.dimensions());
+    assert_ne!(probed, plain);
+    let raw = trainer::data::images::load_frame(&seq.frames[1], &bad)
+        .unwrap()
+        .unwrap();
+    let expect = probe.apply(&raw, &format!("{}/1", seq.id));
+    assert_eq!(probed, trainer::data::images::center_crop(&expect, 0.5));
+}

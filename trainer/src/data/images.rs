@@ -17,18 +17,4 @@ pub fn load_frame(path: &Path, bad: &BadData) -> Result<Option<RgbImage>> {
     }
 }
 
-/// [`load_frame`], then the central square of side `crop` times the shorter
-/// side (`None`: the whole frame).
-pub fn load_frame_cropped(
-    path: &Path,
-    crop: Option<f64>,
-    bad: &BadData,
-) -> Result<Option<RgbImage>> {
-    let img = load_frame(path, bad)?;
-    Ok(match crop {
-        Some(f) => img.map(|i| center_crop(&i, f)),
-        None => img,
-    })
-}
-
 pub use grasp_model::model::preprocess::center_crop;

@@ -5,6 +5,7 @@ pub mod augment;
 pub mod bad;
 pub mod coverage;
 pub mod images;
+pub mod probe;
 pub mod reader;
 pub mod split;
 pub mod synthetic;
@@ -63,6 +64,10 @@ pub struct Sequence {
     /// augmentation, [`view::with_views`]); None: the frames as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub view: Option<view::ViewJitter>,
+    /// Extra sensor degradation of every frame, before the crop
+    /// (`eval --probe-noise/--probe-blur`); None: the frames as rendered.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe: Option<probe::SensorProbe>,
 }
 
 impl Sequence {
@@ -76,13 +81,22 @@ impl Sequence {
         format!("{}/{}", self.object, part)
     }
 
-    /// Frame `i`, decoded and centre-cropped as the reader was told.
+    /// Frame `i`, decoded, probed and centre-cropped as the reader was
+    /// told.
     pub fn load_frame(&self, i: usize, bad: &BadData) -> anyhow::Result<Option<image::RgbImage>> {
-        match &self.view {
-            None => images::load_frame_cropped(&self.frames[i], self.center_crop, bad),
-            Some(v) => Ok(images::load_frame(&self.frames[i], bad)?
-                .map(|img| v.apply(&img, self.center_crop))),
+        let Some(mut img) = images::load_frame(&self.frames[i], bad)? else {
+            return Ok(None);
+        };
+        if let Some(p) = &self.probe {
+            img = p.apply(&img, &format!("{}/{}", self.id, i + self.first_frame));
         }
+        Ok(Some(match &self.view {
+            None => match self.center_crop {
+                Some(f) => images::center_crop(&img, f),
+                None => img,
+            },
+            Some(v) => v.apply(&img, self.center_crop),
+        }))
     }
 
     /// The sequence's grasp class (its pre-shape).

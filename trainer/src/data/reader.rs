@@ -185,6 +185,7 @@ fn from_record(
         lead_in: plan.lead_in_frames(),
         first_frame: 0,
         view: None,
+        probe: None,
     }
 }
 
@@ -211,6 +212,7 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         lead_in: 0,
         first_frame: 0,
         view: None,
+        probe: None,
     })
 }
 

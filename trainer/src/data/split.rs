@@ -158,6 +158,7 @@ mod tests {
                     lead_in: 0,
                     first_frame: 0,
                     view: None,
+                    probe: None,
                 });
             }
         }

@@ -63,10 +63,11 @@ fn extract(
 ) -> Result<(Tensor, Vec<bool>)> {
     let mut parts = Vec::new();
     let mut valid = Vec::new();
-    for chunk in seq.frames.chunks(batch.max(1)) {
+    let indices: Vec<usize> = (0..seq.frames.len()).collect();
+    for chunk in indices.chunks(batch.max(1)) {
         let mut images = Vec::new();
-        for f in chunk {
-            let img = crate::data::images::load_frame_cropped(f, seq.center_crop, bad)?;
+        for &i in chunk {
+            let img = seq.load_frame(i, bad)?;
             valid.push(img.is_some());
             images.extend(img);
         }

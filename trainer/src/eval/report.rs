@@ -94,6 +94,9 @@ pub struct Report {
     /// inference; None when `eval --keep-lead-in` kept them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_in_trimmed: Option<LeadInTrim>,
+    /// Extra sensor degradation every frame was given (`eval --probe-*`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_probe: Option<crate::data::probe::SensorProbe>,
     /// Per-part accuracy of the multi-grasp objects, over runs.
     #[serde(default)]
     pub per_part: Vec<PartSummary>,
@@ -159,6 +162,7 @@ impl Report {
             window: FrameWindow::default(),
             videos_outside_window: 0,
             lead_in_trimmed: None,
+            sensor_probe: None,
             per_part,
         }
     }
@@ -239,6 +243,14 @@ pub fn markdown(report: &Report) -> String {
             "- **Frames scored: {}** ({} video(s) with no frame in the window left out)\n",
             report.window.describe(),
             report.videos_outside_window
+        );
+    }
+    if let Some(p) = &report.sensor_probe {
+        let _ = writeln!(
+            s,
+            "- **Sensor probe:** every frame degraded before inference ({}; `eval \
+             --probe-noise/--probe-blur`)\n",
+            p.describe()
         );
     }
     if let Some(t) = report.lead_in_trimmed.filter(|t| t.frames > 0) {
