@@ -21,18 +21,24 @@
 #   size      error against training sequences per pair: nested subsets
 #             (1, 2, 4, 8 of 16) of the main job's training set, every
 #             test condition.
+#   input     the backbone's input side: the main job's FC head retrained
+#             with the crop resized to 64-224 px, every test condition, and
+#             the sensor probes (unseen_look's noise and blur added to the
+#             default test frames).
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
 # appended to $OUT/commands.log. Re-running resumes: finished renders,
 # trainings and evaluations are kept. Knobs (environment): OUT, BIN, SEEDS
-# (3), CROP (0.42).
+# (3), CROP (0.42), INPUT_SIZE (128: the main job's input side, used by the
+# size stage; the studies' heads keep the trainer's default, 224).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/experiments}
 BIN=${BIN:-target/release}
 SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
+INPUT_SIZE=${INPUT_SIZE:-128}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s
@@ -184,7 +190,7 @@ stage_size() {
     [ -f "$runs/.done" ] || {
       run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
         --seeds "$SEEDS" --sequences-per-pair "$n" --center-crop "$CROP" --out "$runs" \
-        --cache-dir "$main/features"
+        --input-size "$INPUT_SIZE" --cache-dir "$main/features"
       touch "$runs/.done"
     }
     for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
@@ -193,6 +199,41 @@ stage_size() {
         run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
           --cache-dir "$main/features"
     done
+  done
+}
+
+# FC heads of the main job's data at other input sides, then the probes.
+stage_input() {
+  local n s c main="$OUT/main" runs ckpts
+  for n in 64 96 128 160 224; do
+    runs="$OUT/input-$n" ckpts=()
+    [ -f "$runs/.done" ] || {
+      run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
+        --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --input-size "$n" \
+        --out "$runs" --cache-dir "$main/features"
+      touch "$runs/.done"
+    }
+    for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+    for c in default fast from_ground seated background unseen_look; do
+      [ -f "$runs/report/$c/report.json" ] ||
+        run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
+          --cache-dir "$main/features"
+    done
+    probes "$runs" "${ckpts[@]}"
+  done
+}
+
+# unseen_look's middle defocus and noise added to the default test frames.
+probes() { # runs checkpoints...
+  local runs=$1 main="$OUT/main"
+  shift
+  local -A flags=([blur]="--probe-blur 0.9" [noise]="--probe-noise 0.037"
+    [both]="--probe-blur 0.9 --probe-noise 0.037")
+  for p in blur noise both; do
+    # shellcheck disable=SC2086 # the flags are words
+    [ -f "$runs/probe-$p/report.json" ] ||
+      run "$BIN/grasp-train" eval "$@" --data "$main/data/test-default" --out "$runs/probe-$p" \
+        --cache-dir "$main/features" ${flags[$p]}
   done
 }
 
@@ -230,7 +271,7 @@ stage_summary() {
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main size summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main size input summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"
