@@ -95,13 +95,31 @@ fn evenly<T>(items: &[T], n: usize) -> Vec<&T> {
     (0..n).map(|i| &items[i * items.len() / n]).collect()
 }
 
-fn thumb(dataset: &Path, rel: &str, name: &str, size: u32) -> Result<RgbaImage> {
-    let path = dataset.join(rel).join(name);
+/// A frame as a `size` x `size` thumbnail: only its rendered centre when
+/// the sequence was rendered with `center_region` below 1 (the rest is
+/// black).
+fn thumb(
+    dataset: &Path,
+    rel: &str,
+    record: &SequenceRecord,
+    frame: usize,
+    size: u32,
+) -> Result<RgbaImage> {
+    let path = dataset.join(rel).join(&record.frame_files[frame]);
     let img =
         image::open(&path).with_context(|| format!("cannot read frame {}", path.display()))?;
-    Ok(img
+    let region = record.center_region().unwrap_or(1.0);
+    Ok(rendered_centre(&img, region)
         .resize_exact(size, size, FilterType::Triangle)
         .to_rgba8())
+}
+
+/// The centred square of side `region` times the shorter side: what a
+/// `center_region` render drew.
+fn rendered_centre(img: &image::DynamicImage, region: f64) -> image::DynamicImage {
+    let (w, h) = (img.width(), img.height());
+    let side = ((f64::from(w.min(h)) * region).round() as u32).clamp(1, w.min(h));
+    img.crop_imm((w - side) / 2, (h - side) / 2, side, side)
 }
 
 fn contact_sheet(
@@ -132,7 +150,7 @@ fn contact_sheet(
             } else {
                 col * (n - 1) / (cols as usize - 1)
             };
-            let img = thumb(dataset, rel, &record.frame_files[f], opts.thumb)?;
+            let img = thumb(dataset, rel, record, f, opts.thumb)?;
             let (x, y) = (col as u32 * cell_w, row as u32 * cell_h);
             image::imageops::overlay(&mut sheet, &img, x.into(), y.into());
             let color = class_color(record.plan.frames[f].class);
@@ -173,7 +191,7 @@ fn write_gif(
         let mut canvas = RgbaImage::from_pixel(w, opts.thumb + STRIP, Rgba([20, 20, 20, 255]));
         for (i, (rel, record)) in chosen.iter().enumerate() {
             let k = f.min(record.frame_files.len() - 1);
-            let img = thumb(dataset, rel, &record.frame_files[k], opts.thumb)?;
+            let img = thumb(dataset, rel, record, k, opts.thumb)?;
             let x = i as u32 * (opts.thumb + GAP);
             image::imageops::overlay(&mut canvas, &img, x.into(), 0);
             let color = class_color(record.plan.frames[k].class);
@@ -217,4 +235,23 @@ pub fn run(args: &PreviewArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thumbnails_show_only_the_rendered_centre() {
+        // 40 x 20, black but for the central 10 x 10 (region 0.5 of 20).
+        let img = image::RgbImage::from_fn(40, 20, |x, y| {
+            let inside = (15..25).contains(&x) && (5..15).contains(&y);
+            image::Rgb(if inside { [255; 3] } else { [0; 3] })
+        });
+        let img = image::DynamicImage::ImageRgb8(img);
+        let centre = rendered_centre(&img, 0.5).to_rgb8();
+        assert_eq!(centre.dimensions(), (10, 10));
+        assert!(centre.pixels().all(|p| p.0 == [255; 3]));
+        assert_eq!(rendered_centre(&img, 1.0).to_rgb8().dimensions(), (20, 20));
+    }
 }
