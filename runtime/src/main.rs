@@ -244,13 +244,21 @@ fn config(policy_args: &PolicyArgs) -> Result<RuntimeConfig> {
     Ok(cfg)
 }
 
-/// Opens the frame source; returns it with whether it is live.
-fn open_source(source_args: &SourceArgs, pacing: Pacing) -> Result<(Box<dyn FrameSource>, bool)> {
+/// Opens the frame source; returns it with whether it is live. A recording
+/// must hold every pixel the model's centre crop `crop` looks at.
+fn open_source(
+    source_args: &SourceArgs,
+    pacing: Pacing,
+    crop: Option<f64>,
+) -> Result<(Box<dyn FrameSource>, bool)> {
     if let Some(rest) = source_args.source.strip_prefix("camera") {
         let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
         return Ok((open_camera(Path::new(device))?, true));
     }
     let folder = SequenceFolder::open(Path::new(&source_args.source), source_args.fps, pacing)?;
+    folder
+        .info()
+        .check_crop(crop, Path::new(&source_args.source))?;
     Ok((Box::new(folder), false))
 }
 
@@ -279,7 +287,7 @@ fn run(args: RunArgs) -> Result<()> {
     } else {
         Pacing::RealTime
     };
-    let (source, live) = open_source(&args.source, pacing)?;
+    let (source, live) = open_source(&args.source, pacing, classifier.center_crop())?;
     let mode = if args.as_fast && !live {
         FeedMode::Lockstep
     } else {

@@ -75,6 +75,30 @@ pub struct SequenceInfo {
     pub preshape: Option<Preshape>,
     /// Per-frame ground truth, in frame order.
     pub labels: Vec<Class>,
+    /// `render.center_region`: only the centred square of this fraction of
+    /// the shorter side was rendered (the rest is black); None: all of it.
+    pub center_region: Option<f64>,
+}
+
+impl SequenceInfo {
+    /// Refuses a model that looks further out than the recording was
+    /// rendered: it would see the black surround. `crop` is the model's
+    /// centre crop (None: whole frames).
+    pub fn check_crop(&self, crop: Option<f64>, dir: &Path) -> Result<()> {
+        let Some(region) = self.center_region else {
+            return Ok(());
+        };
+        let seen = crop.unwrap_or(1.0);
+        if seen > region + 1e-9 {
+            bail!(
+                "{}: the frames were rendered only in their central {region} \
+                 (render.center_region) but the model looks at the central {seen} (1 is the \
+                 whole frame); replay a recording rendered with a larger center_region",
+                dir.display()
+            );
+        }
+        Ok(())
+    }
 }
 
 /// A folder of PNG frames replayed from disk, decoded one at a time.
@@ -297,12 +321,26 @@ fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
                 .collect()
         })
         .unwrap_or_default();
+    let center_region = match v.get("render").and_then(|r| r.get("center_region")) {
+        None => None,
+        Some(c) => Some(
+            c.as_f64()
+                .filter(|c| *c > 0.0 && *c <= 1.0)
+                .with_context(|| {
+                    format!(
+                        "{}: `render.center_region` is not a fraction in (0, 1]",
+                        path.display()
+                    )
+                })?,
+        ),
+    };
     Ok((
         files,
         SequenceInfo {
             fps,
             preshape,
             labels,
+            center_region,
         },
     ))
 }
@@ -352,6 +390,36 @@ mod tests {
         s.begin().unwrap();
         let f = s.next_frame().unwrap().unwrap();
         assert_eq!(f.image.get_pixel(0, 0)[0], 1);
+    }
+
+    #[test]
+    fn a_centre_only_recording_refuses_a_model_that_looks_wider() {
+        let dir = tempfile::tempdir().unwrap();
+        write_frames(dir.path(), 1);
+        let record = |region: serde_json::Value| {
+            let r = serde_json::json!({
+                "plan": {"fps": 10.0}, "frame_files": ["00000.png"],
+                "render": {"center_region": region},
+            });
+            std::fs::write(dir.path().join(SEQUENCE_FILE), r.to_string()).unwrap();
+        };
+        record(serde_json::json!(0.5));
+        let s = SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible).unwrap();
+        assert_eq!(s.info().center_region, Some(0.5));
+        s.info().check_crop(Some(0.42), dir.path()).unwrap();
+        for crop in [Some(0.6), None] {
+            let err = s.info().check_crop(crop, dir.path()).unwrap_err();
+            assert!(
+                err.to_string()
+                    .contains("rendered only in their central 0.5"),
+                "{err}"
+            );
+        }
+        record(serde_json::json!("half"));
+        let err = SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible)
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("render.center_region"), "{err}");
     }
 
     #[test]
