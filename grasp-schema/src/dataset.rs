@@ -92,6 +92,21 @@ pub const PART_LABELS_KEY: &str = "part_labels";
 /// (`[render] center_region`), present when it is below 1.
 pub const CENTER_REGION_KEY: &str = "center_region";
 
+/// Why a model whose centre crop is `crop` (a fraction of the shorter
+/// side; None: the whole frame) cannot look at frames rendered only in
+/// their central `region` (`[render] center_region`): it would see the
+/// black surround. None when it can.
+pub fn crop_outside_region(region: f64, crop: Option<f64>) -> Option<String> {
+    let seen = crop.unwrap_or(1.0);
+    (seen > region + 1e-9).then(|| {
+        format!(
+            "the frames were rendered only in their central {region} (render.center_region) \
+             but the model looks at the central {seen} (its centre crop; 1 is the whole \
+             frame): crop at most {region}, or render with a larger center_region"
+        )
+    })
+}
+
 /// Key of [`RenderCost`] inside [`SequenceRecord::render`].
 pub const RENDER_COST_KEY: &str = "cost";
 

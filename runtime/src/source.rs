@@ -85,19 +85,13 @@ impl SequenceInfo {
     /// rendered: it would see the black surround. `crop` is the model's
     /// centre crop (None: whole frames).
     pub fn check_crop(&self, crop: Option<f64>, dir: &Path) -> Result<()> {
-        let Some(region) = self.center_region else {
-            return Ok(());
-        };
-        let seen = crop.unwrap_or(1.0);
-        if seen > region + 1e-9 {
-            bail!(
-                "{}: the frames were rendered only in their central {region} \
-                 (render.center_region) but the model looks at the central {seen} (1 is the \
-                 whole frame); replay a recording rendered with a larger center_region",
-                dir.display()
-            );
+        let why = self
+            .center_region
+            .and_then(|region| grasp_schema::dataset::crop_outside_region(region, crop));
+        match why {
+            Some(why) => bail!("{}: {why}", dir.display()),
+            None => Ok(()),
         }
-        Ok(())
     }
 }
 

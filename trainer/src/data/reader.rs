@@ -137,16 +137,10 @@ fn read_sequence(
 /// Frames rendered only in their centre (`[render] center_region`) are
 /// black outside it, so a model must not look further out than that.
 fn check_center_region(json: &Path, region: f64, opts: &ReaderOptions) -> Result<()> {
-    let seen = opts.center_crop.unwrap_or(1.0);
-    if seen > region + 1e-9 {
-        anyhow::bail!(
-            "{}: the frames were rendered only in their central {region} ([render] \
-             center_region) but the model looks at the central {seen} (--center-crop; 1 is \
-             the whole frame): crop at most {region}, or render with a larger center_region",
-            json.display()
-        );
+    match grasp_schema::dataset::crop_outside_region(region, opts.center_crop) {
+        Some(why) => anyhow::bail!("{}: {why}", json.display()),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 fn read_record(path: &Path) -> Result<SequenceRecord> {
