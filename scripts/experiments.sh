@@ -183,56 +183,51 @@ stage_main() {
   SKIP_SETUP=1 run scripts/main.sh "$OUT/main"
 }
 
+# An FC head on the main job's data (extra train flags), evaluated on every
+# test condition; the checkpoints are RUNS/seed-*.
+main_fc() { # runs train-flags...
+  local runs=$1 main="$OUT/main" s c ckpts=()
+  shift
+  [ -f "$runs/.done" ] || {
+    run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
+      --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --out "$runs" \
+      --cache-dir "$main/features" "$@"
+    touch "$runs/.done"
+  }
+  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+  for c in default fast from_ground seated background unseen_look; do
+    [ -f "$runs/report/$c/report.json" ] ||
+      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
+        --cache-dir "$main/features"
+  done
+}
+
 stage_size() {
-  local n s c main="$OUT/main"
+  local n
   for n in 1 2 4 8; do
-    local runs="$OUT/size-$n" ckpts=()
-    [ -f "$runs/.done" ] || {
-      run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
-        --seeds "$SEEDS" --sequences-per-pair "$n" --center-crop "$CROP" --out "$runs" \
-        --input-size "$INPUT_SIZE" --cache-dir "$main/features"
-      touch "$runs/.done"
-    }
-    for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
-    for c in default fast from_ground seated background unseen_look; do
-      [ -f "$runs/report/$c/report.json" ] ||
-        run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
-          --cache-dir "$main/features"
-    done
+    main_fc "$OUT/size-$n" --sequences-per-pair "$n" --input-size "$INPUT_SIZE"
   done
 }
 
 # FC heads of the main job's data at other input sides, then the probes.
 stage_input() {
-  local n s c main="$OUT/main" runs ckpts
+  local n
   for n in 64 96 128 160 224; do
-    runs="$OUT/input-$n" ckpts=()
-    [ -f "$runs/.done" ] || {
-      run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
-        --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --input-size "$n" \
-        --out "$runs" --cache-dir "$main/features"
-      touch "$runs/.done"
-    }
-    for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
-    for c in default fast from_ground seated background unseen_look; do
-      [ -f "$runs/report/$c/report.json" ] ||
-        run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
-          --cache-dir "$main/features"
-    done
-    probes "$runs" "${ckpts[@]}"
+    main_fc "$OUT/input-$n" --input-size "$n"
+    probes "$OUT/input-$n"
   done
 }
 
 # unseen_look's middle defocus and noise added to the default test frames.
-probes() { # runs checkpoints...
-  local runs=$1 main="$OUT/main"
-  shift
+probes() { # runs
+  local runs=$1 main="$OUT/main" s p ckpts=()
+  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
   local -A flags=([blur]="--probe-blur 0.9" [noise]="--probe-noise 0.037"
     [both]="--probe-blur 0.9 --probe-noise 0.037")
   for p in blur noise both; do
     # shellcheck disable=SC2086 # the flags are words
     [ -f "$runs/probe-$p/report.json" ] ||
-      run "$BIN/grasp-train" eval "$@" --data "$main/data/test-default" --out "$runs/probe-$p" \
+      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-default" --out "$runs/probe-$p" \
         --cache-dir "$main/features" ${flags[$p]}
   done
 }
