@@ -21,6 +21,8 @@
 #   size      error against training sequences per pair: nested subsets
 #             (1, 2, 4, 8 of 16) of the main job's training set, every
 #             test condition.
+#   large     scripts/main.sh --large into $OUT/main-large (32 training
+#             sequences per pair; its own training set).
 #   input     the backbone's input side: the main job's FC head retrained
 #             with the crop resized to 64-224 px, every test condition, and
 #             the sensor probes (unseen_look's noise and blur added to the
@@ -202,6 +204,10 @@ main_fc() { # runs train-flags...
   done
 }
 
+stage_large() {
+  SKIP_SETUP=1 run scripts/main.sh --large "$OUT/main-large"
+}
+
 stage_size() {
   local n
   for n in 1 2 4 8; do
@@ -260,13 +266,14 @@ stage_summary() {
   for t in default fast from_ground seated background unseen_look; do
     for n in 1 2 4 8; do reports+=(--report "$t/$n=$n:$OUT/size-$n/report/$t"); done
     reports+=(--report "$t/16=16:$OUT/main/report/fc/$t")
+    [ ! -d "$OUT/main-large/report/fc/$t" ] || reports+=(--report "$t/32=32:$OUT/main-large/report/fc/$t")
   done
   run "$BIN/grasp-train" summarize --x-label "training sequences per pair" --log-x \
     --title "Error against training set size (FC head, frozen Lite0)" --out "$s/size" "${reports[@]}"
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main size input summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"
