@@ -17,7 +17,7 @@
 #                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
 #                   pip-installs; the heads see the central 42 % of each
 #                   frame (--center-crop) at 128 x 128 (--input-size),
-#                   EXPERIMENTS.md. About 14 minutes on 2 cores after setup.
+#                   EXPERIMENTS.md. About 13 minutes on 2 cores after setup.
 #   --large         the same with 32 training sequences per pair (about
 #                   20 minutes after setup).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
