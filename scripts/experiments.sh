@@ -19,7 +19,7 @@
 #   egocentric  Table 2's columns: wrist against head camera, same plans.
 #   main      scripts/main.sh into $OUT/main: Table 3, Table 2's rows, Fig. 5.
 #   size      error against training sequences per pair: nested subsets
-#             (1, 2, 4, 8 of 16) of the main job's training set, every
+#             (1, 2, 4, 8, 16 of 24) of the main job's training set, every
 #             test condition.
 #   large     scripts/main.sh --large into $OUT/main-large (32 training
 #             sequences per pair; its own training set).
@@ -210,7 +210,7 @@ stage_large() {
 
 stage_size() {
   local n
-  for n in 1 2 4 8; do
+  for n in 1 2 4 8 16; do
     main_fc "$OUT/size-$n" --sequences-per-pair "$n" --input-size "$INPUT_SIZE"
   done
 }
@@ -264,8 +264,8 @@ stage_summary() {
     --title "Randomisation ablation (FC head, centre crop)" --out "$s/ablation" "${reports[@]}"
   reports=()
   for t in default fast from_ground seated background unseen_look; do
-    for n in 1 2 4 8; do reports+=(--report "$t/$n=$n:$OUT/size-$n/report/$t"); done
-    reports+=(--report "$t/16=16:$OUT/main/report/fc/$t")
+    for n in 1 2 4 8 16; do reports+=(--report "$t/$n=$n:$OUT/size-$n/report/$t"); done
+    reports+=(--report "$t/24=24:$OUT/main/report/fc/$t")
     [ ! -d "$OUT/main-large/report/fc/$t" ] || reports+=(--report "$t/32=32:$OUT/main-large/report/fc/$t")
   done
   run "$BIN/grasp-train" summarize --x-label "training sequences per pair" --log-x \

@@ -12,12 +12,12 @@
 #   (default)       built-in objects, configs/main.toml: all 31 pairs, Cycles
 #                   (1 sample, denoised) at 224 x 224 and 2.5 frames/s, only
 #                   the central half of each frame rendered (the heads see
-#                   less), 16 training sequences per pair, 2 test sequences
+#                   less), 24 training sequences per pair, 2 test sequences
 #                   per pair and condition (62 videos each). The backbone is
 #                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
 #                   pip-installs; the heads see the central 42 % of each
 #                   frame (--center-crop) at 128 x 128 (--input-size),
-#                   EXPERIMENTS.md. About 13 minutes on 2 cores after setup.
+#                   EXPERIMENTS.md. About 16 minutes on 2 cores after setup.
 #   --large         the same with 32 training sequences per pair (about
 #                   20 minutes after setup).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
@@ -67,7 +67,7 @@ elif [ "$LARGE" = 1 ]; then
 elif [ "$SCRATCH" = 1 ]; then
   CONFIG=${CONFIG:-configs/main-small.toml} TRAIN_SEQ=${TRAIN_SEQ:-4} TEST_SEQ=${TEST_SEQ:-1}
 else
-  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-16} TEST_SEQ=${TEST_SEQ:-2}
+  CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-24} TEST_SEQ=${TEST_SEQ:-2}
 fi
 if [ "$SCRATCH" = 1 ]; then
   HEADS=(fc) SEEDS=1
