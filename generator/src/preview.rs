@@ -117,9 +117,8 @@ fn thumb(
 /// The centred square of side `region` times the shorter side: what a
 /// `center_region` render drew.
 fn rendered_centre(img: &image::DynamicImage, region: f64) -> image::DynamicImage {
-    let (w, h) = (img.width(), img.height());
-    let side = ((f64::from(w.min(h)) * region).round() as u32).clamp(1, w.min(h));
-    img.crop_imm((w - side) / 2, (h - side) / 2, side, side)
+    let (x, y, side) = grasp_schema::dataset::centre_square(img.width(), img.height(), region);
+    img.crop_imm(x, y, side, side)
 }
 
 fn contact_sheet(

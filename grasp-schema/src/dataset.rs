@@ -92,6 +92,20 @@ pub const PART_LABELS_KEY: &str = "part_labels";
 /// (`[render] center_region`), present when it is below 1.
 pub const CENTER_REGION_KEY: &str = "center_region";
 
+/// The centred square whose side is `fraction` of the shorter side of a
+/// `width` x `height` image (at least one pixel), as `(x, y, side)`: what a
+/// model's centre crop sees and what a `center_region` render draws.
+pub fn centre_square(width: u32, height: u32, fraction: f64) -> (u32, u32, u32) {
+    let short = width.min(height);
+    let side =
+        ((f64::from(short) * fraction.clamp(0.0, 1.0)).round() as u32).clamp(1, short.max(1));
+    (
+        width.saturating_sub(side) / 2,
+        height.saturating_sub(side) / 2,
+        side,
+    )
+}
+
 /// Why a model whose centre crop is `crop` (a fraction of the shorter
 /// side; None: the whole frame) cannot look at frames rendered only in
 /// their central `region` (`[render] center_region`): it would see the

@@ -114,10 +114,8 @@ impl Preprocess {
 /// least one pixel): the view a checkpoint trained with `--center-crop`
 /// expects.
 pub fn center_crop(img: &RgbImage, fraction: f64) -> RgbImage {
-    let (w, h) = img.dimensions();
-    let short = w.min(h);
-    let side = ((f64::from(short) * fraction.clamp(0.0, 1.0)).round() as u32).clamp(1, short);
-    image::imageops::crop_imm(img, (w - side) / 2, (h - side) / 2, side, side).to_image()
+    let (x, y, side) = grasp_schema::dataset::centre_square(img.width(), img.height(), fraction);
+    image::imageops::crop_imm(img, x, y, side, side).to_image()
 }
 
 pub fn to_tensor(images: &[RgbImage], pre: &Preprocess, device: &Device) -> Result<Tensor> {
