@@ -266,9 +266,10 @@ struct EvalArgs {
     #[arg(long = "checkpoint", short, required = true)]
     checkpoints: Vec<PathBuf>,
     /// Dataset root to evaluate on (default: the test split of the first
-    /// checkpoint's run).
+    /// checkpoint's run). Repeat it to pool several test draws into one
+    /// report (more videos, a smaller binomial error).
     #[arg(long)]
-    data: Option<PathBuf>,
+    data: Vec<PathBuf>,
     /// Report directory.
     #[arg(long, short, default_value = "report")]
     out: PathBuf,
@@ -407,18 +408,27 @@ fn eval(args: EvalArgs) -> Result<()> {
         let default = trainer::data::ReaderOptions::default().camera;
         trained["camera"].as_str().map_or(default, str::to_string)
     });
-    let mut data = match &args.data {
-        Some(root) => {
-            let defaults = trainer::data::ReaderOptions::default();
-            let opts = trainer::data::ReaderOptions {
-                real_fps: args.real_fps,
-                center_crop: args.center_crop.or(trained["center_crop"].as_f64()),
-                camera: camera.clone(),
-                ..defaults
-            };
-            trainer::data::read_dataset(root, &opts, &bad)?
+    let mut data = if args.data.is_empty() {
+        trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?
+    } else {
+        let defaults = trainer::data::ReaderOptions::default();
+        let opts = trainer::data::ReaderOptions {
+            real_fps: args.real_fps,
+            center_crop: args.center_crop.or(trained["center_crop"].as_f64()),
+            camera: camera.clone(),
+            ..defaults
+        };
+        let mut draws = Vec::new();
+        for root in &args.data {
+            let draw = trainer::data::read_dataset(root, &opts, &bad)?;
+            anyhow::ensure!(
+                !draw.sequences.is_empty(),
+                "no sequences to evaluate in {} (camera folder {camera})",
+                root.display()
+            );
+            draws.push(draw);
         }
-        None => trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?,
+        trainer::data::Dataset::pool(draws)
     };
     if let Some(c) = args.center_crop {
         anyhow::ensure!(
@@ -429,16 +439,7 @@ fn eval(args: EvalArgs) -> Result<()> {
             s.center_crop = Some(c);
         }
     }
-    if data.sequences.is_empty() {
-        match &args.data {
-            Some(root) => anyhow::bail!(
-                "no sequences to evaluate in {} (camera folder {})",
-                root.display(),
-                camera
-            ),
-            None => anyhow::bail!("no sequences to evaluate"),
-        }
-    }
+    anyhow::ensure!(!data.sequences.is_empty(), "no sequences to evaluate");
     let probe = trainer::data::probe::SensorProbe::new(args.probe_noise, args.probe_blur)?;
     for s in &mut data.sequences {
         s.probe = probe;
@@ -452,6 +453,7 @@ fn eval(args: EvalArgs) -> Result<()> {
             .context("evaluation failed")?;
     report.lead_in_trimmed = trimmed;
     report.sensor_probe = probe;
+    report.pooled_with = args.data.iter().skip(1).cloned().collect();
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));
     trainer::experiment::write_problems(&bad, &args.out)?;

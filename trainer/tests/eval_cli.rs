@@ -248,3 +248,39 @@ fn eval_with_a_sensor_probe_records_it_and_refuses_bad_values() {
         "{text}"
     );
 }
+
+#[test]
+fn eval_pools_repeated_data_roots_into_one_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = train_tiny(dir.path());
+    let ckpt = ckpt.to_str().unwrap();
+    let mut other = SyntheticSpec::small(Layout::Generated);
+    other.seed = 7;
+    write_synthetic(&dir.path().join("draw-2"), &other).unwrap();
+    let videos = |report: &str| {
+        let json: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(report).join("report.json")).unwrap(),
+        )
+        .unwrap();
+        json["runs"][0]["metrics"]["videos"].as_u64().unwrap()
+    };
+    let one = ["eval", "-c", ckpt, "--data", "data", "--out", "one"];
+    let (ok, text) = grasp_train(dir.path(), &one);
+    assert!(ok, "{text}");
+    let both = [
+        "eval", "-c", ckpt, "--data", "data", "--data", "draw-2", "--out", "both",
+    ];
+    let (ok, text) = grasp_train(dir.path(), &both);
+    assert!(ok, "{text}");
+    assert_eq!(videos("both"), 2 * videos("one"));
+    let md = std::fs::read_to_string(dir.path().join("both/report.md")).unwrap();
+    assert!(md.contains("Pooled") && md.contains("draw-2"), "{md}");
+
+    // An empty draw is named, not silently pooled.
+    std::fs::create_dir_all(dir.path().join("empty")).unwrap();
+    let empty = [
+        "eval", "-c", ckpt, "--data", "data", "--data", "empty", "--out", "x",
+    ];
+    let (ok, text) = grasp_train(dir.path(), &empty);
+    assert!(!ok && text.contains("empty"), "{text}");
+}

@@ -154,6 +154,27 @@ impl Dataset {
         )
     }
 
+    /// Several test draws as one dataset: their sequences in order, each id
+    /// prefixed with its draw's root when there is more than one (two draws
+    /// of one config share relative folder names). The root is the first's.
+    pub fn pool(mut datasets: Vec<Dataset>) -> Dataset {
+        if datasets.len() == 1 {
+            return datasets.remove(0);
+        }
+        let root = datasets.first().map(|d| d.root.clone()).unwrap_or_default();
+        let sequences = datasets
+            .into_iter()
+            .flat_map(|d| {
+                let prefix = d.root.display().to_string();
+                d.sequences.into_iter().map(move |mut s| {
+                    s.id = format!("{prefix}/{}", s.id);
+                    s
+                })
+            })
+            .collect();
+        Dataset { root, sequences }
+    }
+
     pub fn frame_count(&self) -> usize {
         self.sequences.iter().map(|s| s.frames.len()).sum()
     }
@@ -171,5 +192,39 @@ impl Dataset {
             .filter(|(_, p)| p.len() > 1)
             .map(|(o, _)| o.to_string())
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::synthetic::{write_synthetic, Layout, SyntheticSpec};
+    use super::*;
+
+    #[test]
+    fn pooled_draws_keep_every_sequence_under_its_own_id() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec::small(Layout::Generated);
+        let bad = BadData::new(OnBadData::Fail);
+        let read = |name: &str| {
+            let root = dir.path().join(name);
+            write_synthetic(&root, &spec).unwrap();
+            read_dataset(&root, &ReaderOptions::default(), &bad).unwrap()
+        };
+        let (a, b) = (read("draw-a"), read("draw-b"));
+        let n = a.sequences.len();
+        assert!(n > 0);
+        // Two draws of one spec share their relative ids.
+        assert_eq!(a.sequences[0].id, b.sequences[0].id);
+
+        let pooled = Dataset::pool(vec![a.clone(), b]);
+        assert_eq!(pooled.sequences.len(), 2 * n);
+        assert_eq!(pooled.root, a.root);
+        let ids: std::collections::BTreeSet<&str> =
+            pooled.sequences.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(ids.len(), 2 * n, "ids collide");
+        assert!(pooled.sequences[n].id.contains("draw-b"));
+
+        // One draw is returned as it is.
+        assert_eq!(Dataset::pool(vec![a.clone()]).sequences, a.sequences);
     }
 }

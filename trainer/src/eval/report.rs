@@ -97,6 +97,10 @@ pub struct Report {
     /// Extra sensor degradation every frame was given (`eval --probe-*`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_probe: Option<crate::data::probe::SensorProbe>,
+    /// Further dataset roots pooled with `dataset` (`eval --data A --data
+    /// B`: several test draws scored as one set).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pooled_with: Vec<PathBuf>,
     /// Per-part accuracy of the multi-grasp objects, over runs.
     #[serde(default)]
     pub per_part: Vec<PartSummary>,
@@ -163,6 +167,7 @@ impl Report {
             videos_outside_window: 0,
             lead_in_trimmed: None,
             sensor_probe: None,
+            pooled_with: Vec::new(),
             per_part,
         }
     }
@@ -243,6 +248,19 @@ pub fn markdown(report: &Report) -> String {
             "- **Frames scored: {}** ({} video(s) with no frame in the window left out)\n",
             report.window.describe(),
             report.videos_outside_window
+        );
+    }
+    if !report.pooled_with.is_empty() {
+        let roots: Vec<String> = report
+            .pooled_with
+            .iter()
+            .map(|r| format!("`{}`", r.display()))
+            .collect();
+        let _ = writeln!(
+            s,
+            "- **Pooled** with {} ({} test sets scored as one)\n",
+            roots.join(", "),
+            roots.len() + 1
         );
     }
     if let Some(p) = &report.sensor_probe {
