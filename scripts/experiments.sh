@@ -27,13 +27,17 @@
 #             with the crop resized to 64-224 px, every test condition, and
 #             the sensor probes (unseen_look's noise and blur added to the
 #             default test frames).
+#   draws     four more draws of the default and unseen_look test sets (seeds
+#             5, 7, 9, 11), pooled with the main job's into one report per
+#             head and condition (310 videos).
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
 # appended to $OUT/commands.log. Re-running resumes: finished renders,
 # trainings and evaluations are kept. Knobs (environment): OUT, BIN, SEEDS
 # (3), CROP (0.42), INPUT_SIZE (128: the main job's input side, used by the
-# size stage; the studies' heads keep the trainer's default, 224).
+# size stage; the studies' heads keep the trainer's default, 224), DRAW_SEEDS
+# (the draws stage's test seeds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/experiments}
@@ -41,6 +45,7 @@ BIN=${BIN:-target/release}
 SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
+DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s
@@ -224,6 +229,31 @@ stage_input() {
   done
 }
 
+# More draws of the default and unseen_look test sets (seeds 5, 7, 9, 11; the
+# main job's settings), scored with the main job's own (seed 3) as one pooled
+# set of 310 videos per condition: a binomial error near 2 points, not 4.5.
+stage_draws() {
+  local main="$OUT/main" c h s sd roots ckpts
+  for c in default unseen_look; do
+    roots=(--data "$main/data/test-$c")
+    for sd in $DRAW_SEEDS; do
+      mkdir -p "$OUT/draws"
+      sed -e "s/^seed = .*/seed = $sd/" -e 's/^sequences_per_pair = .*/sequences_per_pair = 2/' \
+        -e "s/^conditions = .*/conditions = [\"$c\"]/" "$main/train.toml" >"$OUT/draws/s$sd-$c.toml"
+      run "$BIN/grasp-gen" render --config "$OUT/draws/s$sd-$c.toml" --out "$OUT/draws/s$sd/test-$c" \
+        --resume --no-progress
+      roots+=(--data "$OUT/draws/s$sd/test-$c")
+    done
+    for h in fc lstm; do
+      ckpts=()
+      for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$main/model-$h/seed-$s"); done
+      [ -f "$OUT/draws/report/$h-$c/report.json" ] ||
+        run "$BIN/grasp-train" eval "${ckpts[@]}" "${roots[@]}" --out "$OUT/draws/report/$h-$c" \
+          --cache-dir "$main/features"
+    done
+  done
+}
+
 # unseen_look's middle defocus and noise added to the default test frames.
 probes() { # runs
   local runs=$1 main="$OUT/main" s p ckpts=()
@@ -273,7 +303,7 @@ stage_summary() {
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"

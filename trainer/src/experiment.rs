@@ -5,6 +5,7 @@
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
 use crate::eval::metrics::FrameWindow;
+use crate::eval::metrics::VideoOutcome;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
 use crate::features::FeatureCache;
@@ -135,6 +136,7 @@ pub fn evaluate(
             checkpoint: ckpt.clone(),
             seed: m.seed,
             metrics: compute_metrics(&preds, TIME_BIN_S),
+            videos: preds.iter().map(VideoOutcome::of).collect(),
         });
     }
     let mut report = Report::new(&mode.unwrap_or_default(), &head, &data.root, runs);

@@ -80,6 +80,34 @@ pub fn video_class(probs: &[[f32; Class::COUNT]]) -> usize {
     best.unwrap_or(0)
 }
 
+/// One video's outcome: what it was and what the vote said.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VideoOutcome {
+    pub id: String,
+    pub object: String,
+    #[serde(default)]
+    pub part: Option<String>,
+    pub truth: Preshape,
+    /// The majority vote (a pre-shape name).
+    pub vote: String,
+    /// Frames scored.
+    pub frames: usize,
+}
+
+impl VideoOutcome {
+    pub fn of(v: &VideoPrediction) -> VideoOutcome {
+        let vote = Class::from_index(video_class(&v.probs)).map_or("?", Class::name);
+        VideoOutcome {
+            id: v.id.clone(),
+            object: v.object.clone(),
+            part: v.part.clone(),
+            truth: v.preshape,
+            vote: vote.to_string(),
+            frames: v.probs.len(),
+        }
+    }
+}
+
 /// Accuracy against time for one group of videos.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Curve {

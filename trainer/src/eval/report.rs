@@ -14,6 +14,9 @@ pub struct RunReport {
     pub checkpoint: PathBuf,
     pub seed: u64,
     pub metrics: Metrics,
+    /// Every scored video's vote (`videos.csv`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub videos: Vec<super::metrics::VideoOutcome>,
 }
 
 /// One part of a multi-grasp object over the runs of a report.
@@ -209,10 +212,49 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
     let confusion =
         super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
     grasp_schema::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
+    grasp_schema::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
     Ok(grasp_schema::atomic::write_atomic(
         &dir.join("report.md"),
         markdown(report).as_bytes(),
     )?)
+}
+
+/// One row per video: what it shows and each run's vote, to find the
+/// videos a model gets wrong.
+pub fn videos_csv(report: &Report) -> String {
+    let mut s = String::from("id,object,part,truth");
+    for r in &report.runs {
+        let _ = write!(s, ",vote_seed{}", r.seed);
+    }
+    s.push('\n');
+    let Some(first) = report.runs.first() else {
+        return s;
+    };
+    for (i, v) in first.videos.iter().enumerate() {
+        let _ = write!(
+            s,
+            "{},{},{},{}",
+            csv_field(&v.id),
+            csv_field(&v.object),
+            csv_field(v.part.as_deref().unwrap_or("")),
+            v.truth.name()
+        );
+        for r in &report.runs {
+            let vote = r.videos.get(i).filter(|o| o.id == v.id);
+            let _ = write!(s, ",{}", vote.map_or("", |o| o.vote.as_str()));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// A CSV field, quoted when it holds a comma, quote or line break.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
 }
 
 fn pct(v: Option<f64>) -> String {
