@@ -123,6 +123,10 @@ fn sequence_hash(seq: &Sequence) -> Result<String> {
     if let Some(v) = &seq.view {
         h.update(b"view");
         h.update(serde_json::to_vec(v)?);
+        if let Some(r) = seq.rendered_region {
+            h.update(b"rendered_region");
+            h.update(r.to_le_bytes());
+        }
     }
     if let Some(p) = &seq.probe {
         h.update(b"probe");

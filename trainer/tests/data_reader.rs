@@ -267,6 +267,10 @@ fn a_crop_wider_than_the_rendered_centre_is_refused_naming_the_file() {
     // Inside the rendered centre: read as before.
     let inside = read_dataset(dir.path(), &crop(Some(0.42)), &fail).unwrap();
     assert_eq!(inside.sequences.len(), data.sequences.len());
+    // The rendered region travels with the sequence (augmented views keep
+    // inside it); whole frames record none.
+    assert_eq!(inside.sequences[1].rendered_region, Some(0.5));
+    assert_eq!(inside.sequences[0].rendered_region, None);
     assert!(read_dataset(dir.path(), &crop(Some(0.5)), &fail).is_ok());
     // Wider, or whole frames: the model would see the black surround.
     for c in [Some(0.6), None] {

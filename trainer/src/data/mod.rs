@@ -60,6 +60,11 @@ pub struct Sequence {
     /// `i` is the recording's frame `i + first_frame`.
     #[serde(default)]
     pub first_frame: usize,
+    /// Frames rendered only in their centre (`[render] center_region` < 1):
+    /// the rendered square's side, a fraction of the shorter side. Augmented
+    /// views stay inside it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rendered_region: Option<f64>,
     /// An augmented view of the frames (frozen mode's training
     /// augmentation, [`view::with_views`]); None: the frames as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -95,7 +100,7 @@ impl Sequence {
                 Some(f) => images::center_crop(&img, f),
                 None => img,
             },
-            Some(v) => v.apply(&img, self.center_crop),
+            Some(v) => v.apply(&img, self.center_crop, self.rendered_region),
         }))
     }
 

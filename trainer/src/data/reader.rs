@@ -110,7 +110,9 @@ fn read_sequence(
             Ok(record) => match record.center_region() {
                 Some(region) => {
                     check_center_region(&json, region, opts)?;
-                    from_record(dir, ctx, &record, opts)
+                    let mut seq = from_record(dir, ctx, &record, opts);
+                    seq.rendered_region = (region < 1.0).then_some(region);
+                    seq
                 }
                 None => {
                     bad.report(&json, "render.center_region must be a fraction in (0, 1]")?;
@@ -178,6 +180,7 @@ fn from_record(
         center_crop: opts.center_crop,
         lead_in: plan.lead_in_frames(),
         first_frame: 0,
+        rendered_region: None,
         view: None,
         probe: None,
     }
@@ -205,6 +208,7 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         center_crop: opts.center_crop,
         lead_in: 0,
         first_frame: 0,
+        rendered_region: None,
         view: None,
         probe: None,
     })

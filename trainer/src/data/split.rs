@@ -157,6 +157,7 @@ mod tests {
                     center_crop: None,
                     lead_in: 0,
                     first_frame: 0,
+                    rendered_region: None,
                     view: None,
                     probe: None,
                 });

@@ -91,16 +91,23 @@ impl ViewJitter {
 
     /// `img` through this view: the square the centre crop `crop` (a
     /// fraction of the shorter side; None: all of it) would take, scaled and
-    /// shifted (kept inside the image), then colour-jittered.
-    pub fn apply(&self, img: &RgbImage, crop: Option<f64>) -> RgbImage {
+    /// shifted, then colour-jittered. The square stays inside the image and
+    /// inside the centred `region` that was rendered (`[render]
+    /// center_region`; None: all of it), so a view never shows the black
+    /// border of a frame rendered only in its centre.
+    pub fn apply(&self, img: &RgbImage, crop: Option<f64>, region: Option<f64>) -> RgbImage {
         let (w, h) = img.dimensions();
         let short = f64::from(w.min(h));
+        let bound = (short * region.unwrap_or(1.0)).round().clamp(1.0, short);
         let side = (short * crop.unwrap_or(1.0) * self.scale)
             .round()
-            .clamp(1.0, short);
+            .clamp(1.0, bound);
         let place = |extent: u32, shift: f64| {
-            let start = f64::from(extent) / 2.0 + shift * side - side / 2.0;
-            start.round().clamp(0.0, f64::from(extent) - side) as u32
+            let middle = f64::from(extent) / 2.0;
+            let start = middle + shift * side - side / 2.0;
+            let lowest = (middle - bound / 2.0).round().max(0.0);
+            let highest = (lowest + bound - side).min(f64::from(extent) - side);
+            start.round().clamp(lowest, highest) as u32
         };
         let (x, y) = (place(w, self.shift[0]), place(h, -self.shift[1]));
         let s = side as u32;
@@ -151,9 +158,9 @@ mod tests {
     #[test]
     fn the_plain_view_is_the_centre_crop() {
         let img = ramp(100, 80);
-        let out = plain().apply(&img, Some(0.5));
+        let out = plain().apply(&img, Some(0.5), None);
         assert_eq!(out, crate::data::images::center_crop(&img, 0.5));
-        assert_eq!(plain().apply(&img, None).dimensions(), (80, 80));
+        assert_eq!(plain().apply(&img, None, None).dimensions(), (80, 80));
     }
 
     #[test]
@@ -164,7 +171,7 @@ mod tests {
             shift: [0.1, 0.1],
             ..plain()
         };
-        let out = v.apply(&img, Some(0.5));
+        let out = v.apply(&img, Some(0.5), None);
         assert_eq!(out.dimensions(), (60, 60));
         // Centre 50 + 6 right and 6 up: the crop starts at x 26, y 14.
         assert_eq!(out.get_pixel(0, 0), &image::Rgb([26, 14, 0]));
@@ -173,13 +180,40 @@ mod tests {
             shift: [0.5, -0.5],
             ..plain()
         };
-        let out = far.apply(&img, Some(0.5));
+        let out = far.apply(&img, Some(0.5), None);
         assert_eq!(out.dimensions(), (100, 100), "clamped to the image");
         let tiny = ViewJitter {
             scale: 1e-9,
             ..plain()
         };
-        assert_eq!(tiny.apply(&img, Some(0.5)).dimensions(), (1, 1));
+        assert_eq!(tiny.apply(&img, Some(0.5), None).dimensions(), (1, 1));
+    }
+
+    #[test]
+    fn views_stay_inside_the_rendered_region() {
+        // A 100 px frame rendered only in its central 50 px (25..75).
+        let img = ramp(100, 100);
+        let wide = ViewJitter {
+            scale: 1.25,
+            ..plain()
+        };
+        // Crop 0.42 x 1.25 would be 53 px, past the 50 px region.
+        let out = wide.apply(&img, Some(0.42), Some(0.5));
+        assert_eq!(out.dimensions(), (50, 50));
+        assert_eq!(out.get_pixel(0, 0), &image::Rgb([25, 25, 0]));
+        // Shifted: it slides back to the region's edge, not the image's.
+        let shifted = ViewJitter {
+            shift: [0.5, 0.5],
+            ..plain()
+        };
+        let out = shifted.apply(&img, Some(0.42), Some(0.5));
+        assert_eq!(out.dimensions(), (42, 42));
+        assert_eq!(out.get_pixel(0, 0), &image::Rgb([33, 25, 0]));
+        // Inside the region nothing changes.
+        assert_eq!(
+            plain().apply(&img, Some(0.42), Some(0.5)),
+            plain().apply(&img, Some(0.42), None)
+        );
     }
 
     #[test]
@@ -231,6 +265,7 @@ mod tests {
             center_crop: Some(0.5),
             lead_in: 0,
             first_frame: 0,
+            rendered_region: None,
             view: None,
             probe: None,
         };
