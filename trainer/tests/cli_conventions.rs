@@ -21,6 +21,7 @@ fn write_report(dir: &Path) -> PathBuf {
             frame_accuracy: 0.7,
             ..Default::default()
         },
+        videos: Vec::new(),
     }];
     let r = Report::new("frozen-pretrained", "fc", Path::new("data/test"), runs);
     std::fs::create_dir_all(dir).unwrap();

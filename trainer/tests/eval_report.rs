@@ -2,7 +2,7 @@
 //! hand, expected accuracies computed by hand below.
 
 use grasp_schema::taxonomy::{Class, Preshape};
-use trainer::eval::metrics::FrameWindow;
+use trainer::eval::metrics::{FrameWindow, VideoOutcome};
 use trainer::eval::report::RunReport;
 use trainer::eval::{compute_metrics, write_report, Report, VideoPrediction};
 
@@ -111,11 +111,13 @@ fn report_aggregates_seeds_and_writes_its_files() {
             checkpoint: "s0".into(),
             seed: 0,
             metrics: m1,
+            videos: videos().iter().map(VideoOutcome::of).collect(),
         },
         RunReport {
             checkpoint: "s1".into(),
             seed: 1,
             metrics: m2,
+            videos: v2.iter().map(VideoOutcome::of).collect(),
         },
     ];
     let r = Report::new(
@@ -139,6 +141,14 @@ fn report_aggregates_seeds_and_writes_its_files() {
             .unwrap();
     assert_eq!(json["mode"], "frozen-pretrained");
     assert_eq!(json["runs"].as_array().unwrap().len(), 2);
+    // videos.csv: b is voted power by the first seed, lateral by the second.
+    let csv = std::fs::read_to_string(dir.path().join("videos.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "id,object,part,truth,vote_seed0,vote_seed1");
+    assert_eq!(rows[1], "a,mug,mug-power,power,power,power");
+    assert_eq!(rows[2], "b,mug,mug-lateral,lateral,power,lateral");
+    assert_eq!(rows[4], "d,marker,marker-pinch3,pinch3,pinch3,pinch3");
+    assert_eq!(rows.len(), 5);
     for png in ["time_accuracy.png", "confusion.png"] {
         let img = image::open(dir.path().join(png)).unwrap();
         assert!(img.width() > 100);
@@ -184,6 +194,7 @@ fn per_part_accuracy_of_the_multi_grasp_objects() {
             checkpoint: format!("s{seed}").into(),
             seed: seed as u64,
             metrics: compute_metrics(v, 0.5),
+            videos: Vec::new(),
         })
         .collect();
     let r = Report::new("frozen-pretrained", "fc", std::path::Path::new("d"), runs);

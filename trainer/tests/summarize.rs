@@ -30,6 +30,7 @@ fn write_report(dir: &Path, runs: &[(f64, f64)]) -> PathBuf {
                 },
                 ..Default::default()
             },
+            videos: Vec::new(),
         })
         .collect();
     let mut r = Report::new("frozen-pretrained", "fc", Path::new("data/test"), runs);
@@ -287,6 +288,7 @@ fn write_part_report(dir: &Path, video: f64, parts: &[(&str, f64)]) -> PathBuf {
             per_part,
             ..Default::default()
         },
+        videos: Vec::new(),
     };
     let r = Report::new("frozen-pretrained", "fc", Path::new("data/test"), vec![run]);
     std::fs::create_dir_all(dir).unwrap();
