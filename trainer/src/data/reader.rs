@@ -110,9 +110,7 @@ fn read_sequence(
             Ok(record) => match record.center_region() {
                 Some(region) => {
                     check_center_region(&json, region, opts)?;
-                    let mut seq = from_record(dir, ctx, &record, opts);
-                    seq.rendered_region = (region < 1.0).then_some(region);
-                    seq
+                    from_record(dir, ctx, &record, region, opts)
                 }
                 None => {
                     bad.report(&json, "render.center_region must be a fraction in (0, 1]")?;
@@ -162,6 +160,7 @@ fn from_record(
     dir: &Path,
     ctx: &FolderContext,
     record: &SequenceRecord,
+    region: f64,
     opts: &ReaderOptions,
 ) -> Sequence {
     let plan = &record.plan;
@@ -180,7 +179,7 @@ fn from_record(
         center_crop: opts.center_crop,
         lead_in: plan.lead_in_frames(),
         first_frame: 0,
-        rendered_region: None,
+        rendered_region: (region < 1.0).then_some(region),
         view: None,
         probe: None,
     }

@@ -88,21 +88,20 @@ pub struct VideoOutcome {
     #[serde(default)]
     pub part: Option<String>,
     pub truth: Preshape,
-    /// The majority vote (a pre-shape name).
-    pub vote: String,
+    /// The majority vote.
+    pub vote: Preshape,
     /// Frames scored.
     pub frames: usize,
 }
 
 impl VideoOutcome {
     pub fn of(v: &VideoPrediction) -> VideoOutcome {
-        let vote = Class::from_index(video_class(&v.probs)).map_or("?", Class::name);
         VideoOutcome {
             id: v.id.clone(),
             object: v.object.clone(),
             part: v.part.clone(),
             truth: v.preshape,
-            vote: vote.to_string(),
+            vote: Preshape::ALL[video_class(&v.probs)],
             frames: v.probs.len(),
         }
     }

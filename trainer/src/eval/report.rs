@@ -241,7 +241,7 @@ pub fn videos_csv(report: &Report) -> String {
         );
         for r in &report.runs {
             let vote = r.videos.get(i).filter(|o| o.id == v.id);
-            let _ = write!(s, ",{}", vote.map_or("", |o| o.vote.as_str()));
+            let _ = write!(s, ",{}", vote.map_or("", |o| o.vote.name()));
         }
         s.push('\n');
     }
