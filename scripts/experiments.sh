@@ -63,6 +63,13 @@ run() {
   "$@"
 }
 
+# Sets CKPTS to the -c flags of the seed checkpoints under RUNS.
+checkpoints_of() { # runs
+  local s
+  CKPTS=()
+  for ((s = 0; s < SEEDS; s++)); do CKPTS+=(-c "$1/seed-$s"); done
+}
+
 # A complete render config: the defaults plus these values.
 config() { # out seed per_pair condition resolution samples denoiser fps [extra toml]
   cat >"$1" <<EOF
@@ -95,18 +102,17 @@ render() { # dir config-args...
 # FC heads (seeds 0..SEEDS-1) on DATA, early stopping on the fixed
 # validation set, evaluated on the fixed test sets.
 heads() { # data runs flags...
-  local data=$1 runs=$2 t s
+  local data=$1 runs=$2 t
   shift 2
   [ -f "$runs/.done" ] || {
     run "$BIN/grasp-train" train --data "$data" --val-data "$OUT/fixed/val" --seeds "$SEEDS" \
       --out "$runs" --cache-dir "$OUT/cache" "$@"
     touch "$runs/.done"
   }
-  local ckpts=()
-  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+  checkpoints_of "$runs"
   for t in default unseen_look; do
     [ -f "$runs/eval-$t/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$OUT/fixed/test-$t" \
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$OUT/fixed/test-$t" \
         --out "$runs/eval-$t" --cache-dir "$OUT/cache"
   done
 }
@@ -152,13 +158,13 @@ stage_parts() {
   done
   heads "$data" "$OUT/parts/lstm-whole" --head lstm
   heads "$data" "$OUT/parts/lstm-crop" --head lstm --center-crop "$CROP"
-  local runs="$OUT/study-models/r224-s1dn-f5-crop" ckpts=() s
-  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+  local runs="$OUT/study-models/r224-s1dn-f5-crop"
+  checkpoints_of "$runs"
   for window in "--before-tail-s 1.0" "--before-tail-s 0.5" "--to-s 1.5" "--from-s 1.0"; do
     local name=${window// /}
     # shellcheck disable=SC2086 # the window is a flag and its value
     [ -f "$OUT/parts/window${name}/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$OUT/fixed/test-default" $window \
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$OUT/fixed/test-default" $window \
         --out "$OUT/parts/window${name}" --cache-dir "$OUT/cache"
   done
 }
@@ -166,22 +172,22 @@ stage_parts() {
 # Table 2's columns: the same plans seen by the wrist and by the head camera
 # (128 px, 2.5 frames/s, both cameras in one render), an FC head per camera.
 stage_egocentric() {
-  local ego="$OUT/egocentric" head_camera camera set s
+  local ego="$OUT/egocentric" head_camera camera
   head_camera=$(printf '[plan.head_camera]\nenabled = true')
   render "$ego/train" 1 2 default 128 1 openimagedenoise 2.5 "$head_camera"
   render "$ego/val" 2 1 default 128 1 openimagedenoise 2.5 "$head_camera"
   render "$ego/test-default" 3 2 default 128 1 openimagedenoise 2.5 "$head_camera"
   for camera in Wrist_d435 Head_d435 Wrist_d435-whole Head_d435-whole; do
-    local runs="$ego/$camera" ckpts=() crop=(--center-crop "$CROP")
+    local runs="$ego/$camera" crop=(--center-crop "$CROP")
     [ "${camera%-whole}" = "$camera" ] || crop=()
     [ -f "$runs/.done" ] || {
       run "$BIN/grasp-train" train --data "$ego/train" --val-data "$ego/val" --head fc --seeds "$SEEDS" \
         --camera "${camera%-whole}" "${crop[@]}" --out "$runs" --cache-dir "$OUT/cache"
       touch "$runs/.done"
     }
-    for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+    checkpoints_of "$runs"
     [ -f "$runs/eval-default/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$ego/test-default" \
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$ego/test-default" \
         --out "$runs/eval-default" --cache-dir "$OUT/cache"
   done
 }
@@ -193,7 +199,7 @@ stage_main() {
 # An FC head on the main job's data (extra train flags), evaluated on every
 # test condition; the checkpoints are RUNS/seed-*.
 main_fc() { # runs train-flags...
-  local runs=$1 main="$OUT/main" s c ckpts=()
+  local runs=$1 main="$OUT/main" c
   shift
   [ -f "$runs/.done" ] || {
     run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
@@ -201,10 +207,10 @@ main_fc() { # runs train-flags...
       --cache-dir "$main/features" "$@"
     touch "$runs/.done"
   }
-  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+  checkpoints_of "$runs"
   for c in default fast from_ground seated background unseen_look; do
     [ -f "$runs/report/$c/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$main/data/test-$c" --out "$runs/report/$c" \
         --cache-dir "$main/features"
   done
 }
@@ -233,22 +239,21 @@ stage_input() {
 # main job's settings), scored with the main job's own (seed 3) as one pooled
 # set of 310 videos per condition: a binomial error near 2 points, not 4.5.
 stage_draws() {
-  local main="$OUT/main" c h s sd roots ckpts
+  local main="$OUT/main" c h sd roots
+  mkdir -p "$OUT/draws"
   for c in default unseen_look; do
     roots=(--data "$main/data/test-$c")
     for sd in $DRAW_SEEDS; do
-      mkdir -p "$OUT/draws"
-      sed -e "s/^seed = .*/seed = $sd/" -e 's/^sequences_per_pair = .*/sequences_per_pair = 2/' \
-        -e "s/^conditions = .*/conditions = [\"$c\"]/" "$main/train.toml" >"$OUT/draws/s$sd-$c.toml"
+      # The main job's own test config with another seed.
+      sed -e "s/^seed = .*/seed = $sd/" "$main/test-$c.toml" >"$OUT/draws/s$sd-$c.toml"
       run "$BIN/grasp-gen" render --config "$OUT/draws/s$sd-$c.toml" --out "$OUT/draws/s$sd/test-$c" \
         --resume --no-progress
       roots+=(--data "$OUT/draws/s$sd/test-$c")
     done
     for h in fc lstm; do
-      ckpts=()
-      for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$main/model-$h/seed-$s"); done
+      checkpoints_of "$main/model-$h"
       [ -f "$OUT/draws/report/$h-$c/report.json" ] ||
-        run "$BIN/grasp-train" eval "${ckpts[@]}" "${roots[@]}" --out "$OUT/draws/report/$h-$c" \
+        run "$BIN/grasp-train" eval "${CKPTS[@]}" "${roots[@]}" --out "$OUT/draws/report/$h-$c" \
           --cache-dir "$main/features"
     done
   done
@@ -256,14 +261,14 @@ stage_draws() {
 
 # unseen_look's middle defocus and noise added to the default test frames.
 probes() { # runs
-  local runs=$1 main="$OUT/main" s p ckpts=()
-  for ((s = 0; s < SEEDS; s++)); do ckpts+=(-c "$runs/seed-$s"); done
+  local runs=$1 main="$OUT/main" p
+  checkpoints_of "$runs"
   local -A flags=([blur]="--probe-blur 0.9" [noise]="--probe-noise 0.037"
     [both]="--probe-blur 0.9 --probe-noise 0.037")
   for p in blur noise both; do
     # shellcheck disable=SC2086 # the flags are words
     [ -f "$runs/probe-$p/report.json" ] ||
-      run "$BIN/grasp-train" eval "${ckpts[@]}" --data "$main/data/test-default" --out "$runs/probe-$p" \
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$main/data/test-default" --out "$runs/probe-$p" \
         --cache-dir "$main/features" ${flags[$p]}
   done
 }
