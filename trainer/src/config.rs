@@ -193,6 +193,20 @@ mod tests {
     }
 
     #[test]
+    fn views_sensor_ranges_parse_and_bad_ones_are_named() {
+        let cfg: TrainConfig =
+            toml::from_str("[views]\ncount = 4\nnoise = [0.0, 0.02]\nblur_px = [0.0, 0.5]\n")
+                .unwrap();
+        assert_eq!(cfg.views.noise, [0.0, 0.02]);
+        assert_eq!(cfg.views.blur_px, [0.0, 0.5]);
+        assert_eq!(cfg.views.scale, ViewConfig::default().scale);
+        cfg.views.validate().unwrap();
+        let reversed: TrainConfig = toml::from_str("[views]\nnoise = [0.02, 0.01]\n").unwrap();
+        let err = format!("{:#}", reversed.views.validate().unwrap_err());
+        assert!(err.contains("views.noise"), "{err}");
+    }
+
+    #[test]
     fn batch_size_defaults_follow_mode_head_and_data() {
         let mut cfg = TrainConfig::default();
         assert_eq!(cfg.batch_size_for(false), 256);

@@ -7,6 +7,7 @@
 //! different lens, aim and white balance would be.
 
 use super::augment::jitter;
+use super::probe::SensorProbe;
 use super::Dataset;
 use image::{imageops, RgbImage};
 use rand::Rng;
@@ -26,6 +27,13 @@ pub struct ViewConfig {
     pub shift: f64,
     /// Brightness, contrast and saturation factors in [1 - color, 1 + color].
     pub color: f32,
+    /// Extra sensor noise added to every frame of a view: its sigma (a
+    /// fraction of full scale) is drawn uniformly from this range, on top of
+    /// the noise the frames were rendered with. [0, 0]: none.
+    pub noise: [f32; 2],
+    /// Gaussian defocus blur before that noise, pixels of the frame, drawn
+    /// uniformly from this range. [0, 0]: none.
+    pub blur_px: [f32; 2],
 }
 
 impl Default for ViewConfig {
@@ -35,6 +43,8 @@ impl Default for ViewConfig {
             scale: 0.25,
             shift: 0.15,
             color: 0.2,
+            noise: [0.0, 0.0],
+            blur_px: [0.0, 0.0],
         }
     }
 }
@@ -55,6 +65,19 @@ impl ViewConfig {
             self.color.is_finite() && (0.0..1.0).contains(&self.color),
             "views.color must be in [0, 1), got {}",
             self.color
+        );
+        let range_ok = |[lo, hi]: [f32; 2], max: f32| {
+            lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= max
+        };
+        anyhow::ensure!(
+            range_ok(self.noise, 1.0),
+            "views.noise must be a range [low, high] within [0, 1] (a fraction of full scale), got {:?}",
+            self.noise
+        );
+        anyhow::ensure!(
+            range_ok(self.blur_px, 50.0),
+            "views.blur_px must be a range [low, high] within [0, 50] pixels, got {:?}",
+            self.blur_px
         );
         Ok(())
     }
@@ -128,6 +151,7 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
             let mut v = seq.clone();
             v.id = format!("{}#view{k}", seq.id);
             v.view = Some(ViewJitter::draw(cfg, &mut rng));
+            v.probe = draw_sensor(cfg, &mut rng);
             sequences.push(v);
         }
     }
@@ -135,6 +159,18 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
         root: data.root.clone(),
         sequences,
     }
+}
+
+/// A view's sensor: noise and defocus drawn from the config's ranges (None
+/// when both ranges are [0, 0]). Drawn after the [`ViewJitter`], so adding
+/// a sensor range leaves the views' crops and colours as they were.
+fn draw_sensor(cfg: &ViewConfig, rng: &mut impl Rng) -> Option<SensorProbe> {
+    let mut within = |[lo, hi]: [f32; 2]| if hi > lo { rng.gen_range(lo..=hi) } else { lo };
+    let probe = SensorProbe {
+        noise_sigma: within(cfg.noise),
+        blur_sigma_px: within(cfg.blur_px),
+    };
+    (probe.noise_sigma > 0.0 || probe.blur_sigma_px > 0.0).then_some(probe)
 }
 
 #[cfg(test)]
@@ -248,9 +284,8 @@ mod tests {
         assert!(cfg.validate().is_ok());
     }
 
-    #[test]
-    fn with_views_appends_labelled_copies() {
-        let seq = |id: &str| crate::data::Sequence {
+    fn one_sequence(id: &str) -> crate::data::Sequence {
+        crate::data::Sequence {
             id: id.into(),
             dir: Default::default(),
             category: "c".into(),
@@ -268,7 +303,12 @@ mod tests {
             rendered_region: None,
             view: None,
             probe: None,
-        };
+        }
+    }
+
+    #[test]
+    fn with_views_appends_labelled_copies() {
+        let seq = one_sequence;
         let data = Dataset {
             root: Default::default(),
             sequences: vec![seq("s0"), seq("s1"), seq("s2")],
@@ -289,5 +329,60 @@ mod tests {
         }
         assert_ne!(out.sequences[n].view, out.sequences[2 * n].view);
         assert_eq!(with_views(&data, &cfg, 1).sequences, out.sequences);
+    }
+
+    #[test]
+    fn sensor_views_draw_noise_and_blur_within_their_ranges() {
+        let data = Dataset {
+            root: Default::default(),
+            sequences: (0..40).map(|i| one_sequence(&format!("s{i}"))).collect(),
+        };
+        let plain_cfg = ViewConfig {
+            count: 2,
+            ..Default::default()
+        };
+        let plain_views = with_views(&data, &plain_cfg, 3);
+        assert!(plain_views.sequences.iter().all(|s| s.probe.is_none()));
+        let cfg = ViewConfig {
+            noise: [0.01, 0.02],
+            blur_px: [0.0, 0.5],
+            ..plain_cfg
+        };
+        let sensed = with_views(&data, &cfg, 3);
+        let n = data.sequences.len();
+        assert!(sensed.sequences[..n].iter().all(|s| s.probe.is_none()));
+        let probes: Vec<SensorProbe> = sensed.sequences[n..]
+            .iter()
+            .map(|s| s.probe.expect("every view has a sensor"))
+            .collect();
+        assert!(probes
+            .iter()
+            .all(|p| (0.01..=0.02).contains(&p.noise_sigma)
+                && (0.0..=0.5).contains(&p.blur_sigma_px)));
+        assert!(
+            probes.iter().any(|p| p.noise_sigma < 0.013)
+                && probes.iter().any(|p| p.noise_sigma > 0.017)
+        );
+        assert!(
+            probes.iter().any(|p| p.blur_sigma_px < 0.1)
+                && probes.iter().any(|p| p.blur_sigma_px > 0.4)
+        );
+        // The sensor is drawn after the crop: the crops stay as they were.
+        for (a, b) in sensed.sequences.iter().zip(&plain_views.sequences) {
+            assert_eq!(a.view, b.view);
+        }
+        for bad in [[0.02, 0.01], [-0.1, 0.0], [0.0, f32::NAN], [0.0, 2.0]] {
+            assert!(
+                ViewConfig { noise: bad, ..cfg }.validate().is_err(),
+                "{bad:?}"
+            );
+        }
+        assert!(ViewConfig {
+            blur_px: [0.0, 60.0],
+            ..cfg
+        }
+        .validate()
+        .is_err());
+        assert!(cfg.validate().is_ok());
     }
 }
