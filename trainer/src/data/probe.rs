@@ -4,7 +4,8 @@
 //! asks how far a model's accuracy falls on a camera worse than training's,
 //! on test sets whose look is otherwise training's. The noise of frame `i`
 //! of a sequence is drawn from its id and `i`, so a probe is repeatable and
-//! its features are cached like any other view of the frames.
+//! its features are cached like any other view of the frames. Training's
+//! sensor views (`[views] noise`, `blur_px`) draw one probe per view.
 
 use image::RgbImage;
 use rand::Rng;

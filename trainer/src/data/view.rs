@@ -2,9 +2,11 @@
 //! computed once and cached, so the from-scratch augmentation (a new draw
 //! every epoch) does not apply. Instead each training sequence gets `count`
 //! extra copies, each seen through a fixed, seeded variation of the centre
-//! crop: its size scaled, its centre shifted, its colours jittered. A view
-//! is one draw per sequence, the same for all its frames, as a slightly
-//! different lens, aim and white balance would be.
+//! crop: its size scaled, its centre shifted, its colours jittered and,
+//! when `noise` or `blur_px` is set, a noisier or softer sensor (the
+//! evaluation probe's degradation, [`SensorProbe`]). A view is one draw per
+//! sequence, the same for all its frames, as a slightly different lens,
+//! aim, white balance and sensor would be.
 
 use super::augment::jitter;
 use super::probe::SensorProbe;
