@@ -21,6 +21,11 @@ pub struct SensorProbe {
     pub blur_sigma_px: f32,
 }
 
+/// The largest noise sigma (full scale) and blur (pixels) a probe or a
+/// view's sensor range may ask for.
+pub const MAX_NOISE_SIGMA: f32 = 1.0;
+pub const MAX_BLUR_PX: f32 = 50.0;
+
 impl SensorProbe {
     /// A probe from the CLI's values; None when both are 0 or absent.
     pub fn new(
@@ -32,16 +37,21 @@ impl SensorProbe {
             blur_sigma_px: blur_sigma_px.unwrap_or(0.0),
         };
         anyhow::ensure!(
-            probe.noise_sigma.is_finite() && (0.0..=1.0).contains(&probe.noise_sigma),
+            probe.noise_sigma.is_finite() && (0.0..=MAX_NOISE_SIGMA).contains(&probe.noise_sigma),
             "--probe-noise must be in [0, 1] (a fraction of full scale), got {}",
             probe.noise_sigma
         );
         anyhow::ensure!(
-            probe.blur_sigma_px.is_finite() && (0.0..=50.0).contains(&probe.blur_sigma_px),
+            probe.blur_sigma_px.is_finite() && (0.0..=MAX_BLUR_PX).contains(&probe.blur_sigma_px),
             "--probe-blur must be in [0, 50] pixels, got {}",
             probe.blur_sigma_px
         );
-        Ok((probe.noise_sigma > 0.0 || probe.blur_sigma_px > 0.0).then_some(probe))
+        Ok(probe.active())
+    }
+
+    /// The probe, or None when it degrades nothing.
+    pub fn active(self) -> Option<Self> {
+        (self.noise_sigma > 0.0 || self.blur_sigma_px > 0.0).then_some(self)
     }
 
     /// `img` blurred, then with noise drawn from `key` (sequence id and

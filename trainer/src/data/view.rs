@@ -9,7 +9,7 @@
 //! aim, white balance and sensor would be.
 
 use super::augment::jitter;
-use super::probe::SensorProbe;
+use super::probe::{SensorProbe, MAX_BLUR_PX, MAX_NOISE_SIGMA};
 use super::Dataset;
 use image::{imageops, RgbImage};
 use rand::Rng;
@@ -72,12 +72,12 @@ impl ViewConfig {
             lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= max
         };
         anyhow::ensure!(
-            range_ok(self.noise, 1.0),
+            range_ok(self.noise, MAX_NOISE_SIGMA),
             "views.noise must be a range [low, high] within [0, 1] (a fraction of full scale), got {:?}",
             self.noise
         );
         anyhow::ensure!(
-            range_ok(self.blur_px, 50.0),
+            range_ok(self.blur_px, MAX_BLUR_PX),
             "views.blur_px must be a range [low, high] within [0, 50] pixels, got {:?}",
             self.blur_px
         );
@@ -168,11 +168,11 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
 /// a sensor range leaves the views' crops and colours as they were.
 fn draw_sensor(cfg: &ViewConfig, rng: &mut impl Rng) -> Option<SensorProbe> {
     let mut within = |[lo, hi]: [f32; 2]| if hi > lo { rng.gen_range(lo..=hi) } else { lo };
-    let probe = SensorProbe {
+    SensorProbe {
         noise_sigma: within(cfg.noise),
         blur_sigma_px: within(cfg.blur_px),
-    };
-    (probe.noise_sigma > 0.0 || probe.blur_sigma_px > 0.0).then_some(probe)
+    }
+    .active()
 }
 
 #[cfg(test)]
