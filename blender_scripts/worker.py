@@ -84,6 +84,7 @@ class Worker:
         pose = plan["object"]["pose"]
         self.target.location = pose["position"]
         self.target.rotation_quaternion = pose["rotation_wxyz"]
+        self.target.scale = (plan["object"].get("scale", 1.0),) * 3
 
     def _apply_appearance(self, plan, object_color):
         a = plan["appearance"]

@@ -15,6 +15,7 @@
 //! | `world_light` | a bundled studio-light HDRI, rotation, strength | Blender world |
 //! | `object_color` | the object's colour within its plausible range | object material |
 //! | `distractors` | primitives on the table, clear of the target and the reach | plan, Blender |
+//! | `object_scale` | the object's size (mesh and part boxes, uniformly) | plan, Blender, part labels |
 //! | `standoff` | where the approach stops short of the target | plan |
 //! | `aim` | the aim point within the target part's end face | plan |
 //! | `approach_ends` | both ends of the part's approach axis, balanced | plan |
@@ -22,7 +23,7 @@
 //! The `unseen_look` condition takes its appearance from
 //! `[appearance.unseen_look]` instead (see [`crate::unseen_look`]); of these
 //! levers it keeps the geometric ones (principal point, object colour,
-//! distractors, standoff, aim, approach ends).
+//! distractors, object scale, standoff, aim, approach ends).
 
 use crate::appearance::{hsv_to_linear_rgb, AppearanceConfig};
 use crate::catalog::ColorRange;
@@ -69,6 +70,7 @@ pub struct RandomizeConfig {
     pub world_light: WorldLightLever,
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
+    pub object_scale: ObjectScaleLever,
     pub standoff: StandoffLever,
     pub aim: AimLever,
     pub approach_ends: ApproachEndsLever,
@@ -87,6 +89,7 @@ impl Default for RandomizeConfig {
             world_light: Default::default(),
             object_color: Default::default(),
             distractors: Default::default(),
+            object_scale: Default::default(),
             standoff: Default::default(),
             aim: Default::default(),
             approach_ends: Default::default(),
@@ -284,6 +287,27 @@ impl Default for DistractorLever {
     }
 }
 
+/// The object's size: its mesh and part boxes scaled uniformly about the
+/// object frame's origin by a log-uniform factor, so that apparent size
+/// stops naming the object (real ones differ from the catalog's models).
+/// The plan, its validity checks and the part labels use the scaled object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ObjectScaleLever {
+    pub enabled: bool,
+    /// Factor range; 1 is the catalog's size.
+    pub scale: [f64; 2],
+}
+
+impl Default for ObjectScaleLever {
+    fn default() -> Self {
+        ObjectScaleLever {
+            enabled: false,
+            scale: [0.8, 1.25],
+        }
+    }
+}
+
 /// The standoff (`plan.trajectory.standoff_m`) times a factor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -436,6 +460,12 @@ impl RandomizeConfig {
         if !(d.clearance_m.is_finite() && d.clearance_m >= 0.0) || d.attempts == 0 {
             bail!("[randomize.distractors] clearance_m must be >= 0 and attempts >= 1");
         }
+        check_range(
+            "[randomize.object_scale] scale",
+            self.object_scale.scale,
+            0.1,
+            10.0,
+        )?;
         check_range("[randomize.standoff] scale", self.standoff.scale, 0.0, 10.0)?;
         let a = self.aim.fraction;
         if !(0.0..=1.0).contains(&a) {
@@ -457,6 +487,7 @@ impl RandomizeConfig {
             r.world_light.enabled = false;
             r.object_color.enabled = false;
             r.distractors.enabled = false;
+            r.object_scale.enabled = false;
             r.standoff.enabled = false;
             r.aim.enabled = false;
             r.approach_ends.enabled = false;
@@ -508,6 +539,16 @@ fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
 /// The RNG of one lever of one sequence.
 pub fn lever_rng(stream: u64, lever: &str) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(substream_seed(stream, lever))
+}
+
+/// A sequence's object scale (1 with the lever off).
+pub fn object_scale(levers: &RandomizeConfig, stream: u64) -> f64 {
+    let lever = &levers.object_scale;
+    if lever.enabled {
+        log_uniform(&mut lever_rng(stream, "object_scale"), lever.scale)
+    } else {
+        1.0
+    }
 }
 
 /// A sequence's camera intrinsics: the preset's lens scaled by the drawn

@@ -2,7 +2,8 @@
 //! by the depth against the mesh) and Cycles at 1 sample (object index pass).
 //! The camera ends facing the box's -Y side, so nearly every labelled pixel
 //! of the last frame is the `sides` part; from the first, higher view the top
-//! shows too.
+//! shows too. A scaled object (`plan.object.scale`) is drawn and labelled at
+//! its scaled size.
 
 mod render_common;
 
@@ -18,6 +19,25 @@ fn labels(dir: &Path, frame: &str) -> Vec<u8> {
         .unwrap()
         .to_luma8()
         .into_raw()
+}
+
+/// Renders a_box, seen from (0, -0.7, 1.15) then (0, -0.25, 0.9), with the
+/// object scaled by `scale`; returns the sequence folder.
+fn render_box(config: &RenderConfig, scale: f64, dir: &Path) -> std::path::PathBuf {
+    let mut src = source(1, 2, 64);
+    src.plans.truncate(1);
+    src.plans[0].object.scale = scale;
+    let src = Arc::new(src);
+    let s = render(src.clone(), config, &options(dir, 1)).unwrap();
+    assert_eq!((s.rendered, s.failed.len()), (1, 0), "{s:?}");
+    let manifest = std::fs::read_to_string(dir.join(MANIFEST_FILE)).unwrap();
+    let entry: ManifestEntry = serde_json::from_str(manifest.lines().next().unwrap()).unwrap();
+    dir.join(&entry.path)
+}
+
+/// Pixels labelled none, `top` and `sides`.
+fn counts(l: &[u8]) -> [usize; 3] {
+    [0u8, 1, 2].map(|k| l.iter().filter(|x| **x == k).count())
 }
 
 fn check(config: RenderConfig, keep_exr: bool) {
@@ -39,7 +59,6 @@ fn check(config: RenderConfig, keep_exr: bool) {
     assert_eq!(seq.join("00000.exr").exists(), keep_exr);
 
     let last = labels(&seq, "00001.png");
-    let counts = |l: &[u8]| [0u8, 1, 2].map(|k| l.iter().filter(|x| **x == k).count());
     let [_, top, sides] = counts(&last);
     assert!(sides > 160, "{:?}", counts(&last));
     assert!(
@@ -77,4 +96,30 @@ fn part_labels_from_cycles_object_index() {
         ..Default::default()
     };
     check(c, true);
+}
+
+#[test]
+fn a_scaled_object_is_drawn_and_labelled_at_its_size() {
+    if !have_blender() {
+        return;
+    }
+    // Cycles' object index says which pixels Blender drew as the object.
+    let c = RenderConfig {
+        engine: Engine::Cycles,
+        samples: 1,
+        denoiser: "none".into(),
+        passes: vec![Pass::Rgb, Pass::Instance, Pass::Part],
+        ..Default::default()
+    };
+    let (small, large) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let small = counts(&labels(&render_box(&c, 0.8, small.path()), "00001.png"));
+    let large = counts(&labels(&render_box(&c, 1.25, large.path()), "00001.png"));
+    let object = |c: [usize; 3]| c[1] + c[2];
+    assert!(object(small) > 100, "0.8: {small:?}");
+    // The drawn area grows at least with the square of the scale, (1.25 /
+    // 0.8)^2 = 2.4 (more, as the larger box comes nearer the camera), and
+    // every pixel of it lies in a part box at the plan's scale. Drawn at
+    // the catalog's size both times, it would grow by about 1.4.
+    let ratio = object(large) as f64 / object(small) as f64;
+    assert!((2.2..5.0).contains(&ratio), "{small:?} against {large:?}");
 }

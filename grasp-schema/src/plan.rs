@@ -233,6 +233,15 @@ pub struct ObjectPlacement {
     pub yaw_deg: f64,
     pub upside_down: bool,
     pub on_table_border: bool,
+    /// Uniform scale of the catalog's mesh and part boxes about the object
+    /// frame's origin (`[randomize.object_scale]`); 1 is the catalog's size.
+    /// `pose` places the scaled object.
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }
 
 /// An object on the table that is not the target: it never holds the
@@ -387,6 +396,7 @@ mod tests {
                 yaw_deg: 0.0,
                 upside_down: false,
                 on_table_border: false,
+                scale: 1.0,
             },
             target: [0.0, 0.0, 0.0],
             other_end: [0.0, 0.0, 0.0],

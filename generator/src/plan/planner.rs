@@ -5,6 +5,7 @@ use super::scene::{sample_placement, Placement};
 use super::trajectory::{frame_tau, linear_window, min_jerk, min_jerk_window, WristTiming};
 use super::validity::{
     aabb, check_batch, Acceptance, Obb, Obstacles, PolylineCheck, RayCaster, Rejection,
+    ScaledCaster,
 };
 use super::wrist::{self, look_at, RollRule};
 use crate::catalog::{Catalog, GraspPart, ObjectSpec, Pronation, TriMesh};
@@ -21,12 +22,13 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::json;
 use std::collections::BTreeMap;
+use std::rc::Rc;
 
 /// One object's geometry as the planner needs it.
 pub struct ObjectGeometry {
     pub spec: ObjectSpec,
     /// Ray casts against the object's mesh (object frame).
-    pub caster: Box<dyn RayCaster>,
+    pub caster: Rc<dyn RayCaster>,
     /// Extent of the mesh along the object's Z (min, max).
     pub z_range: [f64; 2],
     /// Bounding sphere of the mesh (object frame).
@@ -65,7 +67,7 @@ impl ObjectGeometry {
             .collect::<Result<Vec<_>>>()?;
         Ok(ObjectGeometry {
             spec,
-            caster,
+            caster: Rc::from(caster),
             z_range: [lo.z, hi.z],
             sphere_center: center,
             sphere_radius: radius,
@@ -78,6 +80,36 @@ impl ObjectGeometry {
                 .map(|f| f.map(|i| Vector3::from(mesh.vertices[i as usize])))
                 .collect(),
         })
+    }
+}
+
+impl ObjectGeometry {
+    /// The same object scaled uniformly about its frame's origin: mesh,
+    /// part boxes and every derived extent. Ray casts go through the
+    /// catalog-size mesh, so scaling builds no new mesh query.
+    pub fn scaled(&self, scale: f64) -> ObjectGeometry {
+        let mut spec = self.spec.clone();
+        for p in &mut spec.parts {
+            p.center = p.center.map(|c| c * scale);
+            p.size = p.size.map(|c| c * scale);
+        }
+        ObjectGeometry {
+            spec,
+            caster: Rc::new(ScaledCaster::new(self.caster.clone(), scale)),
+            z_range: self.z_range.map(|z| z * scale),
+            sphere_center: self.sphere_center * scale,
+            sphere_radius: self.sphere_radius * scale,
+            boxes: self
+                .boxes
+                .iter()
+                .map(|b| Obb {
+                    center: b.center * scale,
+                    rotation: b.rotation,
+                    half: b.half * scale,
+                })
+                .collect(),
+            outline: self.outline.iter().map(|t| t.map(|v| v * scale)).collect(),
+        }
     }
 }
 
@@ -172,6 +204,8 @@ struct SequenceDraws {
     fov_scale: f64,
     principal_point_shift: [f64; 2],
     approach: ApproachDraw,
+    /// `[randomize.object_scale]`'s factor (1 with the lever off).
+    object_scale: f64,
 }
 
 struct Accepted {
@@ -257,6 +291,13 @@ impl Planner {
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
         let draws = self.sequence_draws(key.condition, stream);
+        let resized;
+        let geo = if draws.object_scale == 1.0 {
+            geo
+        } else {
+            resized = geo.scaled(draws.object_scale);
+            &resized
+        };
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
             .with_context(|| format!("planning {}", key.id()))?;
@@ -285,6 +326,7 @@ impl Planner {
             fov_scale,
             principal_point_shift,
             approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
+            object_scale: randomize::object_scale(r, stream),
         }
     }
 
@@ -536,6 +578,7 @@ impl Planner {
                 yaw_deg: c.placement.yaw.to_degrees(),
                 upside_down: c.placement.upside_down,
                 on_table_border: c.placement.on_border,
+                scale: draws.object_scale,
             },
             target: c.target.into(),
             other_end: c.other_end.into(),
@@ -746,6 +789,9 @@ fn sampled_record(
         put("target_end_forced", json!(accepted.attempts <= forced));
     }
     put("fov_scale", json!(draws.fov_scale));
+    if draws.object_scale != 1.0 {
+        put("object_scale", json!(draws.object_scale));
+    }
     put("principal_point_shift", json!(draws.principal_point_shift));
     put(
         "mesh_tolerance_used",

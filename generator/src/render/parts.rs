@@ -6,7 +6,8 @@
 //! Blender renders only the depth (and, in Cycles, the object index) into a
 //! multilayer EXR; the labels are computed here. Each pixel's ray is
 //! back-projected to the visible point with the frame's camera pose and
-//! intrinsics and carried into the object frame. A pixel is the object's
+//! intrinsics and carried into the catalog's object frame (undoing the
+//! plan's object scale). A pixel is the object's
 //! when the object-index pass says so, or (Workbench and EEVEE have no such
 //! pass) when the point lies on the object's mesh within a tolerance. It gets
 //! the part whose box is nearest, within `tolerance` (inside counts as 0;
@@ -124,14 +125,20 @@ impl PartLabeler {
         })
     }
 
-    /// One label per pixel, row-major from the top row.
+    /// One label per pixel, row-major from the top row. `object` places the
+    /// catalog's object scaled by `scale` (`ObjectPlacement::scale`).
     pub fn label(
         &self,
         buffers: &FrameBuffers,
         k: &CameraIntrinsics,
         camera: &Pose,
         object: &Pose,
+        scale: f64,
     ) -> Result<Vec<u8>> {
+        ensure!(
+            scale.is_finite() && scale > 0.0,
+            "the object scale {scale} is not a positive number"
+        );
         ensure!(
             (buffers.width, buffers.height) == (k.width as usize, k.height as usize),
             "the depth image is {}x{} but the intrinsics say {}x{}",
@@ -162,32 +169,39 @@ impl PartLabeler {
             // Camera frame: looks along -Z, +Y up in the image.
             let ray = Vector3::new((u - k.cx) / k.fx, -(v - k.cy) / k.fy, -1.0);
             let world = cam_p + cam_q * (ray * d);
-            let local = obj_q.inverse_transform_vector(&(world - obj_p));
-            if buffers.index.is_none() && !self.on_surface(&local, d, k) {
+            let local = obj_q.inverse_transform_vector(&(world - obj_p)) / scale;
+            if buffers.index.is_none() && !self.on_surface(&local, d, k, scale) {
                 continue;
             }
-            *label = self.part_of(&local);
+            *label = self.part_of(&local, scale);
         }
         Ok(out)
     }
 
     /// Whether a back-projected point lies on the object's mesh, allowing
-    /// the depth buffer's error and a pixel's footprint at that depth.
-    fn on_surface(&self, local: &Vector3<f64>, depth: f64, k: &CameraIntrinsics) -> bool {
+    /// the depth buffer's error and a pixel's footprint at that depth
+    /// (metres; `local` is in the catalog's frame, `scale` metres per unit).
+    fn on_surface(
+        &self,
+        local: &Vector3<f64>,
+        depth: f64,
+        k: &CameraIntrinsics,
+        scale: f64,
+    ) -> bool {
         let footprint = depth / k.fx.min(k.fy);
         let allowed = self.tolerance + 2.0 * footprint;
         self.mesh
             .closest_point([local.x, local.y, local.z])
-            .is_some_and(|(_, dist)| dist <= allowed)
+            .is_some_and(|(_, dist)| dist * scale <= allowed)
     }
 
     /// 1 + index of the nearest box within tolerance, or 0. A point inside
     /// several boxes gets the smallest one (the most specific part); equal
-    /// boxes go to the earlier part.
-    fn part_of(&self, local: &Vector3<f64>) -> u8 {
+    /// boxes go to the earlier part. The tolerance is in metres.
+    fn part_of(&self, local: &Vector3<f64>, scale: f64) -> u8 {
         let mut best = (0u8, f64::INFINITY, f64::INFINITY);
         for (i, b) in self.boxes.iter().enumerate() {
-            let d = b.distance(local);
+            let d = b.distance(local) * scale;
             let volume = b.half.x * b.half.y * b.half.z;
             if d <= self.tolerance && (d, volume) < (best.1, best.2) {
                 best = ((i + 1) as u8, d, volume);
@@ -253,6 +267,12 @@ mod tests {
     /// A camera 0.5 m above the cube looking straight down (image up = +X):
     /// the depth image of the top face, computed in closed form.
     fn top_view(px: u32, object: &Pose) -> (Pose, FrameBuffers) {
+        top_view_scaled(px, object, 1.0)
+    }
+
+    /// The same with the cube scaled by `scale` about its origin (the
+    /// camera stays 0.6 m above the origin).
+    fn top_view_scaled(px: u32, object: &Pose, scale: f64) -> (Pose, FrameBuffers) {
         let s = std::f64::consts::FRAC_1_SQRT_2;
         // Camera -Z = world -Z, camera +Y = world +X: a rotation about Z by -90 deg.
         let camera = Pose {
@@ -263,7 +283,9 @@ mod tests {
             ],
             rotation_wxyz: [s, 0.0, 0.0, -s],
         };
-        let depth = vec![0.5f32; (px * px) as usize];
+        let top = (0.6 - 0.1 * scale) as f32;
+        let half = 0.05 * scale;
+        let depth = vec![top; (px * px) as usize];
         // Pixels outside the top face see the floor, far below.
         let k = intrinsics(px);
         let depth = depth
@@ -271,9 +293,10 @@ mod tests {
             .enumerate()
             .map(|(i, _)| {
                 let (u, v) = ((i as u32 % px) as f64 + 0.5, (i as u32 / px) as f64 + 0.5);
-                let (x, y) = ((u - k.cx) / k.fx * 0.5, (v - k.cy) / k.fy * 0.5);
-                if x.abs() < 0.05 && y.abs() < 0.05 {
-                    0.5
+                let d = f64::from(top);
+                let (x, y) = ((u - k.cx) / k.fx * d, (v - k.cy) / k.fy * d);
+                if x.abs() < half && y.abs() < half {
+                    top
                 } else {
                     3.0
                 }
@@ -300,7 +323,7 @@ mod tests {
         };
         let (camera, buffers) = top_view(64, &object);
         let labels = labeler
-            .label(&buffers, &intrinsics(64), &camera, &object)
+            .label(&buffers, &intrinsics(64), &camera, &object, 1.0)
             .unwrap();
         let on_face = buffers.depth.iter().filter(|d| **d < 1.0).count();
         let top = labels.iter().filter(|l| **l == 1).count();
@@ -310,6 +333,30 @@ mod tests {
         // Floor pixels are not the object.
         let floor = labels.iter().zip(&buffers.depth).filter(|(_, d)| **d > 1.0);
         assert!(floor.clone().all(|(l, _)| *l == 0));
+    }
+
+    #[test]
+    fn a_scaled_object_is_labelled_in_the_catalogs_frame() {
+        let (mesh, parts) = cube();
+        let labeler = PartLabeler::new(&parts, &mesh, 0.005).unwrap();
+        let object = Pose {
+            position: [0.2, -0.1, 0.75],
+            rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
+        };
+        // Twice the catalog's size: the top face is 0.2 m up and 0.2 m wide.
+        let (camera, buffers) = top_view_scaled(64, &object, 2.0);
+        let k = intrinsics(64);
+        let on_face = buffers.depth.iter().filter(|d| **d < 1.0).count();
+        assert!(on_face > 100);
+        let labels = labeler.label(&buffers, &k, &camera, &object, 2.0).unwrap();
+        assert_eq!(labels.iter().filter(|l| **l == 1).count(), on_face);
+        // Read at the catalog's size, the face floats above the object.
+        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
+        assert!(labels.iter().all(|l| *l == 0));
+        let err = labeler
+            .label(&buffers, &k, &camera, &object, 0.0)
+            .unwrap_err();
+        assert!(err.to_string().contains("scale"), "{err}");
     }
 
     #[test]
@@ -324,10 +371,10 @@ mod tests {
         // Say a hand (index 2) covers the whole image.
         buffers.index = Some(vec![2.0; buffers.depth.len()]);
         let k = intrinsics(32);
-        let labels = labeler.label(&buffers, &k, &camera, &object).unwrap();
+        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
         assert!(labels.iter().all(|l| *l == 0));
         buffers.index = Some(vec![1.0; buffers.depth.len()]);
-        let labels = labeler.label(&buffers, &k, &camera, &object).unwrap();
+        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
         assert!(labels.contains(&1));
     }
 
@@ -342,12 +389,12 @@ mod tests {
         };
         let (camera, buffers) = top_view(32, &object);
         let labels = labeler
-            .label(&buffers, &intrinsics(32), &camera, &object)
+            .label(&buffers, &intrinsics(32), &camera, &object, 1.0)
             .unwrap();
         assert!(labels.iter().filter(|l| **l == 1).count() > 20);
         // A wrong size is an error, not a panic.
         let err = labeler
-            .label(&buffers, &intrinsics(16), &camera, &object)
+            .label(&buffers, &intrinsics(16), &camera, &object, 1.0)
             .unwrap_err();
         assert!(err.to_string().contains("intrinsics"), "{err}");
     }
@@ -366,10 +413,11 @@ mod tests {
             },
         );
         let labeler = PartLabeler::new(&parts, &mesh, 0.005).unwrap();
-        assert_eq!(labeler.part_of(&Vector3::new(0.0, 0.0, 0.1)), 2, "top");
-        assert_eq!(labeler.part_of(&Vector3::new(-0.05, 0.0, 0.05)), 3, "side");
-        assert_eq!(labeler.part_of(&Vector3::new(0.05, 0.0, 0.02)), 1, "all");
-        assert_eq!(labeler.part_of(&Vector3::new(0.5, 0.0, 0.0)), 0, "none");
+        let part_of = |x, y, z| labeler.part_of(&Vector3::new(x, y, z), 1.0);
+        assert_eq!(part_of(0.0, 0.0, 0.1), 2, "top");
+        assert_eq!(part_of(-0.05, 0.0, 0.05), 3, "side");
+        assert_eq!(part_of(0.05, 0.0, 0.02), 1, "all");
+        assert_eq!(part_of(0.5, 0.0, 0.0), 0, "none");
     }
 
     #[test]

@@ -333,7 +333,7 @@ fn label_parts(
         };
         let exr = dir.join(name).with_extension("exr");
         let buffers = read_exr(&exr)?;
-        let labels = labeler.label(&buffers, k, &pose, &plan.object.pose)?;
+        let labels = labeler.label(&buffers, k, &pose, &plan.object.pose, plan.object.scale)?;
         write_labels(&dir.join(part_file_name(name)), k.width, k.height, labels)?;
         if !keep_exr {
             std::fs::remove_file(&exr)

@@ -151,6 +151,7 @@ pub fn plan(
             yaw_deg: 0.0,
             upside_down: false,
             on_table_border: false,
+            scale: 1.0,
         },
         target,
         other_end: target,

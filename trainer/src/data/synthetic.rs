@@ -238,6 +238,7 @@ fn record(
                 yaw_deg: 0.0,
                 upside_down: false,
                 on_table_border: false,
+                scale: 1.0,
             },
             target: [0.0; 3],
             other_end: [0.0; 3],
