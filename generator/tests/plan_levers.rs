@@ -517,7 +517,8 @@ fn object_scale_resizes_the_object_that_the_plan_checks_and_records() {
         assert!(in_box.x.abs() <= b.half.x + 1e-9 && in_box.y.abs() <= b.half.y + 1e-9);
     }
     let scales: Vec<f64> = drawn.iter().map(|p| p.object.scale).collect();
-    assert!(range(scales.iter().copied())[1] - range(scales.iter().copied())[0] > 0.1);
+    let [low, high] = range(scales.iter().copied());
+    assert!(high - low > 0.1);
     // Off (the default), the catalog's size and nothing recorded.
     for p in plans(&GeneratorConfig::default(), &[Condition::Default], 4) {
         assert_eq!(p.object.scale, 1.0);

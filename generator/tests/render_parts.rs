@@ -83,19 +83,23 @@ fn part_labels_from_workbench_depth() {
     check(c, false);
 }
 
-#[test]
-fn part_labels_from_cycles_object_index() {
-    if !have_blender() {
-        return;
-    }
-    let c = RenderConfig {
+/// Cycles, one sample, with the object-index and part passes.
+fn cycles_with_parts() -> RenderConfig {
+    RenderConfig {
         engine: Engine::Cycles,
         samples: 1,
         denoiser: "none".into(),
         passes: vec![Pass::Rgb, Pass::Instance, Pass::Part],
         ..Default::default()
-    };
-    check(c, true);
+    }
+}
+
+#[test]
+fn part_labels_from_cycles_object_index() {
+    if !have_blender() {
+        return;
+    }
+    check(cycles_with_parts(), true);
 }
 
 #[test]
@@ -104,13 +108,7 @@ fn a_scaled_object_is_drawn_and_labelled_at_its_size() {
         return;
     }
     // Cycles' object index says which pixels Blender drew as the object.
-    let c = RenderConfig {
-        engine: Engine::Cycles,
-        samples: 1,
-        denoiser: "none".into(),
-        passes: vec![Pass::Rgb, Pass::Instance, Pass::Part],
-        ..Default::default()
-    };
+    let c = cycles_with_parts();
     let (small, large) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     let small = counts(&labels(&render_box(&c, 0.8, small.path()), "00001.png"));
     let large = counts(&labels(&render_box(&c, 1.25, large.path()), "00001.png"));

@@ -180,6 +180,12 @@ fn render(
     settings: &serde_json::Value,
     req: &RenderRequest,
 ) -> Result<RenderCost> {
+    let scale = req.plan.object.scale;
+    anyhow::ensure!(
+        scale.is_finite() && scale > 0.0,
+        "sequence {}: plan.object.scale must be positive, got {scale}",
+        req.id
+    );
     let labeler = match req.parts.is_empty() {
         true => None,
         false => Some(part_labeler(settings, req)?),
