@@ -181,6 +181,35 @@ pub struct BackboneInfo {
     /// The checkpoint whose trained backbone this is, when it is one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source_checkpoint: Option<PathBuf>,
+    /// EfficientNet-Lite whose last blocks were fine-tuned: those come from
+    /// a checkpoint, the rest from `weights_path`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tuned: Option<TunedTail>,
+}
+
+/// Where the fine-tuned last blocks of a backbone are.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TunedTail {
+    /// The first tuned block; blocks before it keep their pretrained weights.
+    pub from_block: usize,
+    /// The checkpoint weights file holding them as `tail.*` (set when the
+    /// checkpoint is loaded; a checkpoint's own metadata leaves it out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights_path: Option<PathBuf>,
+    /// That file's SHA-256, which keys the feature cache.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights_sha256: Option<String>,
+}
+
+impl TunedTail {
+    /// Blocks from `from_block` on, to be read from `weights` when loaded.
+    pub fn new(from_block: usize) -> Self {
+        TunedTail {
+            from_block,
+            weights_path: None,
+            weights_sha256: None,
+        }
+    }
 }
 
 impl BackboneInfo {
@@ -196,6 +225,7 @@ impl BackboneInfo {
             num_classes: 1000,
             weights_prefix: None,
             source_checkpoint: None,
+            tuned: None,
         })
     }
 
@@ -211,12 +241,25 @@ impl BackboneInfo {
             num_classes: 1000,
             weights_prefix: None,
             source_checkpoint: None,
+            tuned: None,
         }
     }
 
     /// How a report names this backbone.
     pub fn describe(&self) -> String {
         let name = self.arch.name();
+        if let Some(t) = &self.tuned {
+            let file = self.weights_path.as_deref().unwrap_or(Path::new("?"));
+            return format!(
+                "{name} {} with blocks {}.. fine-tuned{}",
+                file.display(),
+                t.from_block,
+                match &self.source_checkpoint {
+                    Some(c) => format!(" in {}", c.display()),
+                    None => String::new(),
+                }
+            );
+        }
         match (&self.source_checkpoint, &self.weights_path) {
             (Some(c), _) => format!("frozen {name} from {}", c.display()),
             (None, Some(w)) => format!("frozen {name} {}", w.display()),
@@ -246,7 +289,8 @@ impl Network {
         match self {
             Network::MobileNetV2(n) => n.features(x, train),
             Network::EfficientNetLite(_) if train => candle_core::bail!(
-                "EfficientNet-Lite is inference-only here: use it frozen (frozen-pretrained mode)"
+                "EfficientNet-Lite trains only its last blocks, on cached activations \
+                 (fine-tuned mode)"
             ),
             Network::EfficientNetLite(n) => n.features(x),
         }
@@ -285,7 +329,7 @@ impl Backbone {
             ModelError::Invalid("the backbone has no pretrained weights file".into())
         })?;
         let path = match info.arch.lite() {
-            Some(v) if !recorded.exists() && info.source_checkpoint.is_none() => {
+            Some(v) if !recorded.exists() && info.weights_prefix.is_none() => {
                 let found = venv_weights(v).map_err(|e| {
                     ModelError::Invalid(format!(
                         "the recorded weights {} do not exist: {e}",
@@ -316,12 +360,50 @@ impl Backbone {
             Some(prefix) => vb.pp(prefix),
             None => vb,
         };
-        Self::from_vb(info.clone(), pre, vb, device).map_err(|e| match e {
+        let mut bb = Self::from_vb(info.clone(), pre, vb, device).map_err(|e| match e {
             ModelError::Tensors { context, source } => ModelError::Tensors {
                 context: format!("backbone weights {}: {context}", path.display()),
                 source,
             },
             other => other,
+        })?;
+        if bb.info.tuned.is_some() {
+            bb.load_tuned_tail()?;
+        }
+        Ok(bb)
+    }
+
+    /// Puts the fine-tuned blocks of `info.tuned` (the `tail.*` tensors of
+    /// its checkpoint file) in place of the pretrained ones, checking the
+    /// file's hash when one is recorded and recording it otherwise.
+    fn load_tuned_tail(&mut self) -> Result<()> {
+        let Some(tuned) = self.info.tuned.as_mut() else {
+            return Ok(());
+        };
+        let path = tuned.weights_path.clone().ok_or_else(|| {
+            ModelError::Invalid("the fine-tuned blocks have no weights file".into())
+        })?;
+        let actual = file_sha256(&path)?;
+        match &tuned.weights_sha256 {
+            Some(expected) if *expected != actual => {
+                return Err(ModelError::HashMismatch {
+                    path,
+                    actual,
+                    expected: expected.clone(),
+                })
+            }
+            _ => tuned.weights_sha256 = Some(actual),
+        }
+        let from = tuned.from_block;
+        let Network::EfficientNetLite(net) = &mut self.net else {
+            return Err(ModelError::Invalid(format!(
+                "{}: only EfficientNet-Lite backbones have fine-tuned blocks",
+                path.display()
+            )));
+        };
+        let vb = crate::model::weights::var_builder(&path, &self.device)?;
+        net.load_tail(&vb.pp("tail"), from).map_err(|e| {
+            ModelError::tensors(format!("{}: fine-tuned blocks {from}..", path.display()), e)
         })
     }
 
@@ -376,6 +458,10 @@ impl FeatureExtractor for Backbone {
         }
         if self.info.arch != Architecture::MobileNetV2 {
             id["architecture"] = self.info.arch.name().into();
+        }
+        if let Some(t) = &self.info.tuned {
+            id["tuned_from_block"] = t.from_block.into();
+            id["tuned_sha256"] = t.weights_sha256.clone().into();
         }
         id.to_string()
     }

@@ -2,7 +2,7 @@
 //!
 //! A checkpoint is a directory with `best.safetensors` (the head's tensors
 //! under `head.`, plus the backbone's under `backbone.` when it was trained
-//! from scratch) and `best.json` ([`CheckpointMeta`]: classes, mode,
+//! from scratch, or its fine-tuned last blocks under `tail.`) and `best.json` ([`CheckpointMeta`]: classes, mode,
 //! preprocessing, backbone, training config). Both are written atomically.
 
 use crate::backbone::{resolve, Backbone, BackboneInfo, Preprocess};
@@ -35,6 +35,10 @@ pub enum TrainMode {
     FrozenPretrained,
     /// No pretrained weights: the whole network is trained, with augmentation.
     FromScratch,
+    /// A pretrained EfficientNet-Lite whose last blocks (batch norm frozen)
+    /// are trained with the head, on cached activations of the blocks
+    /// before them; the checkpoint holds them as `tail.*`.
+    FineTuned,
 }
 
 impl TrainMode {
@@ -42,6 +46,7 @@ impl TrainMode {
         match self {
             TrainMode::FrozenPretrained => "frozen-pretrained",
             TrainMode::FromScratch => "from-scratch",
+            TrainMode::FineTuned => "fine-tuned",
         }
     }
 }
@@ -127,6 +132,7 @@ impl BackboneInfo {
                     num_classes: meta.backbone.num_classes,
                     weights_prefix: Some("backbone".to_string()),
                     source_checkpoint: Some(dir),
+                    tuned: None,
                 }
             }
             TrainMode::FrozenPretrained => {
@@ -134,9 +140,28 @@ impl BackboneInfo {
                 info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
                 info
             }
+            TrainMode::FineTuned => {
+                let mut info = tuned_backbone(&meta, &dir)?;
+                info.source_checkpoint = Some(dir);
+                info
+            }
         };
         Ok((info, meta.preprocessing))
     }
+}
+
+/// The backbone of a fine-tuned checkpoint in `dir`: the pretrained file it
+/// recorded, with its tuned blocks read from the checkpoint's weights.
+fn tuned_backbone(meta: &CheckpointMeta, dir: &Path) -> Result<BackboneInfo> {
+    let mut info = meta.backbone.clone();
+    info.weights_path = info.weights_path.map(|p| resolve(&p, dir));
+    let tuned = info.tuned.as_mut().ok_or_else(|| ModelError::Corrupt {
+        path: dir.join(META_FILE),
+        reason: "mode fine-tuned without backbone.tuned (the first tuned block)".into(),
+    })?;
+    tuned.weights_path = Some(dir.join(WEIGHTS_FILE));
+    tuned.weights_sha256 = None;
+    Ok(info)
 }
 
 /// ", e.g. RUN/seed-0" when `run` is a training run's directory.
@@ -221,6 +246,11 @@ impl Classifier {
                 info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
                 Backbone::load_pretrained(&info, meta.preprocessing.clone(), device)?
             }
+            TrainMode::FineTuned => Backbone::load_pretrained(
+                &tuned_backbone(&meta, &dir)?,
+                meta.preprocessing.clone(),
+                device,
+            )?,
         };
         let center_crop = trained_center_crop(&meta, &dir)?;
         Ok(Classifier {

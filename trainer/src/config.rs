@@ -64,6 +64,8 @@ pub struct TrainConfig {
     /// Frozen mode's augmentation: extra, seeded views of each training
     /// sequence, cached like the frames themselves.
     pub views: ViewConfig,
+    /// Fine-tuned mode: which blocks train, and their optimizer.
+    pub fine_tune: FineTuneConfig,
     pub cache_dir: PathBuf,
     /// Frames per backbone forward pass when extracting features.
     pub feature_batch: usize,
@@ -101,10 +103,39 @@ impl Default for TrainConfig {
             reader: ReaderOptions::default(),
             augment: AugmentConfig::default(),
             views: ViewConfig::default(),
+            fine_tune: FineTuneConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
             on_bad_data: OnBadData::Skip,
             allow_missing_classes: false,
+        }
+    }
+}
+
+/// Fine-tuned mode: the last `blocks` MBConv blocks of EfficientNet-Lite
+/// and its head convolution train with the head (batch norm frozen), with
+/// their own learning rate; the blocks before them stay frozen and their
+/// activations are cached like features.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FineTuneConfig {
+    /// Trained blocks, counted from the last (5: Lite0's 192- and
+    /// 320-channel stages, blocks 11-15).
+    pub blocks: usize,
+    /// Their learning rate; the plateau schedule scales it with the head's.
+    pub lr: f64,
+    /// Their L2 weight decay (coupled, as the head's).
+    pub weight_decay: f64,
+}
+
+impl Default for FineTuneConfig {
+    /// Measured in EXPERIMENTS.md section 10: a fifth of the head's rate,
+    /// no decay.
+    fn default() -> Self {
+        FineTuneConfig {
+            blocks: 5,
+            lr: 1e-4,
+            weight_decay: 0.0,
         }
     }
 }
@@ -128,6 +159,8 @@ impl TrainConfig {
             (TrainMode::FromScratch, HeadKind::Fc, _) => 32,
             (TrainMode::FrozenPretrained, _, true) => 32,
             (TrainMode::FrozenPretrained, _, false) => 256,
+            (TrainMode::FineTuned, HeadKind::Fc, _) => 32,
+            (TrainMode::FineTuned, HeadKind::Lstm, _) => 4,
         };
         self.batch_size.unwrap_or(default)
     }
@@ -137,7 +170,7 @@ impl TrainConfig {
             anyhow::bail!("no training data: set `data` in the config or pass --data");
         }
         self.views.validate()?;
-        if self.views.count > 0 && self.mode != TrainMode::FrozenPretrained {
+        if self.views.count > 0 && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
                 "views.count (--feature-views) augments cached features; from-scratch training \
                  augments every epoch instead (the `augment` settings)"
@@ -157,7 +190,27 @@ impl TrainConfig {
                     arch.name()
                 )
             }
+            (TrainMode::FineTuned, Some(Architecture::MobileNetV2), _) => anyhow::bail!(
+                "fine-tuned mode tunes the last blocks of an EfficientNet-Lite \
+                 (--backbone efficientnet-lite0, the default)"
+            ),
             _ => {}
+        }
+        let ft = &self.fine_tune;
+        if self.mode == TrainMode::FineTuned
+            && (ft.blocks == 0
+                || ft.lr.is_nan()
+                || ft.lr <= 0.0
+                || ft.weight_decay.is_nan()
+                || ft.weight_decay < 0.0)
+        {
+            anyhow::bail!(
+                "fine_tune: blocks must be at least 1, lr positive and weight_decay not \
+                 negative (got {}, {}, {})",
+                ft.blocks,
+                ft.lr,
+                ft.weight_decay
+            );
         }
         if self.sequences_per_pair == Some(0) {
             anyhow::bail!("sequences_per_pair must be at least 1");

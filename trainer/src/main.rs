@@ -42,6 +42,11 @@ enum Command {
     ///
     /// From-scratch: --mode from-scratch trains a whole MobileNetV2, with
     /// augmentation; pick --width-mult and --input-size for the CPU budget.
+    ///
+    /// Fine-tuned: --mode fine-tuned trains EfficientNet-Lite's last
+    /// --tune-blocks blocks (default 5) and head convolution with the head,
+    /// batch norm frozen, at --tune-lr (default 1e-4); the blocks before
+    /// them stay frozen and their activations are cached like features.
     #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
@@ -199,7 +204,7 @@ struct TrainArgs {
     /// Number of seeds to train (the report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
-    /// Feature cache directory (frozen-pretrained mode).
+    /// Feature cache directory (frozen-pretrained and fine-tuned modes).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
     /// LSTM truncated back-propagation length in frames (0: whole sequence).
@@ -219,6 +224,13 @@ struct TrainArgs {
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
     feature_views: Option<usize>,
+    /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
+    /// its head convolution) with the head.
+    #[arg(long, value_name = "N")]
+    tune_blocks: Option<usize>,
+    /// Fine-tuned mode: the tuned blocks' learning rate.
+    #[arg(long, value_name = "LR")]
+    tune_lr: Option<f64>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
     #[arg(long)]
     hflip: bool,
@@ -373,6 +385,8 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.reader.camera, args.camera);
     cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
     set!(cfg.views.count, args.feature_views);
+    set!(cfg.fine_tune.blocks, args.tune_blocks);
+    set!(cfg.fine_tune.lr, args.tune_lr);
     set!(cfg.on_bad_data, args.on_bad_data);
     cfg.augment.hflip |= args.hflip;
     cfg.allow_missing_classes |= args.allow_missing_classes;

@@ -57,6 +57,7 @@ fn learn(head: HeadKind) -> f64 {
         )),
         feature_dim: DIM,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
+        tail: None,
     };
     let dir = tempfile::tempdir().unwrap();
     let cfg = TrainConfig {

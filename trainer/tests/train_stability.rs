@@ -89,6 +89,7 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         backbone: Some(grasp_model::backbone::BackboneInfo::generated("test")),
         feature_dim: dim,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
+        tail: None,
     }
 }
 

@@ -22,9 +22,11 @@
 //! and repeats (rounded up), keeping the stem, the head, and the first and
 //! last stages' repeats fixed.
 //!
-//! Inference only (the backbone is used frozen): batch norm is folded into
-//! the convolutions at construction and the fused CPU kernels run the
-//! layers.
+//! Inference: batch norm is folded into the convolutions at construction
+//! and the fused CPU kernels run the layers. Training fine-tunes only the
+//! last blocks, with batch norm frozen, through [`super::lite_tail`]: it
+//! starts from [`EfficientNetLite::tail_tensors`] and its trained tensors
+//! come back through [`EfficientNetLite::load_tail`].
 
 use candle_core::{Module, Result, Tensor, D};
 use candle_nn::{Init, Linear, VarBuilder};
@@ -162,7 +164,7 @@ impl EfficientNetLiteConfig {
     }
 
     /// Every block's geometry, in order.
-    fn block_specs(&self) -> Vec<BlockSpec> {
+    pub fn block_specs(&self) -> Vec<BlockSpec> {
         let mut cin = self.stem_channels;
         let mut specs = Vec::new();
         for (stage, &(kernel, stride, expand, c, r)) in STAGES.iter().enumerate() {
@@ -190,13 +192,26 @@ impl EfficientNetLiteConfig {
     }
 }
 
-#[derive(Clone, Copy, Debug)]
-struct BlockSpec {
-    cin: usize,
-    cout: usize,
-    kernel: usize,
-    stride: usize,
-    expand: usize,
+/// One MBConv block's geometry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockSpec {
+    pub cin: usize,
+    pub cout: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    /// Expansion ratio of the hidden channels (1: no expansion convolution).
+    pub expand: usize,
+}
+
+impl BlockSpec {
+    pub fn hidden(&self) -> usize {
+        self.cin * self.expand
+    }
+
+    /// Whether the input is added to the output.
+    pub fn residual(&self) -> bool {
+        self.stride == 1 && self.cin == self.cout
+    }
 }
 
 /// A convolution with its batch norm folded in: weight, bias.
@@ -234,7 +249,7 @@ struct Block {
 
 impl Block {
     fn new(vb: VarBuilder, spec: BlockSpec) -> Result<Self> {
-        let hidden = spec.cin * spec.expand;
+        let hidden = spec.hidden();
         let expand = if spec.expand != 1 {
             Some(conv_bn(
                 &vb,
@@ -269,7 +284,7 @@ impl Block {
             Padding::Same,
             true,
         )?;
-        let residual = (self.spec.stride == 1 && self.spec.cin == self.spec.cout).then_some(x);
+        let residual = self.spec.residual().then_some(x);
         pointwise_conv_bias_act(
             &y,
             &self.project.weight,
@@ -375,12 +390,81 @@ impl EfficientNetLite {
 
     /// The head's activations (N, 1280, H/32, W/32) before pooling.
     fn feature_map(&self, x: &Tensor) -> Result<Tensor> {
+        let y = self.feature_map_until(x, self.blocks.len())?;
+        pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)
+    }
+
+    /// Number of MBConv blocks (16 in Lite0).
+    pub fn block_count(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// The activations (N, C, H, W) of normalized images after the stem
+    /// and blocks `0..stop`: the input of a tail tuned from block `stop`.
+    pub fn feature_map_until(&self, x: &Tensor, stop: usize) -> Result<Tensor> {
+        if stop > self.blocks.len() {
+            candle_core::bail!("block {stop} of {} blocks", self.blocks.len());
+        }
         let cols = im2col(x, 3, 2, Padding::Same)?;
         let mut y = pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)?;
-        for b in &self.blocks {
+        for b in &self.blocks[..stop] {
             y = b.forward(&y)?;
         }
-        pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)
+        Ok(y)
+    }
+
+    /// Geometry of blocks `from..` and the head convolution's shape
+    /// (out, in): what a tail tuned from block `from` holds.
+    pub fn tail_layout(&self, from: usize) -> (Vec<(usize, BlockSpec)>, (usize, usize)) {
+        let specs = self.blocks.iter().enumerate().skip(from);
+        let specs = specs.map(|(i, b)| (i, b.spec)).collect();
+        (specs, (self.cfg.head_channels, self.cfg.last_channels()))
+    }
+
+    /// The folded (batch norm included) weights and biases of blocks
+    /// `from..` and of the head convolution, named as [`Self::load_tail`]
+    /// reads them: `_blocks.N._expand_conv.weight`, `..._depthwise_conv.*`,
+    /// `..._project_conv.*`, `_conv_head.*`.
+    pub fn tail_tensors(&self, from: usize) -> Vec<(String, Tensor)> {
+        let mut out = Vec::new();
+        let mut add = |name: String, f: &Folded| {
+            out.push((format!("{name}.weight"), f.weight.clone()));
+            out.push((format!("{name}.bias"), f.bias.clone()));
+        };
+        for (i, b) in self.blocks.iter().enumerate().skip(from) {
+            if let Some(e) = &b.expand {
+                add(format!("_blocks.{i}._expand_conv"), e);
+            }
+            add(format!("_blocks.{i}._depthwise_conv"), &b.depthwise);
+            add(format!("_blocks.{i}._project_conv"), &b.project);
+        }
+        add("_conv_head".to_string(), &self.head);
+        out
+    }
+
+    /// Replaces blocks `from..` and the head convolution with tuned
+    /// folded tensors named as [`Self::tail_tensors`] names them.
+    pub fn load_tail(&mut self, vb: &VarBuilder, from: usize) -> Result<()> {
+        if from > self.blocks.len() {
+            candle_core::bail!("a tail from block {from} of {} blocks", self.blocks.len());
+        }
+        let folded = |name: &str, like: &Folded| -> Result<Folded> {
+            let weight = vb.get(like.weight.shape(), &format!("{name}.weight"))?;
+            let bias = vb.get(like.bias.shape(), &format!("{name}.bias"))?;
+            Ok(Folded {
+                weight: weight.contiguous()?,
+                bias: bias.contiguous()?,
+            })
+        };
+        for (i, b) in self.blocks.iter_mut().enumerate().skip(from) {
+            if let Some(e) = &b.expand {
+                b.expand = Some(folded(&format!("_blocks.{i}._expand_conv"), e)?);
+            }
+            b.depthwise = folded(&format!("_blocks.{i}._depthwise_conv"), &b.depthwise)?;
+            b.project = folded(&format!("_blocks.{i}._project_conv"), &b.project)?;
+        }
+        self.head = folded("_conv_head", &self.head)?;
+        Ok(())
     }
 }
 

@@ -11,13 +11,15 @@ pub mod efficientnet_lite;
 pub mod gather;
 pub mod legacy_pth;
 pub mod linear;
+pub mod lite_tail;
 pub mod lstm;
 mod mobilenet_v2;
 pub mod pointwise;
 pub mod preprocess;
 pub mod weights;
 
-pub use efficientnet_lite::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
+pub use efficientnet_lite::{BlockSpec, EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
+pub use lite_tail::LiteTail;
 pub use mobilenet_v2::{make_divisible, MobileNetV2, MobileNetV2Config};
 
 /// The first NaN or infinite value of `t` (read in place when contiguous).

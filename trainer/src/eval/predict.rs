@@ -22,7 +22,7 @@ pub fn predict_dataset(
     let mut out = Vec::with_capacity(data.sequences.len());
     for seq in &data.sequences {
         let (rows, valid) = match clf.meta.mode {
-            TrainMode::FrozenPretrained => {
+            TrainMode::FrozenPretrained | TrainMode::FineTuned => {
                 let (f, _) = cache.sequence(clf.backbone(), seq, bad)?;
                 let n = f.valid_count();
                 (

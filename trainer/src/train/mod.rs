@@ -19,6 +19,7 @@ mod net;
 mod plateau;
 mod prepare;
 mod splits;
+mod tail;
 
 pub use balance::epoch_units;
 pub use frames::{FrameSource, SplitFrames};
@@ -27,6 +28,7 @@ pub use plateau::{Plateau, PlateauStep};
 use prepare::build_net;
 pub use prepare::{detect_architecture, frozen_backbone, prepare, Prepared};
 pub use splits::{load_splits, Splits};
+pub use tail::lite;
 
 use crate::config::TrainConfig;
 use crate::optim::Adam;
@@ -65,7 +67,7 @@ pub struct TrainOutcome {
 pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Result<TrainOutcome> {
     let dev = Device::Cpu;
     let (net, backbone_info) = build_net(cfg, prep, seed, &dev)?;
-    let mut opt = Adam::new(net.trainable(), cfg.optimizer)?;
+    let mut opt = Optimizers::new(&net, cfg)?;
     let batch = cfg.batch_size_for(prep.real_data).max(1);
     let mut plateau = Plateau::new(
         cfg.plateau_patience,
@@ -137,7 +139,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         );
         if let Some(new_lr) = decision.new_lr {
             tracing::info!("validation loss plateaued: learning rate {lr:.1e} -> {new_lr:.1e}");
-            opt.set_learning_rate(new_lr);
+            opt.scale_learning_rate(new_lr / lr);
         }
         if decision.stop {
             tracing::info!(
@@ -152,12 +154,54 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
     Ok(outcome)
 }
 
+/// The head's optimizer and, fine-tuned, the tuned blocks' (the head's
+/// settings with their own rate and decay).
+struct Optimizers {
+    head: Adam,
+    tail: Option<Adam>,
+}
+
+impl Optimizers {
+    fn new(net: &Net, cfg: &TrainConfig) -> Result<Self> {
+        let tail_cfg = crate::optim::AdamConfig {
+            lr: cfg.fine_tune.lr,
+            weight_decay: cfg.fine_tune.weight_decay,
+            ..cfg.optimizer
+        };
+        Ok(Optimizers {
+            head: Adam::new(net.trainable(), cfg.optimizer)?,
+            tail: net
+                .tail_trainable()
+                .map(|vars| Adam::new(vars, tail_cfg))
+                .transpose()?,
+        })
+    }
+
+    fn learning_rate(&self) -> f64 {
+        self.head.learning_rate()
+    }
+
+    fn scale_learning_rate(&mut self, factor: f64) {
+        for opt in std::iter::once(&mut self.head).chain(self.tail.as_mut()) {
+            opt.set_learning_rate(opt.learning_rate() * factor);
+        }
+    }
+
+    fn step(&mut self, grads: &candle_core::backprop::GradStore) -> Result<()> {
+        self.head.step(grads)?;
+        if let Some(t) = &mut self.tail {
+            t.step(grads)?;
+        }
+        Ok(())
+    }
+}
+
 fn train_epoch(
     net: &Net,
     frames: &SplitFrames,
     units: &[usize],
     batch: usize,
-    opt: &mut Adam,
+    opt: &mut Optimizers,
     rng: &mut impl Rng,
     epoch: usize,
 ) -> Result<(f64, f64, usize)> {
@@ -234,10 +278,10 @@ pub fn evaluate_split(net: &Net, frames: &SplitFrames, batch: usize) -> Result<(
     };
     let mut rng = crate::rng::stream(0, "eval");
     let (mut loss_sum, mut correct, mut counted) = (0.0, 0usize, 0usize);
-    let batch = if net.backbone.is_some() {
-        batch
-    } else {
-        batch.max(1024)
+    let batch = match (&net.backbone, &net.tail) {
+        (Some(_), _) => batch,
+        (None, Some(_)) => batch.max(256),
+        (None, None) => batch.max(1024),
     };
     for chunk in units.chunks(batch) {
         let b = net.forward(frames, chunk, false, &mut rng)?;

@@ -1,6 +1,7 @@
 //! The trainable network (a head, plus the backbone from scratch): its
 //! forward pass on a batch of rows or sequences, and the batch's loss.
 
+use super::tail::Tail;
 use super::{FrameSource, SplitFrames};
 use crate::data;
 use anyhow::{Context, Result};
@@ -18,17 +19,27 @@ pub struct Net {
     pub head_vars: VarMap,
     /// From-scratch backbone and its variables.
     pub backbone: Option<(Backbone, VarMap)>,
+    /// Fine-tuned mode's trainable last blocks, on cached activations.
+    pub tail: Option<Tail>,
     pub augment: crate::data::augment::AugmentConfig,
     pub tbptt: usize,
 }
 
 impl Net {
+    /// The variables trained at the head's learning rate.
     pub(super) fn trainable(&self) -> Vec<candle_core::Var> {
         let mut v = crate::init::trainable_vars(&self.head_vars);
         if let Some((_, vm)) = &self.backbone {
             v.extend(crate::init::trainable_vars(vm));
         }
         v
+    }
+
+    /// Fine-tuned mode's block variables, trained at their own rate.
+    pub(super) fn tail_trainable(&self) -> Option<Vec<candle_core::Var>> {
+        self.tail
+            .as_ref()
+            .map(|t| crate::init::trainable_vars(&t.vars))
     }
 
     /// Features `(rows, D)` of `rows` of `frames` (`None`: a zero padding
@@ -41,7 +52,13 @@ impl Net {
         rng: &mut impl Rng,
     ) -> Result<Tensor> {
         match (&frames.source, &self.backbone) {
-            (FrameSource::Cached(x), _) => Ok(gather_rows(x, rows)?),
+            (FrameSource::Cached(x), _) => {
+                let x = gather_rows(x, rows)?;
+                match &self.tail {
+                    Some(tail) => tail.forward(&x),
+                    None => Ok(x),
+                }
+            }
             (FrameSource::Images(images), Some((bb, _))) => {
                 let size = bb.preprocess.size;
                 let present: Vec<usize> = rows.iter().flatten().copied().collect();
@@ -168,7 +185,8 @@ impl Net {
         Ok(Tensor::cat(&outs, 1)?)
     }
 
-    /// Tensors of the checkpoint: `head.*`, plus `backbone.*` from scratch.
+    /// Tensors of the checkpoint: `head.*`, plus `backbone.*` from scratch
+    /// or `tail.*` fine-tuned.
     pub fn tensors(&self) -> Vec<(String, Tensor)> {
         let mut out = Vec::new();
         let mut add = |prefix: &str, vm: &VarMap| {
@@ -180,6 +198,9 @@ impl Net {
         add("head", &self.head_vars);
         if let Some((_, vm)) = &self.backbone {
             add("backbone", vm);
+        }
+        if let Some(tail) = &self.tail {
+            add("tail", &tail.vars);
         }
         out.sort_by(|a, b| a.0.cmp(&b.0));
         out

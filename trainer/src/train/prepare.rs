@@ -2,6 +2,7 @@
 //! pretrained file, or the venv's ImageNet weights), the splits' frames
 //! or cached features, and the network built for a seed.
 
+use super::tail::{BlockActivations, Tail, TailStart};
 use super::{Net, SplitFrames, Splits};
 use crate::config::TrainConfig;
 use crate::data::BadData;
@@ -9,7 +10,9 @@ use crate::features::FeatureCache;
 use anyhow::{Context, Result};
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
-use grasp_model::backbone::{Architecture, Backbone, BackboneInfo, Preprocess, BACKBONE_ID};
+use grasp_model::backbone::{
+    Architecture, Backbone, BackboneInfo, Preprocess, TunedTail, BACKBONE_ID,
+};
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::{Head, HeadConfig};
 use grasp_schema::taxonomy::Class;
@@ -27,6 +30,8 @@ pub struct Prepared {
     pub feature_dim: usize,
     /// The input preprocessing the checkpoints record.
     pub preprocess: Preprocess,
+    /// Fine-tuned mode: the blocks that train, as pretrained.
+    pub tail: Option<TailStart>,
 }
 
 /// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
@@ -103,6 +108,45 @@ pub fn prepare(
                 feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
+                tail: None,
+            })
+        }
+        TrainMode::FineTuned => {
+            let (info, pre) = frozen_backbone(cfg)?;
+            if info.source_checkpoint.is_some() {
+                anyhow::bail!(
+                    "fine-tuned mode starts from a pretrained EfficientNet-Lite file, not from \
+                     the checkpoint {}",
+                    info.source_checkpoint
+                        .as_deref()
+                        .unwrap_or(Path::new(""))
+                        .display()
+                );
+            }
+            let bb = Backbone::load_pretrained(&info, pre, dev)?;
+            let acts = BlockActivations::new(&bb, cfg.fine_tune.blocks)?;
+            tracing::info!(
+                "fine-tuning blocks {}.. of {}; caching the activations before them ({:?})",
+                acts.first_tuned_block(),
+                info.arch.name(),
+                acts.shape
+            );
+            let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
+            let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
+            let tf = cache.dataset(&acts, &train, bad)?;
+            let vf = cache.dataset(&acts, &splits.val, bad)?;
+            let start = TailStart::new(&bb, &acts)?;
+            let mut info = bb.info.clone();
+            info.tuned = Some(TunedTail::new(start.from));
+            Ok(Prepared {
+                train: SplitFrames::from_features(&train, &tf, dev)?,
+                val: SplitFrames::from_features(&splits.val, &vf, dev)?,
+                real_data,
+                train_sequences: splits.train.sequences.len(),
+                feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
+                preprocess: bb.preprocess.clone(),
+                backbone: Some(info),
+                tail: Some(start),
             })
         }
         TrainMode::FromScratch => {
@@ -119,6 +163,7 @@ pub fn prepare(
                 backbone: None,
                 feature_dim: 0,
                 preprocess: Preprocess::imagenet(cfg.input_size),
+                tail: None,
             })
         }
     }
@@ -142,6 +187,7 @@ pub(super) fn build_net(
                 num_classes: Class::COUNT,
                 weights_prefix: None,
                 source_checkpoint: None,
+                tuned: None,
             };
             let vm = VarMap::new();
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
@@ -167,6 +213,7 @@ pub(super) fn build_net(
             head,
             head_vars,
             backbone,
+            tail: prep.tail.as_ref().map(|t| Tail::new(t, dev)).transpose()?,
             augment: cfg.augment.clone(),
             tbptt: cfg.tbptt,
         },

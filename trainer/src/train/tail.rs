@@ -1,0 +1,136 @@
+//! Fine-tuned mode's two halves: the frozen blocks' activations, cached like
+//! features ([`BlockActivations`]), and the trainable last blocks that turn
+//! them into the head's features ([`Tail`]).
+
+use anyhow::{Context, Result};
+use candle_core::{DType, Device, Tensor, Var};
+use candle_nn::{VarBuilder, VarMap};
+use grasp_model::backbone::{Backbone, Network};
+use grasp_model::extractor::FeatureExtractor;
+use grasp_model::model::{BlockSpec, EfficientNetLite, LiteTail};
+use image::RgbImage;
+
+/// The pretrained EfficientNet-Lite of a backbone, or why there is none.
+pub fn lite(bb: &Backbone) -> Result<&EfficientNetLite> {
+    match &bb.net {
+        Network::EfficientNetLite(n) => Ok(n),
+        Network::MobileNetV2(_) => {
+            anyhow::bail!(
+                "fine-tuned mode tunes the last blocks of an EfficientNet-Lite, not MobileNetV2"
+            )
+        }
+    }
+}
+
+/// Activations of the blocks before `from`, flattened to one row per frame:
+/// what the feature cache stores in fine-tuned mode.
+pub struct BlockActivations<'a> {
+    backbone: &'a Backbone,
+    from: usize,
+    /// (channels, height, width) of one frame's activations.
+    pub shape: (usize, usize, usize),
+}
+
+impl<'a> BlockActivations<'a> {
+    /// The activations in front of the last `tuned` blocks.
+    pub fn new(backbone: &'a Backbone, tuned: usize) -> Result<Self> {
+        let net = lite(backbone)?;
+        let from = net.block_count().checked_sub(tuned).with_context(|| {
+            format!(
+                "fine_tune.blocks = {tuned}, but {} has {} blocks",
+                backbone.info.arch.name(),
+                net.block_count()
+            )
+        })?;
+        let side = backbone.preprocess.size as usize;
+        let probe = Tensor::zeros((1, 3, side, side), DType::F32, &backbone.device)?;
+        let (_, c, h, w) = net.feature_map_until(&probe, from)?.dims4()?;
+        Ok(BlockActivations {
+            backbone,
+            from,
+            shape: (c, h, w),
+        })
+    }
+
+    pub fn first_tuned_block(&self) -> usize {
+        self.from
+    }
+}
+
+impl FeatureExtractor for BlockActivations<'_> {
+    fn id(&self) -> String {
+        format!(
+            "{} activations before block {}",
+            self.backbone.id(),
+            self.from
+        )
+    }
+
+    fn feature_dim(&self) -> usize {
+        self.shape.0 * self.shape.1 * self.shape.2
+    }
+
+    fn extract(&self, images: &[RgbImage]) -> grasp_model::error::Result<Tensor> {
+        let x = self.backbone.input(images)?;
+        let net = lite(self.backbone)
+            .map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))?;
+        Ok(net.feature_map_until(&x, self.from)?.flatten_from(1)?)
+    }
+}
+
+/// What a fine-tuned run starts its tail from.
+#[derive(Clone)]
+pub struct TailStart {
+    pub from: usize,
+    pub shape: (usize, usize, usize),
+    pub layout: (Vec<(usize, BlockSpec)>, (usize, usize)),
+    /// The pretrained folded tensors of the tuned blocks.
+    pub tensors: Vec<(String, Tensor)>,
+}
+
+impl TailStart {
+    pub fn new(backbone: &Backbone, acts: &BlockActivations) -> Result<Self> {
+        let net = lite(backbone)?;
+        Ok(TailStart {
+            from: acts.from,
+            shape: acts.shape,
+            layout: net.tail_layout(acts.from),
+            tensors: net.tail_tensors(acts.from),
+        })
+    }
+}
+
+/// The trainable last blocks: their variables, initialised with the
+/// pretrained tensors, and the module that runs them.
+pub struct Tail {
+    pub vars: VarMap,
+    module: LiteTail,
+    shape: (usize, usize, usize),
+}
+
+impl Tail {
+    pub fn new(start: &TailStart, dev: &Device) -> Result<Self> {
+        let vars = VarMap::new();
+        {
+            let mut data = vars.data().lock().expect("varmap");
+            for (name, t) in &start.tensors {
+                // a copy: training must not write into the backbone's tensors
+                data.insert(name.clone(), Var::from_tensor(&t.copy()?)?);
+            }
+        }
+        let vb = VarBuilder::from_varmap(&vars, DType::F32, dev);
+        let module = LiteTail::new(&vb, &start.layout)?;
+        Ok(Tail {
+            vars,
+            module,
+            shape: start.shape,
+        })
+    }
+
+    /// The head's features `(N, D)` of cached activation rows `(N, C*H*W)`.
+    pub fn forward(&self, rows: &Tensor) -> Result<Tensor> {
+        let (c, h, w) = self.shape;
+        let n = rows.dim(0)?;
+        Ok(self.module.forward(&rows.reshape((n, c, h, w))?)?)
+    }
+}

@@ -1,0 +1,177 @@
+//! Fine-tuned mode (`--mode fine-tuned`): EfficientNet-Lite's last blocks
+//! train with the head on cached activations of the blocks before them; the
+//! checkpoint carries them as `tail.*`, and the classifier (the runtime's)
+//! runs the pretrained blocks followed by the tuned ones.
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::VarBuilder;
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
+use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::extractor::FeatureExtractor;
+use grasp_model::model::{LiteTail, LiteVariant};
+use std::path::Path;
+use trainer::config::TrainConfig;
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+
+fn cfg(root: &Path, weights: &Path) -> TrainConfig {
+    let mut cfg = TrainConfig {
+        data: root.join("data"),
+        out: root.join("tuned"),
+        mode: TrainMode::FineTuned,
+        weights: Some(weights.to_path_buf()),
+        input_size: 64,
+        cache_dir: root.join("cache"),
+        batch_size: Some(16),
+        max_epochs: 2,
+        ..Default::default()
+    };
+    cfg.fine_tune.blocks = 2;
+    cfg.fine_tune.lr = 1e-2;
+    cfg
+}
+
+fn frames() -> Vec<image::RgbImage> {
+    (0..3)
+        .map(|i| {
+            trainer::data::synthetic::class_image(
+                grasp_schema::taxonomy::Class::ALL[i],
+                80,
+                5.0,
+                &mut trainer::rng::stream(i as u64, "frames"),
+            )
+        })
+        .collect()
+}
+
+fn values(t: &Tensor) -> Vec<f32> {
+    t.flatten_all().unwrap().to_vec1().unwrap()
+}
+
+#[test]
+fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 3;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+
+    let cfg = cfg(root, &weights);
+    let run = trainer::experiment::run(&cfg, 1).unwrap();
+    let ckpt = &run.runs[0].checkpoint;
+
+    // Only the head and the last two blocks (14, 15) plus the head
+    // convolution are saved.
+    let dev = Device::Cpu;
+    let saved = candle_core::safetensors::load(ckpt.join("best.safetensors"), &dev).unwrap();
+    assert!(saved
+        .keys()
+        .all(|k| k.starts_with("head.") || k.starts_with("tail.")));
+    for name in [
+        "tail._blocks.14._expand_conv.weight",
+        "tail._blocks.15._project_conv.bias",
+        "tail._conv_head.weight",
+    ] {
+        assert!(
+            saved.contains_key(name),
+            "{name} missing: {:?}",
+            saved.keys()
+        );
+    }
+    assert!(!saved.keys().any(|k| k.contains("_blocks.13.")));
+
+    // Training moved the tuned blocks away from the pretrained ones.
+    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    let pre = Architecture::EfficientNetLite0.preprocess(64);
+    let pretrained = Backbone::load_pretrained(&info, pre, &dev).unwrap();
+    let lite = trainer::train::lite(&pretrained).unwrap();
+    let start: std::collections::HashMap<String, Tensor> =
+        lite.tail_tensors(14).into_iter().collect();
+    let w = "_conv_head.weight";
+    let moved = (&saved[&format!("tail.{w}")] - &start[w]).unwrap();
+    let moved: f32 = moved
+        .abs()
+        .unwrap()
+        .max_keepdim(0)
+        .unwrap()
+        .max_all()
+        .unwrap()
+        .to_scalar()
+        .unwrap();
+    assert!(moved > 1e-4, "the head convolution did not train ({moved})");
+
+    // The classifier runs the pretrained blocks, then the tuned ones: its
+    // features are the training module's on the same activations, and not
+    // the pretrained network's.
+    let clf = Classifier::load(ckpt, &dev).unwrap();
+    assert_eq!(clf.meta.mode, TrainMode::FineTuned);
+    assert_eq!(clf.meta.backbone.tuned.as_ref().unwrap().from_block, 14);
+    let images = frames();
+    let x = pretrained.input(&images).unwrap();
+    let acts = lite.feature_map_until(&x, 14).unwrap();
+    let vb = unsafe {
+        VarBuilder::from_mmaped_safetensors(&[ckpt.join("best.safetensors")], DType::F32, &dev)
+    }
+    .unwrap();
+    let tail = LiteTail::new(&vb.pp("tail"), &lite.tail_layout(14)).unwrap();
+    let expected = values(&tail.forward(&acts).unwrap());
+    let got = values(&clf.backbone().extract(&images).unwrap());
+    let frozen = values(&pretrained.extract(&images).unwrap());
+    let largest = frozen.iter().fold(0f32, |m, v| m.max(v.abs()));
+    assert!(
+        largest > 1e-2,
+        "features vanished ({largest}): the comparisons would be vacuous"
+    );
+    let close = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .all(|(a, b)| (a - b).abs() <= 1e-4 * (1.0 + b.abs()))
+    };
+    assert!(close(&got, &expected));
+    assert!(!close(&got, &frozen), "the tuned blocks were not loaded");
+
+    // Its features are cached apart from the pretrained ones and from the
+    // training activations, and the report names the mode.
+    assert_ne!(clf.backbone().id(), pretrained.id());
+    let report = run.report.unwrap();
+    assert_eq!(report.mode, "fine-tuned");
+    assert!(
+        report.backbone.contains("fine-tuned"),
+        "{}",
+        report.backbone
+    );
+
+    // The same checkpoint serves as a frozen backbone, tuned blocks included.
+    let (as_backbone, _) = BackboneInfo::from_checkpoint(ckpt).unwrap();
+    let reused =
+        Backbone::load_pretrained(&as_backbone, clf.meta.preprocessing.clone(), &dev).unwrap();
+    assert!(close(&values(&reused.extract(&images).unwrap()), &expected));
+}
+
+#[test]
+fn fine_tuning_refuses_what_it_cannot_tune() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+
+    let mut too_many = cfg(root, &weights);
+    too_many.fine_tune.blocks = 17;
+    let err = format!(
+        "{:#}",
+        trainer::experiment::run(&too_many, 1).err().unwrap()
+    );
+    assert!(err.contains("16 blocks"), "{err}");
+
+    let mut none = cfg(root, &weights);
+    none.fine_tune.blocks = 0;
+    let err = format!("{:#}", none.validate().err().unwrap());
+    assert!(err.contains("blocks must be at least 1"), "{err}");
+
+    let mut mobilenet = cfg(root, &weights);
+    mobilenet.backbone = Some(Architecture::MobileNetV2);
+    let err = format!("{:#}", mobilenet.validate().err().unwrap());
+    assert!(err.contains("EfficientNet-Lite"), "{err}");
+}
