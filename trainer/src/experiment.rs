@@ -194,7 +194,13 @@ fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
         cfg.width_mult = info.width_mult;
         cfg.input_size = pre.size;
     } else {
-        tracing::info!("{}, input {} px", info.describe(), pre.size);
+        let tuned = match cfg.mode {
+            TrainMode::FineTuned => {
+                format!(", its last {} blocks fine-tuned", cfg.fine_tune.blocks)
+            }
+            _ => String::new(),
+        };
+        tracing::info!("{}{tuned}, input {} px", info.describe(), pre.size);
         cfg.backbone = Some(info.arch);
         cfg.weights = info.weights_path;
     }

@@ -15,8 +15,10 @@
 //! loop over the wide index computes all outputs (plus `sw - ow` throwaway
 //! columns per row), so that even 7x7 planes fill whole vectors.
 //!
-//! - [`depthwise_conv3x3`]: differentiable (input and weight gradients),
-//!   3x3 with padding 1, as MobileNetV2 trains.
+//! - [`depthwise_conv`]: differentiable (input and weight gradients), any
+//!   supported kernel, stride and padding ([`depthwise_conv3x3`]: 3x3 with
+//!   padding 1, as MobileNetV2 trains; EfficientNet-Lite's fine-tuned
+//!   blocks use 5x5 and 3x3 "SAME").
 //! - [`depthwise_conv_bias_act`]: inference, any supported kernel, stride
 //!   and padding, with a fused per-channel bias (folded batch norm) and
 //!   optional ReLU6.
@@ -348,20 +350,29 @@ fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) ->
     out
 }
 
-/// Gradient of the input (3x3, padding 1): scatter every output gradient
-/// back through the taps.
+/// The zero-padded plane the backward kernels work on: (rows, columns),
+/// enough for every tap of every output, and at least the padded input.
+fn padded_dims(g: &Geom) -> (usize, usize) {
+    let rows = (g.pt + g.h).max(g.stride * (g.oh - 1) + g.k);
+    let cols = (g.pl + g.w).max(g.stride * (g.ow - 1) + g.k);
+    (rows, cols)
+}
+
+/// Gradient of the input: scatter each output gradient through the kernel
+/// into a padded plane, then keep its interior.
 fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
     let mut out = vec![0f32; g.n * g.c * g.in_plane()];
-    let (s, ph, pw) = (g.stride, g.h + 2, g.w + 2);
+    let (s, k, kk) = (g.stride, g.k, g.k * g.k);
+    let (ph, pw) = padded_dims(g);
     par_chunks(&mut out, g.in_plane(), ph * pw, |pad, plane, dst| {
-        let k = &w[9 * (plane % g.c)..9 * (plane % g.c) + 9];
+        let taps = &w[kk * (plane % g.c)..kk * (plane % g.c + 1)];
         let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
         pad.fill(0.0);
         for oy in 0..g.oh {
-            for ky in 0..3 {
+            for ky in 0..k {
                 let row = &mut pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
-                for kx in 0..3 {
-                    let kv = k[3 * ky + kx];
+                for kx in 0..k {
+                    let kv = taps[k * ky + kx];
                     for ox in 0..g.ow {
                         row[s * ox + kx] += kv * gp[oy * g.ow + ox];
                     }
@@ -369,40 +380,41 @@ fn backward_input(g: &Geom, grad: &[f32], w: &[f32]) -> Vec<f32> {
             }
         }
         for y in 0..g.h {
-            dst[y * g.w..(y + 1) * g.w]
-                .copy_from_slice(&pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]);
+            let from = (y + g.pt) * pw + g.pl;
+            dst[y * g.w..(y + 1) * g.w].copy_from_slice(&pad[from..from + g.w]);
         }
     });
     out
 }
 
-/// Gradient of the weight (3x3, padding 1): per channel, correlate the
-/// input with the output gradient.
+/// Gradient of the weight: per channel, correlate the padded input with
+/// the output gradient, summed over the batch in f64.
 fn backward_weight(g: &Geom, x: &[f32], grad: &[f32]) -> Vec<f32> {
-    let (s, pw) = (g.stride, g.w + 2);
-    let mut out = vec![0f32; g.c * 9];
-    par_chunks(&mut out, 9, (g.h + 2) * pw, |pad, ch, dst| {
-        let mut acc = [0f64; 9];
+    let (s, k, kk) = (g.stride, g.k, g.k * g.k);
+    let (ph, pw) = padded_dims(g);
+    let mut out = vec![0f32; g.c * kk];
+    par_chunks(&mut out, kk, ph * pw, |pad, ch, dst| {
+        let mut acc = vec![0f64; kk];
         for n in 0..g.n {
             let plane = n * g.c + ch;
             let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
             pad.fill(0.0);
             for y in 0..g.h {
-                pad[(y + 1) * pw + 1..(y + 1) * pw + 1 + g.w]
-                    .copy_from_slice(&src[y * g.w..(y + 1) * g.w]);
+                let to = (y + g.pt) * pw + g.pl;
+                pad[to..to + g.w].copy_from_slice(&src[y * g.w..(y + 1) * g.w]);
             }
             let gp = &grad[plane * g.out_plane()..(plane + 1) * g.out_plane()];
             for oy in 0..g.oh {
                 let grow = &gp[oy * g.ow..(oy + 1) * g.ow];
-                for ky in 0..3 {
+                for ky in 0..k {
                     let row = &pad[(s * oy + ky) * pw..(s * oy + ky + 1) * pw];
-                    for kx in 0..3 {
+                    for kx in 0..k {
                         let dot: f32 = grow
                             .iter()
                             .enumerate()
                             .map(|(ox, &gv)| gv * row[s * ox + kx])
                             .sum();
-                        acc[3 * ky + kx] += dot as f64;
+                        acc[k * ky + kx] += dot as f64;
                     }
                 }
             }
@@ -414,20 +426,21 @@ fn backward_weight(g: &Geom, x: &[f32], grad: &[f32]) -> Vec<f32> {
     out
 }
 
-/// Differentiable depthwise 3x3 convolution, padding 1: (x, weight[C, 1, 3, 3]).
-struct Depthwise3x3 {
+/// Differentiable depthwise convolution: (x, weight).
+struct Depthwise {
     stride: usize,
+    padding: Padding,
 }
 
-impl Depthwise3x3 {
-    fn geom(&self, shape: &Shape) -> Result<Geom> {
-        Geom::new(shape, 3, self.stride, Padding::Symmetric(1))
+impl Depthwise {
+    fn geom(&self, input: &Shape, k: usize) -> Result<Geom> {
+        Geom::new(input, k, self.stride, self.padding)
     }
 }
 
-impl CustomOp2 for Depthwise3x3 {
+impl CustomOp2 for Depthwise {
     fn name(&self) -> &'static str {
-        "depthwise3x3"
+        "depthwise"
     }
 
     fn cpu_fwd(
@@ -437,7 +450,7 @@ impl CustomOp2 for Depthwise3x3 {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let g = self.geom(l1.shape())?;
+        let g = self.geom(l1.shape(), l2.dims().get(2).copied().unwrap_or(0))?;
         check_weight(&g, l2)?;
         let (x, w) = (contiguous(s1, l1, "input")?, contiguous(s2, l2, "weight")?);
         Ok((
@@ -454,22 +467,15 @@ impl CustomOp2 for Depthwise3x3 {
         grad: &Tensor,
     ) -> Result<(Option<Tensor>, Option<Tensor>)> {
         let grad = grad.contiguous()?;
-        let dx = grad.apply_op2_no_bwd(
-            w,
-            &Backward {
-                stride: self.stride,
-                input_shape: x.shape().clone(),
-                wrt_input: true,
-            },
-        )?;
-        let dw = x.apply_op2_no_bwd(
-            &grad,
-            &Backward {
-                stride: self.stride,
-                input_shape: x.shape().clone(),
-                wrt_input: false,
-            },
-        )?;
+        let backward = |wrt_input| Backward {
+            stride: self.stride,
+            padding: self.padding,
+            kernel: w.dims().get(2).copied().unwrap_or(0),
+            input_shape: x.shape().clone(),
+            wrt_input,
+        };
+        let dx = grad.apply_op2_no_bwd(w, &backward(true))?;
+        let dw = x.apply_op2_no_bwd(&grad, &backward(false))?;
         Ok((Some(dx), Some(dw)))
     }
 }
@@ -477,13 +483,15 @@ impl CustomOp2 for Depthwise3x3 {
 /// Backward kernels: (grad, weight) -> dx, or (x, grad) -> dweight.
 struct Backward {
     stride: usize,
+    padding: Padding,
+    kernel: usize,
     input_shape: Shape,
     wrt_input: bool,
 }
 
 impl CustomOp2 for Backward {
     fn name(&self) -> &'static str {
-        "depthwise3x3-backward"
+        "depthwise-backward"
     }
 
     fn cpu_fwd(
@@ -493,14 +501,14 @@ impl CustomOp2 for Backward {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let g = Geom::new(&self.input_shape, 3, self.stride, Padding::Symmetric(1))?;
+        let g = Geom::new(&self.input_shape, self.kernel, self.stride, self.padding)?;
         let (a, b) = (contiguous(s1, l1, "arg 1")?, contiguous(s2, l2, "arg 2")?);
         if self.wrt_input {
             let dx = backward_input(&g, a, b);
             Ok((CpuStorage::F32(dx), self.input_shape.clone()))
         } else {
             let dw = backward_weight(&g, a, b);
-            Ok((CpuStorage::F32(dw), Shape::from((g.c, 1, 3, 3))))
+            Ok((CpuStorage::F32(dw), Shape::from((g.c, 1, g.k, g.k))))
         }
     }
 }
@@ -542,8 +550,22 @@ impl CustomOp3 for DepthwiseBiasAct {
 /// Depthwise 3x3 convolution, padding 1, of `x` (N, C, H, W) with `weight`
 /// (C, 1, 3, 3), like `conv2d(x, weight, 1, stride, 1, C)`. Differentiable.
 pub fn depthwise_conv3x3(x: &Tensor, weight: &Tensor, stride: usize) -> Result<Tensor> {
+    if weight.dims().get(2..) != Some(&[3, 3][..]) {
+        candle_core::bail!("depthwise 3x3: weight shape {:?}", weight.dims());
+    }
+    depthwise_conv(x, weight, stride, Padding::Symmetric(1))
+}
+
+/// Depthwise convolution of `x` (N, C, H, W) with `weight` (C, 1, K, K),
+/// K 3 or 5, stride 1 or 2, padded as `padding` says. Differentiable.
+pub fn depthwise_conv(
+    x: &Tensor,
+    weight: &Tensor,
+    stride: usize,
+    padding: Padding,
+) -> Result<Tensor> {
     x.contiguous()?
-        .apply_op2(&weight.contiguous()?, Depthwise3x3 { stride })
+        .apply_op2(&weight.contiguous()?, Depthwise { stride, padding })
 }
 
 /// Inference-only depthwise 3x3, padding 1, with a per-channel `bias` (C)

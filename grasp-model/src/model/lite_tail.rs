@@ -5,16 +5,42 @@
 //! Batch norm stays frozen, so every convolution is trained in its folded
 //! form (weight and bias with the norm included), the form in which
 //! [`EfficientNetLite::load_tail`](super::EfficientNetLite::load_tail) puts
-//! the tuned tensors back into the fused inference kernels. The depthwise
-//! convolutions run as a sum of shifted, per-channel scaled views of the
-//! padded input: on the 8x8 and 4x4 maps of the last stages that costs
-//! little and every operation has candle's gradient.
+//! the tuned tensors back into the fused inference kernels.
 
-use super::depthwise::Padding;
+use super::depthwise::{depthwise_conv, Padding};
 use super::efficientnet_lite::BlockSpec;
-use super::pointwise::pointwise_conv;
-use candle_core::{Result, Tensor, D};
+use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
+
+/// Activations as one row per pixel, `(N*H*W, C)`: a 1x1 convolution is
+/// then a single matrix product (a batch of per-image products is several
+/// times slower in candle, forward and backward).
+struct Pixels {
+    rows: Tensor,
+    n: usize,
+    h: usize,
+    w: usize,
+}
+
+impl Pixels {
+    fn from_nchw(x: &Tensor) -> Result<Self> {
+        let (n, c, h, w) = x.dims4()?;
+        let rows = x.permute((0, 2, 3, 1))?.reshape((n * h * w, c))?;
+        Ok(Pixels { rows, n, h, w })
+    }
+
+    fn to_nchw(&self) -> Result<Tensor> {
+        let c = self.rows.dim(1)?;
+        self.rows
+            .reshape((self.n, self.h, self.w, c))?
+            .permute((0, 3, 1, 2))?
+            .contiguous()
+    }
+
+    fn with_rows(&self, rows: Tensor) -> Self {
+        Pixels { rows, ..*self }
+    }
+}
 
 /// A folded convolution's trainable weight and bias.
 struct Conv {
@@ -30,12 +56,23 @@ impl Conv {
         })
     }
 
-    fn add_bias(&self, y: &Tensor) -> Result<Tensor> {
-        y.broadcast_add(&self.bias.reshape((1, (), 1, 1))?)
+    /// 1x1 convolution plus bias of pixel rows.
+    fn pointwise(&self, x: &Pixels) -> Result<Pixels> {
+        let (cout, cin) = (self.weight.dim(0)?, self.weight.dim(1)?);
+        let w = self.weight.reshape((cout, cin))?;
+        let y = x
+            .rows
+            .matmul(&w.t()?)?
+            .broadcast_add(&self.bias.unsqueeze(0)?)?;
+        Ok(x.with_rows(y))
     }
 
-    fn pointwise(&self, x: &Tensor) -> Result<Tensor> {
-        self.add_bias(&pointwise_conv(x, &self.weight)?)
+    /// Depthwise convolution ("SAME") plus bias of pixel rows.
+    fn depthwise(&self, x: &Pixels, stride: usize) -> Result<Pixels> {
+        let y = depthwise_conv(&x.to_nchw()?, &self.weight, stride, Padding::Same)?;
+        let y = Pixels::from_nchw(&y)?;
+        let rows = y.rows.broadcast_add(&self.bias.unsqueeze(0)?)?;
+        Ok(y.with_rows(rows))
     }
 }
 
@@ -61,16 +98,16 @@ impl TailBlock {
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    fn forward(&self, x: &Pixels) -> Result<Pixels> {
         let y = match &self.expand {
-            Some(e) => relu6(&e.pointwise(x)?)?,
-            None => x.clone(),
+            Some(e) => relu6(e.pointwise(x)?)?,
+            None => x.with_rows(x.rows.clone()),
         };
-        let y = depthwise_same(&y, &self.depthwise.weight, self.spec.stride)?;
-        let y = relu6(&self.depthwise.add_bias(&y)?)?;
+        let y = relu6(self.depthwise.depthwise(&y, self.spec.stride)?)?;
         let y = self.project.pointwise(&y)?;
         if self.spec.residual() {
-            y + x
+            let rows = (&y.rows + &x.rows)?;
+            Ok(y.with_rows(rows))
         } else {
             Ok(y)
         }
@@ -105,72 +142,21 @@ impl LiteTail {
 
     /// Pooled features (N, 1280) of block activations (N, C, H, W).
     pub fn forward(&self, map: &Tensor) -> Result<Tensor> {
-        let mut y = map.clone();
+        let mut y = Pixels::from_nchw(map)?;
         for b in &self.blocks {
             y = b.forward(&y)?;
         }
-        let y = relu6(&self.head.pointwise(&y)?)?;
-        y.flatten_from(2)?.mean(D::Minus1)
+        let y = relu6(self.head.pointwise(&y)?)?;
+        let c = y.rows.dim(1)?;
+        y.rows.reshape((y.n, y.h * y.w, c))?.mean(1)
     }
 }
 
-fn relu6(x: &Tensor) -> Result<Tensor> {
-    x.clamp(0f32, 6f32)
-}
-
-/// Depthwise convolution of `x` (N, C, H, W) with `weight` (C, 1, K, K),
-/// TensorFlow "SAME" padding, any stride: the stride-1 result over the
-/// padded input as a sum of K x K shifted views, each scaled per channel,
-/// then every `stride`-th row and column of it. Differentiable.
-pub fn depthwise_same(x: &Tensor, weight: &Tensor, stride: usize) -> Result<Tensor> {
-    let (_, c, h, w) = x.dims4()?;
-    let (wc, _, k, k2) = weight.dims4()?;
-    if wc != c || k != k2 {
-        candle_core::bail!(
-            "depthwise weight {:?} does not fit input {:?}",
-            weight.dims(),
-            x.dims()
-        );
-    }
-    let axis = |size: usize| -> Result<(usize, usize, usize)> {
-        let (out, before) = Padding::Same
-            .resolve(size, k, stride)
-            .ok_or_else(|| candle_core::Error::Msg(format!("kernel {k} on size {size}")))?;
-        let span = (out - 1) * stride + 1; // stride-1 outputs that cover them
-        let after = (span + k - 1).saturating_sub(size + before);
-        Ok((out, before, after))
-    };
-    let ((oh, top, bottom), (ow, left, right)) = (axis(h)?, axis(w)?);
-    let padded = x
-        .pad_with_zeros(2, top, bottom)?
-        .pad_with_zeros(3, left, right)?;
-    let (sh, sw) = ((oh - 1) * stride + 1, (ow - 1) * stride + 1);
-    let mut acc: Option<Tensor> = None;
-    for ky in 0..k {
-        for kx in 0..k {
-            let tap = weight
-                .narrow(2, ky, 1)?
-                .narrow(3, kx, 1)?
-                .reshape((1, c, 1, 1))?;
-            let term = padded
-                .narrow(2, ky, sh)?
-                .narrow(3, kx, sw)?
-                .broadcast_mul(&tap)?;
-            acc = Some(match acc {
-                None => term,
-                Some(a) => (a + term)?,
-            });
-        }
-    }
-    let y = acc.expect("k >= 1");
-    if stride == 1 {
-        return Ok(y);
-    }
-    let pick = |n: usize| {
-        let idx: Vec<u32> = (0..n).map(|i| (i * stride) as u32).collect();
-        Tensor::from_vec(idx, n, x.device())
-    };
-    y.index_select(&pick(oh)?, 2)?.index_select(&pick(ow)?, 3)
+/// min(max(x, 0), 6) as relu(x) - relu(x - 6): candle's clamp goes through
+/// broadcast comparisons and costs six times as much, with its gradient.
+fn relu6(x: Pixels) -> Result<Pixels> {
+    let rows = (x.rows.relu()? - x.rows.affine(1.0, -6.0)?.relu()?)?;
+    Ok(x.with_rows(rows))
 }
 
 #[cfg(test)]
@@ -180,6 +166,62 @@ mod tests {
     use crate::model::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
     use candle_core::{DType, Device, Var};
     use candle_nn::VarMap;
+
+    /// Reference depthwise convolution of `x` (N, C, H, W) with `weight` (C, 1, K, K),
+    /// TensorFlow "SAME" padding, any stride: the stride-1 result over the
+    /// padded input as a sum of K x K shifted views, each scaled per channel,
+    /// then every `stride`-th row and column of it: candle operations only,
+    /// so its gradients are candle's own.
+    fn depthwise_same(x: &Tensor, weight: &Tensor, stride: usize) -> Result<Tensor> {
+        let (_, c, h, w) = x.dims4()?;
+        let (wc, _, k, k2) = weight.dims4()?;
+        if wc != c || k != k2 {
+            candle_core::bail!(
+                "depthwise weight {:?} does not fit input {:?}",
+                weight.dims(),
+                x.dims()
+            );
+        }
+        let axis = |size: usize| -> Result<(usize, usize, usize)> {
+            let (out, before) = Padding::Same
+                .resolve(size, k, stride)
+                .ok_or_else(|| candle_core::Error::Msg(format!("kernel {k} on size {size}")))?;
+            let span = (out - 1) * stride + 1; // stride-1 outputs that cover them
+            let after = (span + k - 1).saturating_sub(size + before);
+            Ok((out, before, after))
+        };
+        let ((oh, top, bottom), (ow, left, right)) = (axis(h)?, axis(w)?);
+        let padded = x
+            .pad_with_zeros(2, top, bottom)?
+            .pad_with_zeros(3, left, right)?;
+        let (sh, sw) = ((oh - 1) * stride + 1, (ow - 1) * stride + 1);
+        let mut acc: Option<Tensor> = None;
+        for ky in 0..k {
+            for kx in 0..k {
+                let tap = weight
+                    .narrow(2, ky, 1)?
+                    .narrow(3, kx, 1)?
+                    .reshape((1, c, 1, 1))?;
+                let term = padded
+                    .narrow(2, ky, sh)?
+                    .narrow(3, kx, sw)?
+                    .broadcast_mul(&tap)?;
+                acc = Some(match acc {
+                    None => term,
+                    Some(a) => (a + term)?,
+                });
+            }
+        }
+        let y = acc.expect("k >= 1");
+        if stride == 1 {
+            return Ok(y);
+        }
+        let pick = |n: usize| {
+            let idx: Vec<u32> = (0..n).map(|i| (i * stride) as u32).collect();
+            Tensor::from_vec(idx, n, x.device())
+        };
+        y.index_select(&pick(oh)?, 2)?.index_select(&pick(ow)?, 3)
+    }
 
     fn max_diff(a: &Tensor, b: &Tensor) -> f32 {
         (a - b)
@@ -192,6 +234,39 @@ mod tests {
             .unwrap()
             .to_scalar()
             .unwrap()
+    }
+
+    #[test]
+    fn depthwise_gradients_match_the_shifted_reference() {
+        let dev = Device::Cpu;
+        for (k, stride, size) in [(5, 2, 8), (5, 1, 4), (3, 1, 4), (3, 2, 7)] {
+            let x = Var::from_tensor(&Tensor::randn(0f32, 1., (2, 6, size, size), &dev).unwrap())
+                .unwrap();
+            let w =
+                Var::from_tensor(&Tensor::randn(0f32, 1., (6, 1, k, k), &dev).unwrap()).unwrap();
+            // a non-uniform output gradient: weight the outputs
+            let grads = |y: Tensor| {
+                let mask = Tensor::arange(0f32, y.elem_count() as f32, &dev)
+                    .unwrap()
+                    .reshape(y.shape())
+                    .unwrap()
+                    .sin()
+                    .unwrap();
+                let g = (y * mask).unwrap().sum_all().unwrap().backward().unwrap();
+                let get = |v: &Var| g.get(v.as_tensor()).unwrap().clone();
+                (get(&x), get(&w))
+            };
+            let (dx, dw) = grads(depthwise_conv(&x, &w, stride, Padding::Same).unwrap());
+            let (rx, rw) = grads(depthwise_same(&x, &w, stride).unwrap());
+            assert!(
+                rel_diff(&dx, &rx) < 1e-5,
+                "input gradient, k {k} stride {stride}"
+            );
+            assert!(
+                rel_diff(&dw, &rw) < 1e-5,
+                "weight gradient, k {k} stride {stride}"
+            );
+        }
     }
 
     #[test]
