@@ -30,9 +30,6 @@
 #   draws     four more draws of the default and unseen_look test sets (seeds
 #             5, 7, 9, 11), pooled with the main job's into one report per
 #             head and condition (310 videos).
-#   tuned     fine-tuned mode: the main job's FC head with EfficientNet-Lite0's
-#             last five blocks trained too, every test condition and the
-#             pooled draws (after main and draws).
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -200,14 +197,13 @@ stage_main() {
 }
 
 # An FC head on the main job's data (extra train flags), evaluated on every
-# test condition; the checkpoints are RUNS/seed-*. MODE: the training mode
-# (frozen-pretrained).
+# test condition; the checkpoints are RUNS/seed-*.
 main_fc() { # runs train-flags...
   local runs=$1 main="$OUT/main" c
   shift
   [ -f "$runs/.done" ] || {
     run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
-      --seeds "$SEEDS" --mode "${MODE:-frozen-pretrained}" --center-crop "$CROP" --out "$runs" \
+      --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --out "$runs" \
       --cache-dir "$main/features" "$@"
     touch "$runs/.done"
   }
@@ -254,27 +250,13 @@ stage_draws() {
         --resume --no-progress
       roots+=(--data "$OUT/draws/s$sd/test-$c")
     done
-    for h in fc lstm; do
+    for h in fc lstm fc-tuned; do
+      [ -d "$main/model-$h" ] || continue
       checkpoints_of "$main/model-$h"
       [ -f "$OUT/draws/report/$h-$c/report.json" ] ||
         run "$BIN/grasp-train" eval "${CKPTS[@]}" "${roots[@]}" --out "$OUT/draws/report/$h-$c" \
           --cache-dir "$main/features"
     done
-  done
-}
-
-# Fine-tuned mode: the main job's FC head with EfficientNet-Lite0's last five
-# blocks and head convolution trained too, on every test condition and on
-# the pooled draws of default and unseen_look (run the draws stage first).
-stage_tuned() {
-  local runs="$OUT/tuned" c sd roots
-  MODE=fine-tuned main_fc "$runs" --input-size "$INPUT_SIZE" --max-epochs 12
-  for c in default unseen_look; do
-    roots=(--data "$OUT/main/data/test-$c")
-    for sd in $DRAW_SEEDS; do roots+=(--data "$OUT/draws/s$sd/test-$c"); done
-    [ -f "$runs/draws/$c/report.json" ] ||
-      run "$BIN/grasp-train" eval "${CKPTS[@]}" "${roots[@]}" --out "$runs/draws/$c" \
-        --cache-dir "$OUT/main/features"
   done
 }
 

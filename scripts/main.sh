@@ -3,9 +3,10 @@
 # catalog, plan and render (Cycles) a training set, a validation set and the
 # six test conditions (the paper's five and unseen_look, an appearance
 # training never draws), verify and preview them, train FC and LSTM heads on
-# frozen, cached EfficientNet-Lite0 ImageNet features (3 seeds each), evaluate
-# both on every test condition, and replay one test sequence through the
-# runtime against the simulated hand.
+# frozen, cached EfficientNet-Lite0 ImageNet features and an FC head with
+# Lite0's last five blocks fine-tuned (3 seeds each), evaluate them on every
+# test condition, and replay one test sequence through the runtime (the
+# fine-tuned FC head) against the simulated hand.
 #
 #   scripts/main.sh [--large | --paper-scale | --from-scratch] [--ycb DIR] [--weights FILE] [OUT]
 #
@@ -17,7 +18,7 @@
 #                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
 #                   pip-installs; the heads see the central 42 % of each
 #                   frame (--center-crop) at 128 x 128 (--input-size),
-#                   EXPERIMENTS.md. About 16 minutes on 2 cores after setup.
+#                   EXPERIMENTS.md. About 40 minutes on 2 cores after setup.
 #   --large         the same with 32 training sequences per pair (about
 #                   20 minutes after setup).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
@@ -50,7 +51,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,41p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,42p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -69,15 +70,24 @@ elif [ "$SCRATCH" = 1 ]; then
 else
   CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-24} TEST_SEQ=${TEST_SEQ:-2}
 fi
+# Models: MODEL is HEAD or HEAD-tuned (EfficientNet-Lite0's last five blocks
+# fine-tuned with the head; not with --weights, which may be MobileNetV2).
 if [ "$SCRATCH" = 1 ]; then
-  HEADS=(fc) SEEDS=1
-  TRAIN_FLAGS=(--mode from-scratch --width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
+  MODELS=(fc) SEEDS=1
+  TRAIN_FLAGS=(--width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
 else
-  HEADS=(fc lstm)
-  TRAIN_FLAGS=(--mode frozen-pretrained --cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
+  MODELS=(fc lstm)
+  [ -n "$WEIGHTS" ] || MODELS+=(fc-tuned)
+  TRAIN_FLAGS=(--cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
   [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
   [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
 fi
+mode_flags() { # model
+  case $1 in
+    *-tuned) echo --mode fine-tuned --max-epochs 12 ;;
+    *) if [ "$SCRATCH" = 1 ]; then echo --mode from-scratch; else echo --mode frozen-pretrained; fi ;;
+  esac
+}
 CONDITIONS=(default fast from_ground seated background unseen_look)
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
@@ -115,24 +125,25 @@ $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$OUT/train.toml" --show "$OUT/paths.png"
 elapsed
 
-echo "== train and evaluate: heads ${HEADS[*]}, $SEEDS seed(s) each"
+echo "== train and evaluate: models ${MODELS[*]}, $SEEDS seed(s) each"
 EVAL_FLAGS=()
 [ "$SCRATCH" = 1 ] || EVAL_FLAGS=(--cache-dir "$OUT/features")
 REPORTS=()
-for head in "${HEADS[@]}"; do
-  MODEL="$OUT/model-$head"
+for model in "${MODELS[@]}"; do
+  MODEL="$OUT/model-$model"
   CHECKPOINTS=()
   for ((s = 0; s < SEEDS; s++)); do CHECKPOINTS+=(-c "$MODEL/seed-$s"); done
   [ -f "$MODEL/.done" ] || {
-    $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" --head "$head" \
-      --seeds "$SEEDS" "${TRAIN_FLAGS[@]}" --out "$MODEL"
+    # shellcheck disable=SC2046 # mode_flags is a list of words
+    $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" \
+      --head "${model%%-*}" $(mode_flags "$model") --seeds "$SEEDS" "${TRAIN_FLAGS[@]}" --out "$MODEL"
     touch "$MODEL/.done"
   }
   for condition in "${CONDITIONS[@]}"; do
-    [ -f "$OUT/report/$head/$condition/report.json" ] ||
+    [ -f "$OUT/report/$model/$condition/report.json" ] ||
       $BIN/grasp-train eval "${CHECKPOINTS[@]}" --data "$OUT/data/test-$condition" \
-        "${EVAL_FLAGS[@]}" --out "$OUT/report/$head/$condition"
-    REPORTS+=(--report "$head/$condition:$OUT/report/$head/$condition")
+        "${EVAL_FLAGS[@]}" --out "$OUT/report/$model/$condition"
+    REPORTS+=(--report "$model/$condition:$OUT/report/$model/$condition")
   done
 done
 $BIN/grasp-train summarize --by-condition --title "Per-video accuracy by test condition" \
@@ -148,7 +159,9 @@ trap 'kill $HAND 2>/dev/null || true' EXIT
 for _ in $(seq 50); do [ -e "$PTY" ] && break; sleep 0.1; done
 # The recording replays at its own 2.5 frames/s; a decision's age runs from
 # the vote, so the default 300 ms limit holds for it as for a live camera.
-$BIN/hannes-run run --checkpoint "$OUT/model-fc/seed-0" --source "$SEQUENCE" --port "$PTY" \
+REPLAYED="$OUT/model-fc/seed-0"
+[ ! -d "$OUT/model-fc-tuned" ] || REPLAYED="$OUT/model-fc-tuned/seed-0"
+$BIN/hannes-run run --checkpoint "$REPLAYED" --source "$SEQUENCE" --port "$PTY" \
   --trigger now --closure delay:0.5 --report "$OUT/replay.jsonl"
 sleep 0.5
 kill $HAND 2>/dev/null || true
