@@ -142,6 +142,22 @@ fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
         report.backbone
     );
 
+    // The same seed trains the same tensors.
+    let mut again = cfg.clone();
+    again.out = root.join("again");
+    let rerun = trainer::experiment::run(&again, 1).unwrap();
+    let reread =
+        candle_core::safetensors::load(rerun.runs[0].checkpoint.join("best.safetensors"), &dev)
+            .unwrap();
+    assert_eq!(reread.len(), saved.len());
+    for (name, t) in &saved {
+        assert_eq!(
+            values(t),
+            values(&reread[name]),
+            "{name} differs between runs"
+        );
+    }
+
     // The same checkpoint serves as a frozen backbone, tuned blocks included.
     let (as_backbone, _) = BackboneInfo::from_checkpoint(ckpt).unwrap();
     let reused =
