@@ -163,6 +163,7 @@ fn relu6(x: Pixels) -> Result<Pixels> {
 mod tests {
     use super::*;
     use crate::model::depthwise::depthwise_conv_bias_act;
+    use crate::model::test_util::max_diff;
     use crate::model::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
     use candle_core::{DType, Device, Var};
     use candle_nn::VarMap;
@@ -221,19 +222,6 @@ mod tests {
             Tensor::from_vec(idx, n, x.device())
         };
         y.index_select(&pick(oh)?, 2)?.index_select(&pick(ow)?, 3)
-    }
-
-    fn max_diff(a: &Tensor, b: &Tensor) -> f32 {
-        (a - b)
-            .unwrap()
-            .abs()
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .max(0)
-            .unwrap()
-            .to_scalar()
-            .unwrap()
     }
 
     #[test]

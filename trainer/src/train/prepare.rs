@@ -14,6 +14,7 @@ use grasp_model::backbone::{
     Architecture, Backbone, BackboneInfo, Preprocess, TunedTail, BACKBONE_ID,
 };
 use grasp_model::checkpoint::TrainMode;
+use grasp_model::extractor::FeatureExtractor;
 use grasp_model::heads::{Head, HeadConfig};
 use grasp_schema::taxonomy::Class;
 use std::path::Path;
@@ -96,16 +97,13 @@ pub fn prepare(
         TrainMode::FrozenPretrained => {
             let (info, pre) = frozen_backbone(cfg)?;
             let bb = Backbone::load_pretrained(&info, pre, dev)?;
-            let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
-            let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
-            let tf = cache.dataset(&bb, &train, bad)?;
-            let vf = cache.dataset(&bb, &splits.val, bad)?;
+            let (train, val) = cached_frames(cfg, splits, &bb, bad, dev)?;
             Ok(Prepared {
-                train: SplitFrames::from_features(&train, &tf, dev)?,
-                val: SplitFrames::from_features(&splits.val, &vf, dev)?,
+                train,
+                val,
                 real_data,
                 train_sequences: splits.train.sequences.len(),
-                feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
+                feature_dim: bb.feature_dim(),
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
                 tail: None,
@@ -131,19 +129,16 @@ pub fn prepare(
                 info.arch.name(),
                 acts.shape
             );
-            let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
-            let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
-            let tf = cache.dataset(&acts, &train, bad)?;
-            let vf = cache.dataset(&acts, &splits.val, bad)?;
+            let (train, val) = cached_frames(cfg, splits, &acts, bad, dev)?;
             let start = TailStart::new(&bb, &acts)?;
             let mut info = bb.info.clone();
             info.tuned = Some(TunedTail::new(start.from));
             Ok(Prepared {
-                train: SplitFrames::from_features(&train, &tf, dev)?,
-                val: SplitFrames::from_features(&splits.val, &vf, dev)?,
+                train,
+                val,
                 real_data,
                 train_sequences: splits.train.sequences.len(),
-                feature_dim: grasp_model::extractor::FeatureExtractor::feature_dim(&bb),
+                feature_dim: bb.feature_dim(),
                 preprocess: bb.preprocess.clone(),
                 backbone: Some(info),
                 tail: Some(start),
@@ -167,6 +162,25 @@ pub fn prepare(
             })
         }
     }
+}
+
+/// The training split (with its configured views) and the validation
+/// split as rows of `extractor`'s cached output, computing what is missing.
+fn cached_frames(
+    cfg: &TrainConfig,
+    splits: &Splits,
+    extractor: &dyn FeatureExtractor,
+    bad: &BadData,
+    dev: &Device,
+) -> Result<(SplitFrames, SplitFrames)> {
+    let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
+    let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
+    let tf = cache.dataset(extractor, &train, bad)?;
+    let vf = cache.dataset(extractor, &splits.val, bad)?;
+    Ok((
+        SplitFrames::from_features(&train, &tf, dev)?,
+        SplitFrames::from_features(&splits.val, &vf, dev)?,
+    ))
 }
 
 pub(super) fn build_net(
@@ -193,7 +207,7 @@ pub(super) fn build_net(
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
             let bb = Backbone::from_vb(info.clone(), prep.preprocess.clone(), vb, dev)?;
             crate::init::reinit_backbone(&vm, seed)?;
-            let dim = grasp_model::extractor::FeatureExtractor::feature_dim(&bb);
+            let dim = bb.feature_dim();
             (Some((bb, vm)), info, dim)
         }
     };
