@@ -202,7 +202,8 @@ pub struct TunedTail {
 }
 
 impl TunedTail {
-    /// Blocks from `from_block` on, to be read from `weights` when loaded.
+    /// Blocks from `from_block` on; their file is set when a checkpoint is
+    /// loaded.
     pub fn new(from_block: usize) -> Self {
         TunedTail {
             from_block,

@@ -139,7 +139,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         );
         if let Some(new_lr) = decision.new_lr {
             tracing::info!("validation loss plateaued: learning rate {lr:.1e} -> {new_lr:.1e}");
-            opt.scale_learning_rate(new_lr / lr);
+            opt.set_learning_rate(new_lr);
         }
         if decision.stop {
             tracing::info!(
@@ -181,9 +181,13 @@ impl Optimizers {
         self.head.learning_rate()
     }
 
-    fn scale_learning_rate(&mut self, factor: f64) {
-        for opt in std::iter::once(&mut self.head).chain(self.tail.as_mut()) {
-            opt.set_learning_rate(opt.learning_rate() * factor);
+    /// Sets the head's rate (exactly, as before there were two) and scales
+    /// the tuned blocks' by the same factor.
+    fn set_learning_rate(&mut self, lr: f64) {
+        let factor = lr / self.head.learning_rate();
+        self.head.set_learning_rate(lr);
+        if let Some(t) = &mut self.tail {
+            t.set_learning_rate(t.learning_rate() * factor);
         }
     }
 
