@@ -47,6 +47,8 @@ pub struct TrainConfig {
     pub plateau_factor: f64,
     /// Epochs without validation improvement after which training stops.
     pub early_stop_patience: usize,
+    /// Which epoch's weights the checkpoint keeps.
+    pub select: Selection,
     /// Downsample every class to the smallest before each epoch.
     pub balance_classes: bool,
     pub seed: u64,
@@ -94,6 +96,7 @@ impl Default for TrainConfig {
             plateau_patience: 6,
             plateau_factor: 0.1,
             early_stop_patience: 10,
+            select: Selection::ValLoss,
             balance_classes: true,
             seed: 0,
             lstm_hidden: 256,
@@ -110,6 +113,22 @@ impl Default for TrainConfig {
             allow_missing_classes: false,
         }
     }
+}
+
+/// Which epoch's weights a run keeps as its checkpoint. The learning-rate
+/// schedule and the early stop follow the validation loss whatever is kept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selection {
+    /// The paper's: the epoch of the lowest validation loss.
+    #[default]
+    ValLoss,
+    /// The epoch of the highest per-frame validation accuracy (the later
+    /// one on a tie).
+    ValAccuracy,
+    /// The last epoch trained: a fixed epoch count (`max_epochs`, or where
+    /// the early stop ends the run), whatever the validation set says.
+    Last,
 }
 
 /// Fine-tuned mode: the last `blocks` MBConv blocks of EfficientNet-Lite

@@ -6,7 +6,7 @@ use grasp_model::backbone::Architecture;
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
-use trainer::config::TrainConfig;
+use trainer::config::{Selection, TrainConfig};
 use trainer::data::{BadData, OnBadData};
 
 /// Train and evaluate pre-shape classifiers (a frozen ImageNet
@@ -190,6 +190,11 @@ struct TrainArgs {
     batch_size: Option<usize>,
     #[arg(long)]
     max_epochs: Option<usize>,
+    /// Which epoch the checkpoint keeps: the lowest validation loss (the
+    /// paper's, the default), the highest validation accuracy, or the last
+    /// (a fixed epoch count).
+    #[arg(long, value_enum)]
+    select: Option<Selection>,
     #[arg(long)]
     lr: Option<f64>,
     #[arg(long)]
@@ -376,6 +381,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.width_mult, args.width_mult);
     set!(cfg.input_size, args.input_size);
     set!(cfg.max_epochs, args.max_epochs);
+    set!(cfg.select, args.select);
     set!(cfg.optimizer.lr, args.lr);
     set!(cfg.optimizer.weight_decay, args.weight_decay);
     set!(cfg.seed, args.seed);

@@ -2,7 +2,7 @@
 //! coupled L2 5e-4), learning rate x0.1 after `plateau_patience` epochs
 //! without validation improvement, early stop after `early_stop_patience`,
 //! per-epoch random downsampling of every class to the smallest, the best
-//! checkpoint by validation loss.
+//! checkpoint by validation loss (or another [`Selection`]).
 //!
 //! Two modes share the loop: frozen-pretrained (the paper's; heads on cached
 //! features) and from-scratch (the whole MobileNetV2, with augmentation).
@@ -30,7 +30,7 @@ pub use prepare::{detect_architecture, frozen_backbone, prepare, Prepared};
 pub use splits::{load_splits, Splits};
 pub use tail::lite;
 
-use crate::config::TrainConfig;
+use crate::config::{Selection, TrainConfig};
 use crate::optim::Adam;
 use anyhow::Result;
 use candle_core::{Device, Tensor};
@@ -57,7 +57,9 @@ pub struct EpochStats {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct TrainOutcome {
     pub checkpoint: PathBuf,
+    /// The epoch the checkpoint holds (chosen by the config's `select`).
     pub best_epoch: usize,
+    /// Its validation loss.
     pub best_val_loss: f64,
     pub stopped_early: bool,
     pub history: Vec<EpochStats>,
@@ -75,6 +77,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         cfg.early_stop_patience,
     );
     let mut history = Vec::new();
+    let mut best_val_accuracy = f64::NEG_INFINITY;
     let mut outcome = TrainOutcome {
         checkpoint: out.to_path_buf(),
         best_epoch: 0,
@@ -108,7 +111,13 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             seconds: start.elapsed().as_secs_f64(),
         });
         let decision = plateau.step(val_loss, lr);
-        if decision.improved {
+        let keep = match cfg.select {
+            Selection::ValLoss => decision.improved,
+            Selection::ValAccuracy => val_acc >= best_val_accuracy,
+            Selection::Last => true,
+        };
+        best_val_accuracy = best_val_accuracy.max(val_acc);
+        if keep {
             outcome.best_epoch = epoch;
             outcome.best_val_loss = val_loss;
             let meta = CheckpointMeta {
@@ -135,7 +144,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             "epoch {epoch}: loss {train_loss:.4} acc {:.1}% | val loss {val_loss:.4} acc {:.1}% | lr {lr:.1e}{}",
             train_acc * 100.0,
             val_acc * 100.0,
-            if decision.improved { " | saved" } else { "" }
+            if keep { " | saved" } else { "" }
         );
         if let Some(new_lr) = decision.new_lr {
             tracing::info!("validation loss plateaued: learning rate {lr:.1e} -> {new_lr:.1e}");
