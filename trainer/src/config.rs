@@ -145,6 +145,11 @@ pub struct FineTuneConfig {
     pub lr: f64,
     /// Their L2 weight decay (coupled, as the head's).
     pub weight_decay: f64,
+    /// Epochs of a linear probe before fine-tuning (LP-FT): the head first
+    /// trains alone on the pretrained blocks' features, so the blocks start
+    /// tuning under a head that already reads them. 0: the head starts from
+    /// its random initialisation.
+    pub probe_epochs: usize,
 }
 
 impl Default for FineTuneConfig {
@@ -155,6 +160,7 @@ impl Default for FineTuneConfig {
             blocks: 5,
             lr: 1e-4,
             weight_decay: 0.0,
+            probe_epochs: 0,
         }
     }
 }

@@ -236,6 +236,10 @@ struct TrainArgs {
     /// Fine-tuned mode: the tuned blocks' learning rate.
     #[arg(long, value_name = "LR")]
     tune_lr: Option<f64>,
+    /// Fine-tuned mode: train the head alone for N epochs on the pretrained
+    /// blocks' features first (a linear probe, LP-FT; 0: off).
+    #[arg(long, value_name = "N")]
+    probe_epochs: Option<usize>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
     #[arg(long)]
     hflip: bool,
@@ -393,6 +397,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.views.count, args.feature_views);
     set!(cfg.fine_tune.blocks, args.tune_blocks);
     set!(cfg.fine_tune.lr, args.tune_lr);
+    set!(cfg.fine_tune.probe_epochs, args.probe_epochs);
     set!(cfg.on_bad_data, args.on_bad_data);
     cfg.augment.hflip |= args.hflip;
     cfg.allow_missing_classes |= args.allow_missing_classes;

@@ -191,3 +191,54 @@ fn fine_tuning_refuses_what_it_cannot_tune() {
     let err = format!("{:#}", mobilenet.validate().err().unwrap());
     assert!(err.contains("EfficientNet-Lite"), "{err}");
 }
+
+/// A linear probe (`probe_epochs`) trains the head alone before the blocks
+/// tune: fine-tuning's first epoch then starts from a head that reads the
+/// features, and the probe itself leaves the blocks as they were.
+#[test]
+fn a_linear_probe_trains_the_head_before_the_blocks() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 3;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+    let first_epoch = |probe: usize, tune_lr: f64, out: &str| {
+        let mut cfg = cfg(root, &weights);
+        cfg.out = root.join(out);
+        cfg.max_epochs = 1;
+        cfg.optimizer.lr = 1e-2; // a probe of a few batches an epoch
+        cfg.fine_tune.probe_epochs = probe;
+        cfg.fine_tune.lr = tune_lr;
+        let run = trainer::experiment::run(&cfg, 1).unwrap();
+        let out = &run.runs[0];
+        (out.history[0].train_loss, out.checkpoint.clone())
+    };
+    let (unprobed, _) = first_epoch(0, 1e-4, "unprobed");
+    let (probed, _) = first_epoch(20, 1e-4, "probed");
+    assert!(
+        probed < 0.8 * unprobed,
+        "first epoch's loss {probed} after the probe, {unprobed} without"
+    );
+
+    // With the blocks' rate at 1e-30 only the probe and the head train: the
+    // saved blocks are the pretrained ones (the probe, at the head's 1e-2,
+    // would have moved them by far more).
+    let (_, ckpt) = first_epoch(20, 1e-30, "blocks-still");
+    let dev = Device::Cpu;
+    let saved = candle_core::safetensors::load(ckpt.join("best.safetensors"), &dev).unwrap();
+    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    let pretrained =
+        Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(64), &dev)
+            .unwrap();
+    for (name, t) in trainer::train::lite(&pretrained).unwrap().tail_tensors(14) {
+        let (got, want) = (values(&saved[&format!("tail.{name}")]), values(&t));
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(g, w)| (g - w).abs())
+            .fold(0f32, f32::max);
+        assert!(worst < 1e-12, "{name} moved by {worst}");
+    }
+}

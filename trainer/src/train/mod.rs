@@ -18,6 +18,7 @@ mod frames;
 mod net;
 mod plateau;
 mod prepare;
+mod probe;
 mod splits;
 mod tail;
 
@@ -68,9 +69,10 @@ pub struct TrainOutcome {
 /// Trains one model with `seed` into `out` (checkpoint, history).
 pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Result<TrainOutcome> {
     let dev = Device::Cpu;
-    let (net, backbone_info) = build_net(cfg, prep, seed, &dev)?;
-    let mut opt = Optimizers::new(&net, cfg)?;
+    let (mut net, backbone_info) = build_net(cfg, prep, seed, &dev)?;
     let batch = cfg.batch_size_for(prep.real_data).max(1);
+    probe::probe_head(&mut net, cfg, (&prep.train, &prep.val), batch, seed)?;
+    let mut opt = Optimizers::new(&net, cfg)?;
     let mut plateau = Plateau::new(
         cfg.plateau_patience,
         cfg.plateau_factor,
@@ -85,14 +87,14 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         stopped_early: false,
         history: Vec::new(),
     };
-    let unit_classes: Vec<u32> = match cfg.head {
-        HeadKind::Fc => prep.train.labels.clone(),
-        HeadKind::Lstm => prep.train.seq_class.clone(),
-    };
     for epoch in 1..=cfg.max_epochs {
         let start = Instant::now();
         let mut rng = crate::rng::stream(seed, &format!("epoch/{epoch}"));
-        let units = epoch_units(&unit_classes, cfg.balance_classes, &mut rng);
+        let units = epoch_units(
+            unit_classes(cfg, &prep.train),
+            cfg.balance_classes,
+            &mut rng,
+        );
         let (train_loss, train_acc, frames) =
             train_epoch(&net, &prep.train, &units, batch, &mut opt, &mut rng, epoch)?;
         let (val_loss, val_acc) = evaluate_split(&net, &prep.val, batch)?;
@@ -161,6 +163,15 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
     }
     outcome.history = history;
     Ok(outcome)
+}
+
+/// The class of each unit an epoch draws: frames for the FC head,
+/// sequences for the LSTM head.
+fn unit_classes<'a>(cfg: &TrainConfig, frames: &'a SplitFrames) -> &'a [u32] {
+    match cfg.head {
+        HeadKind::Fc => &frames.labels,
+        HeadKind::Lstm => &frames.seq_class,
+    }
 }
 
 /// The head's optimizer and, fine-tuned, the tuned blocks' (the head's

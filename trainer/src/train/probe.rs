@@ -1,0 +1,78 @@
+//! Linear probing before fine-tuning (LP-FT, Kumar et al., ICLR 2022): the
+//! head first trains alone on the pretrained tuned blocks' output, so that
+//! fine-tuning starts from a head that already reads the features instead of
+//! sending a random head's gradients into the blocks.
+
+use super::{
+    epoch_units, evaluate_split, train_epoch, unit_classes, FrameSource, Net, Optimizers,
+    SplitFrames,
+};
+use crate::config::TrainConfig;
+use anyhow::Result;
+use candle_core::Tensor;
+
+/// Trains `net`'s head for `cfg.fine_tune.probe_epochs` epochs on the
+/// features its (untrained) tail gives `train`'s rows; the tail is left as
+/// it was. Returns the last probe epoch's validation loss and accuracy.
+pub(super) fn probe_head(
+    net: &mut Net,
+    cfg: &TrainConfig,
+    (train, val): (&SplitFrames, &SplitFrames),
+    batch: usize,
+    seed: u64,
+) -> Result<Option<(f64, f64)>> {
+    let epochs = cfg.fine_tune.probe_epochs;
+    let Some(tail) = net.tail.take() else {
+        return Ok(None);
+    };
+    if epochs == 0 {
+        net.tail = Some(tail);
+        return Ok(None);
+    }
+    let result = (|| {
+        let train = tail_features(&tail, train)?;
+        let val = tail_features(&tail, val)?;
+        let mut opt = Optimizers::new(net, cfg)?;
+        let mut last = (f64::NAN, f64::NAN);
+        for epoch in 1..=epochs {
+            let mut rng = crate::rng::stream(seed, &format!("probe/{epoch}"));
+            let units = epoch_units(unit_classes(cfg, &train), cfg.balance_classes, &mut rng);
+            train_epoch(net, &train, &units, batch, &mut opt, &mut rng, epoch)?;
+            last = evaluate_split(net, &val, batch)?;
+        }
+        tracing::info!(
+            "linear probe, {epochs} epochs: val loss {:.4} acc {:.1}%",
+            last.0,
+            last.1 * 100.0
+        );
+        Ok(Some(last))
+    })();
+    net.tail = Some(tail);
+    result
+}
+
+/// `frames` with the tail's output in place of its cached activations.
+fn tail_features(tail: &super::tail::Tail, frames: &SplitFrames) -> Result<SplitFrames> {
+    let FrameSource::Cached(x) = &frames.source else {
+        anyhow::bail!("fine-tuning needs cached block activations");
+    };
+    let n = x.dim(0)?;
+    if n == 0 {
+        anyhow::bail!("a split without frames cannot be probed");
+    }
+    let mut parts = Vec::new();
+    for start in (0..n).step_by(256) {
+        parts.push(
+            tail.forward(&x.narrow(0, start, 256.min(n - start))?)?
+                .detach(),
+        );
+    }
+    let features = Tensor::cat(&parts, 0)?;
+    Ok(SplitFrames {
+        labels: frames.labels.clone(),
+        seq_rows: frames.seq_rows.clone(),
+        seq_class: frames.seq_class.clone(),
+        seq_ids: frames.seq_ids.clone(),
+        source: FrameSource::Cached(features),
+    })
+}
