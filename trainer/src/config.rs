@@ -138,8 +138,8 @@ pub enum Selection {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FineTuneConfig {
-    /// Trained blocks, counted from the last (5: Lite0's 192- and
-    /// 320-channel stages, blocks 11-15).
+    /// Trained blocks, counted from the last (8: Lite0's 112-, 192- and
+    /// 320-channel stages, blocks 8-15).
     pub blocks: usize,
     /// Their learning rate; the plateau schedule scales it with the head's.
     pub lr: f64,
@@ -153,14 +153,14 @@ pub struct FineTuneConfig {
 }
 
 impl Default for FineTuneConfig {
-    /// Measured in EXPERIMENTS.md section 10: a fifth of the head's rate,
-    /// no decay.
+    /// Measured in EXPERIMENTS.md sections 10 and 11: the last eight blocks,
+    /// a fifth of the head's rate, no decay, after a 30-epoch linear probe.
     fn default() -> Self {
         FineTuneConfig {
-            blocks: 5,
+            blocks: 8,
             lr: 1e-4,
             weight_decay: 0.0,
-            probe_epochs: 0,
+            probe_epochs: 30,
         }
     }
 }

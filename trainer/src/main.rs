@@ -44,8 +44,9 @@ enum Command {
     /// augmentation; pick --width-mult and --input-size for the CPU budget.
     ///
     /// Fine-tuned: --mode fine-tuned trains EfficientNet-Lite's last
-    /// --tune-blocks blocks (default 5) and head convolution with the head,
-    /// batch norm frozen, at --tune-lr (default 1e-4); the blocks before
+    /// --tune-blocks blocks (default 8) and head convolution with the head,
+    /// batch norm frozen, at --tune-lr (default 1e-4), after a linear probe
+    /// of the head alone (--probe-epochs, default 30); the blocks before
     /// them stay frozen and their activations are cached like features.
     #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
@@ -237,7 +238,7 @@ struct TrainArgs {
     #[arg(long, value_name = "LR")]
     tune_lr: Option<f64>,
     /// Fine-tuned mode: train the head alone for N epochs on the pretrained
-    /// blocks' features first (a linear probe, LP-FT; 0: off).
+    /// blocks' features first (a linear probe, LP-FT; default 30, 0: off).
     #[arg(long, value_name = "N")]
     probe_epochs: Option<usize>,
     /// Allow horizontal flips in from-scratch augmentation (off: see docs).
