@@ -4,14 +4,16 @@
 //! per-epoch random downsampling of every class to the smallest, the best
 //! checkpoint by validation loss (or another [`Selection`]).
 //!
-//! Two modes share the loop: frozen-pretrained (the paper's; heads on cached
-//! features) and from-scratch (the whole MobileNetV2, with augmentation).
+//! Three modes share the loop: frozen-pretrained (the paper's; heads on
+//! cached features), from-scratch (the whole MobileNetV2, with
+//! augmentation) and fine-tuned (EfficientNet-Lite's last blocks on cached
+//! activations, after an optional linear probe of the head).
 //!
 //! One module per concept: [`splits`] (loading and splitting the data),
 //! [`frames`] (the frame index), [`net`] (the network's forward pass and
 //! loss), [`balance`] (class balancing), [`plateau`] (the learning-rate
-//! schedule), [`prepare`] (backbone and features); this file holds the
-//! loop.
+//! schedule), [`prepare`] (backbone and features), [`tail`] (the tuned
+//! blocks), [`probe`] (the linear probe); this file holds the loop.
 
 mod balance;
 mod frames;

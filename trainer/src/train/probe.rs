@@ -13,22 +13,23 @@ use candle_core::Tensor;
 
 /// Trains `net`'s head for `cfg.fine_tune.probe_epochs` epochs on the
 /// features its (untrained) tail gives `train`'s rows; the tail is left as
-/// it was. Returns the last probe epoch's validation loss and accuracy.
+/// it was. Without a tail or with 0 epochs it does nothing.
 pub(super) fn probe_head(
     net: &mut Net,
     cfg: &TrainConfig,
     (train, val): (&SplitFrames, &SplitFrames),
     batch: usize,
     seed: u64,
-) -> Result<Option<(f64, f64)>> {
+) -> Result<()> {
     let epochs = cfg.fine_tune.probe_epochs;
-    let Some(tail) = net.tail.take() else {
-        return Ok(None);
-    };
     if epochs == 0 {
-        net.tail = Some(tail);
-        return Ok(None);
+        return Ok(());
     }
+    let Some(tail) = net.tail.take() else {
+        return Ok(());
+    };
+    // The head trains alone: without its tail the net is a frozen one on
+    // the tail's features (the tail goes back whatever happens).
     let result = (|| {
         let train = tail_features(&tail, train)?;
         let val = tail_features(&tail, val)?;
@@ -45,7 +46,7 @@ pub(super) fn probe_head(
             last.0,
             last.1 * 100.0
         );
-        Ok(Some(last))
+        Ok(())
     })();
     net.tail = Some(tail);
     result
