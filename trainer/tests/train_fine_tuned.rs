@@ -30,6 +30,17 @@ fn cfg(root: &Path, weights: &Path) -> TrainConfig {
     cfg
 }
 
+/// A small generated dataset in `root/data` and random EfficientNet-Lite0
+/// weights (returned) beside it.
+fn data_and_weights(root: &Path) -> std::path::PathBuf {
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 3;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+    weights
+}
+
 fn frames() -> Vec<image::RgbImage> {
     (0..3)
         .map(|i| {
@@ -51,11 +62,7 @@ fn values(t: &Tensor) -> Vec<f32> {
 fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 3;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+    let weights = data_and_weights(root);
 
     let cfg = cfg(root, &weights);
     let run = trainer::experiment::run(&cfg, 1).unwrap();
@@ -199,11 +206,7 @@ fn fine_tuning_refuses_what_it_cannot_tune() {
 fn a_linear_probe_trains_the_head_before_the_blocks() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 3;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+    let weights = data_and_weights(root);
     let first_epoch = |probe: usize, tune_lr: f64, out: &str| {
         let mut cfg = cfg(root, &weights);
         cfg.out = root.join(out);
