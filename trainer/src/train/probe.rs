@@ -34,13 +34,13 @@ pub(super) fn probe_head(
         let train = tail_features(&tail, train)?;
         let val = tail_features(&tail, val)?;
         let mut opt = Optimizers::new(net, cfg)?;
-        let mut last = (f64::NAN, f64::NAN);
         for epoch in 1..=epochs {
             let mut rng = crate::rng::stream(seed, &format!("probe/{epoch}"));
             let units = epoch_units(unit_classes(cfg, &train), cfg.balance_classes, &mut rng);
             train_epoch(net, &train, &units, batch, &mut opt, &mut rng, epoch)?;
-            last = evaluate_split(net, &val, batch)?;
         }
+        // Validation only reports where the probe ended; nothing selects on it.
+        let last = evaluate_split(net, &val, batch)?;
         tracing::info!(
             "linear probe, {epochs} epochs: val loss {:.4} acc {:.1}%",
             last.0,
