@@ -97,8 +97,15 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             cfg.balance_classes,
             &mut rng,
         );
-        let (train_loss, train_acc, frames) =
-            train_epoch(&net, &prep.train, &units, batch, &mut opt, &mut rng, epoch)?;
+        let (train_loss, train_acc, frames) = train_epoch(
+            &net,
+            &prep.train,
+            &units,
+            batch,
+            &mut opt,
+            &mut rng,
+            Epoch::main(epoch),
+        )?;
         let (val_loss, val_acc) = evaluate_split(&net, &prep.val, batch)?;
         if !val_loss.is_finite() {
             anyhow::bail!("non-finite validation loss ({val_loss}) after epoch {epoch}");
@@ -222,6 +229,31 @@ impl Optimizers {
     }
 }
 
+/// Which pass over the training frames a progress bar or an error names:
+/// the main loop's, or the linear probe's before it.
+#[derive(Clone, Copy, Debug)]
+struct Epoch {
+    probe: bool,
+    n: usize,
+}
+
+impl Epoch {
+    fn main(n: usize) -> Self {
+        Epoch { probe: false, n }
+    }
+
+    fn probe(n: usize) -> Self {
+        Epoch { probe: true, n }
+    }
+}
+
+impl std::fmt::Display for Epoch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let stage = if self.probe { "probe epoch" } else { "epoch" };
+        write!(f, "{stage} {}", self.n)
+    }
+}
+
 fn train_epoch(
     net: &Net,
     frames: &SplitFrames,
@@ -229,12 +261,9 @@ fn train_epoch(
     batch: usize,
     opt: &mut Optimizers,
     rng: &mut impl Rng,
-    epoch: usize,
+    epoch: Epoch,
 ) -> Result<(f64, f64, usize)> {
-    let bar = crate::progress::bar(
-        units.len().div_ceil(batch) as u64,
-        &format!("epoch {epoch}"),
-    );
+    let bar = crate::progress::bar(units.len().div_ceil(batch) as u64, &epoch.to_string());
     let (mut loss_sum, mut correct, mut counted) = (0.0, 0usize, 0usize);
     for (bi, chunk) in units.chunks(batch).enumerate() {
         let b = net.forward(frames, chunk, true, rng)?;
@@ -268,7 +297,7 @@ fn batch_name(
     frames: &SplitFrames,
     chunk: &[usize],
     kind: HeadKind,
-    epoch: usize,
+    epoch: Epoch,
     bi: usize,
 ) -> String {
     let first = chunk.first().map(|u| match kind {
@@ -283,7 +312,7 @@ fn batch_name(
         }
     });
     format!(
-        "epoch {epoch}, batch {bi} ({} units, first from sequence {})",
+        "{epoch}, batch {bi} ({} units, first from sequence {})",
         chunk.len(),
         first.unwrap_or_default()
     )

@@ -4,7 +4,7 @@
 //! sending a random head's gradients into the blocks.
 
 use super::{
-    epoch_units, evaluate_split, train_epoch, unit_classes, FrameSource, Net, Optimizers,
+    epoch_units, evaluate_split, train_epoch, unit_classes, Epoch, FrameSource, Net, Optimizers,
     SplitFrames,
 };
 use crate::config::TrainConfig;
@@ -37,7 +37,15 @@ pub(super) fn probe_head(
         for epoch in 1..=epochs {
             let mut rng = crate::rng::stream(seed, &format!("probe/{epoch}"));
             let units = epoch_units(unit_classes(cfg, &train), cfg.balance_classes, &mut rng);
-            train_epoch(net, &train, &units, batch, &mut opt, &mut rng, epoch)?;
+            train_epoch(
+                net,
+                &train,
+                &units,
+                batch,
+                &mut opt,
+                &mut rng,
+                Epoch::probe(epoch),
+            )?;
         }
         // Validation only reports where the probe ended; nothing selects on it.
         let last = evaluate_split(net, &val, batch)?;
