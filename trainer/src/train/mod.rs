@@ -349,3 +349,14 @@ pub fn evaluate_split(net: &Net, frames: &SplitFrames, batch: usize) -> Result<(
     let n = counted.max(1) as f64;
     Ok((loss_sum / n, correct as f64 / n))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Epoch;
+
+    #[test]
+    fn an_epoch_names_the_pass_it_belongs_to() {
+        assert_eq!(Epoch::main(3).to_string(), "epoch 3");
+        assert_eq!(Epoch::probe(3).to_string(), "probe epoch 3");
+    }
+}
