@@ -104,7 +104,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             batch,
             &mut opt,
             &mut rng,
-            Epoch::main(epoch),
+            Epoch::Main(epoch),
         )?;
         let (val_loss, val_acc) = evaluate_split(&net, &prep.val, batch)?;
         if !val_loss.is_finite() {
@@ -232,25 +232,17 @@ impl Optimizers {
 /// Which pass over the training frames a progress bar or an error names:
 /// the main loop's, or the linear probe's before it.
 #[derive(Clone, Copy, Debug)]
-struct Epoch {
-    probe: bool,
-    n: usize,
-}
-
-impl Epoch {
-    fn main(n: usize) -> Self {
-        Epoch { probe: false, n }
-    }
-
-    fn probe(n: usize) -> Self {
-        Epoch { probe: true, n }
-    }
+enum Epoch {
+    Main(usize),
+    Probe(usize),
 }
 
 impl std::fmt::Display for Epoch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let stage = if self.probe { "probe epoch" } else { "epoch" };
-        write!(f, "{stage} {}", self.n)
+        match self {
+            Epoch::Main(n) => write!(f, "epoch {n}"),
+            Epoch::Probe(n) => write!(f, "probe epoch {n}"),
+        }
     }
 }
 
@@ -356,7 +348,7 @@ mod tests {
 
     #[test]
     fn an_epoch_names_the_pass_it_belongs_to() {
-        assert_eq!(Epoch::main(3).to_string(), "epoch 3");
-        assert_eq!(Epoch::probe(3).to_string(), "probe epoch 3");
+        assert_eq!(Epoch::Main(3).to_string(), "epoch 3");
+        assert_eq!(Epoch::Probe(3).to_string(), "probe epoch 3");
     }
 }

@@ -44,7 +44,7 @@ pub(super) fn probe_head(
                 batch,
                 &mut opt,
                 &mut rng,
-                Epoch::probe(epoch),
+                Epoch::Probe(epoch),
             )?;
         }
         // Validation only reports where the probe ended; nothing selects on it.
