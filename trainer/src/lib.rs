@@ -11,6 +11,7 @@ pub mod experiment;
 pub mod features;
 pub mod init;
 pub mod loss;
+pub mod norm_refit;
 pub mod optim;
 pub mod progress;
 pub mod rng;
