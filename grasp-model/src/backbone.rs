@@ -5,7 +5,7 @@
 
 use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
-use crate::hashing::{file_sha256, hex};
+use crate::hashing::file_sha256;
 use crate::model::{
     EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
 };
@@ -13,7 +13,6 @@ use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 pub use crate::model::preprocess::{Preprocess, ResizeFilter};
@@ -319,9 +318,6 @@ pub struct Backbone {
     pub info: BackboneInfo,
     pub preprocess: Preprocess,
     pub device: Device,
-    /// Digest of the frames the batch norms were re-estimated on, if they
-    /// were ([`Backbone::refit_batch_norm`]); keys the feature cache.
-    pub norm_refit: Option<String>,
 }
 
 impl Backbone {
@@ -435,7 +431,6 @@ impl Backbone {
             info,
             preprocess: pre,
             device: device.clone(),
-            norm_refit: None,
         })
     }
 
@@ -447,39 +442,6 @@ impl Backbone {
             &self.preprocess,
             &self.device,
         )?)
-    }
-}
-
-impl Backbone {
-    /// Re-estimates the batch norms' statistics on `images` (frames as the
-    /// extractor receives them), so that the network normalizes their
-    /// distribution instead of ImageNet's (EfficientNet-Lite only; see
-    /// [`EfficientNetLite::refit_batch_norm`]). Refitting again starts from
-    /// the same weights: the result depends on the last images only.
-    pub fn refit_batch_norm(&mut self, images: &[RgbImage]) -> Result<()> {
-        if images.len() < 2 {
-            return Err(ModelError::Invalid(format!(
-                "re-estimating batch norm needs at least 2 frames, got {}",
-                images.len()
-            )));
-        }
-        let x = self.input(images)?;
-        let Network::EfficientNetLite(net) = &mut self.net else {
-            return Err(ModelError::Invalid(format!(
-                "only EfficientNet-Lite backbones re-estimate batch norm, not {}",
-                self.info.arch.name()
-            )));
-        };
-        net.refit_batch_norm(&x)
-            .map_err(|e| ModelError::tensors("re-estimating batch norm", e))?;
-        let mut h = Sha256::new();
-        for img in images {
-            h.update(img.width().to_le_bytes());
-            h.update(img.height().to_le_bytes());
-            h.update(img.as_raw());
-        }
-        self.norm_refit = Some(hex(&h.finalize()));
-        Ok(())
     }
 }
 
@@ -501,9 +463,6 @@ impl FeatureExtractor for Backbone {
         if let Some(t) = &self.info.tuned {
             id["tuned_from_block"] = t.from_block.into();
             id["tuned_sha256"] = t.weights_sha256.clone().into();
-        }
-        if let Some(frames) = &self.norm_refit {
-            id["batch_norm_refit_on"] = frames.clone().into();
         }
         id.to_string()
     }

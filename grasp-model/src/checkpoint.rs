@@ -273,12 +273,6 @@ impl Classifier {
         &self.backbone
     }
 
-    /// The backbone, to re-estimate its batch norm on the frames it will
-    /// read ([`Backbone::refit_batch_norm`]).
-    pub fn backbone_mut(&mut self) -> &mut Backbone {
-        &mut self.backbone
-    }
-
     /// The centre crop (fraction of the shorter side) applied to camera
     /// frames, as recorded at training; `None`: whole frames.
     pub fn center_crop(&self) -> Option<f64> {

@@ -71,10 +71,6 @@ pub struct TrainConfig {
     pub cache_dir: PathBuf,
     /// Frames per backbone forward pass when extracting features.
     pub feature_batch: usize,
-    /// Frozen mode: re-estimate the backbone's batch-norm statistics on
-    /// this many frames of the data it reads (training frames at training,
-    /// each evaluated set's own frames at evaluation) instead of ImageNet's.
-    pub refit_batch_norm: Option<usize>,
     pub on_bad_data: OnBadData,
     /// Train even when a pre-shape has no training sequence (refused by
     /// default: see [`crate::data::coverage`]).
@@ -113,7 +109,6 @@ impl Default for TrainConfig {
             fine_tune: FineTuneConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
-            refit_batch_norm: None,
             on_bad_data: OnBadData::Skip,
             allow_missing_classes: false,
         }

@@ -116,11 +116,7 @@ pub fn evaluate(
     let (mut mode, mut backbone, mut cap) = (None, None, None);
     let (mut head, mut train_sequences) = (String::new(), None);
     for ckpt in checkpoints {
-        let mut clf = Classifier::load(ckpt, &dev)?;
-        if let Some(n) = clf.meta.train_config["refit_batch_norm"].as_u64() {
-            crate::norm_refit::refit(clf.backbone_mut(), data, n as usize, bad)
-                .with_context(|| format!("checkpoint {}", ckpt.display()))?;
-        }
+        let clf = Classifier::load(ckpt, &dev)?;
         let m = &clf.meta;
         same("modes", &mut mode, m.mode.name().to_string(), ckpt)?;
         same("backbones", &mut backbone, m.backbone.describe(), ckpt)?;

@@ -11,7 +11,6 @@ pub mod experiment;
 pub mod features;
 pub mod init;
 pub mod loss;
-pub mod norm_refit;
 pub mod optim;
 pub mod progress;
 pub mod rng;

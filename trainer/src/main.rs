@@ -210,11 +210,6 @@ struct TrainArgs {
     /// Number of seeds to train (the report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
-    /// Frozen mode: re-estimate the backbone's batch-norm statistics on N
-    /// frames of the training set; evaluation then re-estimates them on N
-    /// frames of each evaluated set (unlabelled test-time adaptation).
-    #[arg(long, value_name = "N")]
-    refit_batch_norm: Option<usize>,
     /// Feature cache directory (frozen-pretrained and fine-tuned modes).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
@@ -385,7 +380,6 @@ fn train(args: TrainArgs) -> Result<()> {
     cfg.backbone = args.backbone.or(cfg.backbone);
     cfg.batch_size = args.batch_size.or(cfg.batch_size);
     cfg.sequences_per_pair = args.sequences_per_pair.or(cfg.sequences_per_pair);
-    cfg.refit_batch_norm = args.refit_batch_norm.or(cfg.refit_batch_norm);
     set!(cfg.out, args.out);
     set!(cfg.mode, args.mode);
     set!(cfg.head, args.head);

@@ -49,11 +49,6 @@ impl BatchNorm2d {
         Ok((scale, shift))
     }
 
-    /// The learnt affine `(weight, bias)`: gamma and beta.
-    pub fn affine(&self) -> (&Tensor, &Tensor) {
-        (&self.weight, &self.bias)
-    }
-
     /// Train-mode normalization with batch statistics; updates the running ones.
     pub fn forward_train(&self, x: &Tensor) -> Result<Tensor> {
         let (n, c, h, w) = x.dims4()?;

