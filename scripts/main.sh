@@ -20,9 +20,8 @@
 #                   frame (--center-crop) at 128 x 128 (--input-size),
 #                   EXPERIMENTS.md. About 37 minutes on 2 idle cores after
 #                   setup.
-#   --large         the same with 32 training sequences per pair (about 10
-#                   minutes more: a third more training renders and
-#                   fine-tuning epochs).
+#   --large         the same with 32 training sequences per pair (a third
+#                   more training renders and fine-tuning epochs).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
 #                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
 #                   MobileNetV2 at width 0.35 on 64 px trained end to end.
