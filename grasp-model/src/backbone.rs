@@ -185,6 +185,10 @@ pub struct BackboneInfo {
     /// a checkpoint, the rest from `weights_path`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tuned: Option<TunedTail>,
+    /// EfficientNet-Lite blocks whose pooled outputs follow the head's in
+    /// the feature vector (multi-level features); none before they existed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pooled_blocks: Vec<usize>,
 }
 
 /// Where the fine-tuned last blocks of a backbone are.
@@ -227,6 +231,7 @@ impl BackboneInfo {
             weights_prefix: None,
             source_checkpoint: None,
             tuned: None,
+            pooled_blocks: Vec::new(),
         })
     }
 
@@ -243,11 +248,19 @@ impl BackboneInfo {
             weights_prefix: None,
             source_checkpoint: None,
             tuned: None,
+            pooled_blocks: Vec::new(),
         }
     }
 
     /// How a report names this backbone.
     pub fn describe(&self) -> String {
+        match self.pooled_blocks.as_slice() {
+            [] => self.describe_weights(),
+            blocks => format!("{}, blocks {blocks:?} pooled too", self.describe_weights()),
+        }
+    }
+
+    fn describe_weights(&self) -> String {
         let name = self.arch.name();
         if let Some(t) = &self.tuned {
             let file = self.weights_path.as_deref().unwrap_or(Path::new("?"));
@@ -421,11 +434,21 @@ impl Backbone {
             ),
             Some(variant) => {
                 let cfg = EfficientNetLiteConfig::variant(variant, Some(info.num_classes));
-                Network::EfficientNetLite(EfficientNetLite::new(vb, &cfg).map_err(|e| {
+                let mut net = EfficientNetLite::new(vb, &cfg).map_err(|e| {
                     ModelError::tensors(format!("cannot build {}", variant.name()), e)
-                })?)
+                })?;
+                net.set_pooled_blocks(&info.pooled_blocks)
+                    .map_err(|e| ModelError::Invalid(format!("{}: {e}", variant.name())))?;
+                Network::EfficientNetLite(net)
             }
         };
+        if !info.pooled_blocks.is_empty() && info.arch.lite().is_none() {
+            return Err(ModelError::Invalid(format!(
+                "pooled blocks {:?}: only EfficientNet-Lite backbones pool their blocks, not {}",
+                info.pooled_blocks,
+                info.arch.name()
+            )));
+        }
         Ok(Backbone {
             net,
             info,
@@ -445,8 +468,11 @@ impl Backbone {
     }
 }
 
-impl FeatureExtractor for Backbone {
-    fn id(&self) -> String {
+impl Backbone {
+    /// What the network computes up to its last block: the feature cache's
+    /// key without the pooled blocks, which only change what is read from
+    /// it (fine-tuned mode's activation cache is keyed by this).
+    pub fn network_id(&self) -> serde_json::Value {
         let mut id = serde_json::json!({
             "backbone": self.info.id,
             "weights_sha256": self.info.weights_sha256,
@@ -463,6 +489,16 @@ impl FeatureExtractor for Backbone {
         if let Some(t) = &self.info.tuned {
             id["tuned_from_block"] = t.from_block.into();
             id["tuned_sha256"] = t.weights_sha256.clone().into();
+        }
+        id
+    }
+}
+
+impl FeatureExtractor for Backbone {
+    fn id(&self) -> String {
+        let mut id = self.network_id();
+        if !self.info.pooled_blocks.is_empty() {
+            id["pooled_blocks"] = self.info.pooled_blocks.clone().into();
         }
         id.to_string()
     }
@@ -531,5 +567,33 @@ mod tests {
         // MobileNetV2's keys are those from before EfficientNet-Lite
         assert!(!ids[0].contains("architecture") && !ids[0].contains("resize"));
         assert!(ids[4].contains("efficientnet-lite0") && ids[4].contains("bicubic"));
+    }
+
+    #[test]
+    fn pooled_blocks_key_the_features_but_not_the_activations() {
+        let lite = Architecture::EfficientNetLite0;
+        let plain = backbone(lite, "a", lite.preprocess(64));
+        let mut info = plain.info.clone();
+        info.pooled_blocks = vec![7, 15];
+        let vb = VarBuilder::from_varmap(&VarMap::new(), candle_core::DType::F32, &Device::Cpu);
+        let pooled =
+            Backbone::from_vb(info.clone(), lite.preprocess(64), vb, &Device::Cpu).unwrap();
+        assert_ne!(plain.id(), pooled.id());
+        assert_eq!(plain.network_id(), pooled.network_id());
+        assert!(pooled.feature_dim() > plain.feature_dim());
+        assert!(pooled.info.describe().contains("blocks [7, 15] pooled too"));
+
+        // MobileNetV2 has no pooled blocks; a Lite0 has no block 16
+        for (arch, blocks) in [(Architecture::MobileNetV2, vec![7]), (lite, vec![16])] {
+            let mut bad = info.clone();
+            bad.arch = arch;
+            bad.pooled_blocks = blocks;
+            let vb = VarBuilder::from_varmap(&VarMap::new(), candle_core::DType::F32, &Device::Cpu);
+            let err = Backbone::from_vb(bad, lite.preprocess(64), vb, &Device::Cpu).err();
+            assert!(
+                err.is_some_and(|e| e.to_string().contains("pooled block")),
+                "{arch:?}"
+            );
+        }
     }
 }

@@ -133,6 +133,7 @@ impl BackboneInfo {
                     weights_prefix: Some("backbone".to_string()),
                     source_checkpoint: Some(dir),
                     tuned: None,
+                    pooled_blocks: Vec::new(),
                 }
             }
             TrainMode::FrozenPretrained => {

@@ -35,6 +35,11 @@ pub struct TrainConfig {
     pub weights: Option<PathBuf>,
     pub width_mult: f64,
     pub input_size: u32,
+    /// EfficientNet-Lite blocks whose globally pooled outputs join the
+    /// head's features (frozen and fine-tuned modes; fine-tuned, each must
+    /// be the last frozen block or a tuned one). Lite0's stages end at
+    /// blocks 7, 10, 14 and 15. Default: none, the paper's features.
+    pub pooled_blocks: Vec<usize>,
     /// Frames per batch for the FC head, sequences per batch for the LSTM
     /// head. Default: the paper's 256 on synthetic data and 32 on real data
     /// for a frozen backbone; from scratch, 32 frames or 4 sequences.
@@ -90,6 +95,7 @@ impl Default for TrainConfig {
             weights: None,
             width_mult: 1.0,
             input_size: 224,
+            pooled_blocks: Vec::new(),
             batch_size: None,
             max_epochs: 100,
             optimizer: AdamConfig::default(),

@@ -186,6 +186,11 @@ struct TrainArgs {
     /// trained at 240/260).
     #[arg(long)]
     input_size: Option<u32>,
+    /// EfficientNet-Lite: add the globally pooled outputs of these blocks
+    /// to the head's features (e.g. 7,10,14,15, the ends of Lite0's last
+    /// four stages); frozen and fine-tuned modes.
+    #[arg(long, value_name = "BLOCKS", value_delimiter = ',')]
+    pooled_blocks: Option<Vec<usize>>,
     /// Default: 256 on synthetic data, 32 on real data (frozen backbone); 32 frames or 4 sequences from scratch.
     #[arg(long)]
     batch_size: Option<usize>,
@@ -385,6 +390,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.head, args.head);
     set!(cfg.width_mult, args.width_mult);
     set!(cfg.input_size, args.input_size);
+    set!(cfg.pooled_blocks, args.pooled_blocks);
     set!(cfg.max_epochs, args.max_epochs);
     set!(cfg.select, args.select);
     set!(cfg.optimizer.lr, args.lr);

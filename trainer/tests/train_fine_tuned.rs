@@ -245,3 +245,67 @@ fn a_linear_probe_trains_the_head_before_the_blocks() {
         assert!(worst < 1e-12, "{name} moved by {worst}");
     }
 }
+
+#[test]
+fn pooled_blocks_travel_in_the_checkpoint_in_both_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let weights = data_and_weights(root);
+    let dev = Device::Cpu;
+    let images = frames();
+    // Lite0's blocks 13 and 15 have 192 and 320 channels
+    let dim = 1280 + 192 + 320;
+
+    // Fine-tuned from block 14: block 13 is the cached input, 15 is tuned.
+    let mut tuned = cfg(root, &weights);
+    tuned.pooled_blocks = vec![13, 15];
+    let run = trainer::experiment::run(&tuned, 1).unwrap();
+    let clf = Classifier::load(&run.runs[0].checkpoint, &dev).unwrap();
+    assert_eq!(clf.meta.backbone.pooled_blocks, [13, 15]);
+    let got = clf.backbone().extract(&images).unwrap();
+    assert_eq!(got.dims(), [3, dim]);
+    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    let pre = Architecture::EfficientNetLite0.preprocess(64);
+    let pretrained = Backbone::load_pretrained(&info, pre.clone(), &dev).unwrap();
+    let lite = trainer::train::lite(&pretrained).unwrap();
+    let acts = lite
+        .feature_map_until(&pretrained.input(&images).unwrap(), 14)
+        .unwrap();
+    let ckpt = run.runs[0].checkpoint.join("best.safetensors");
+    let vb = unsafe { VarBuilder::from_mmaped_safetensors(&[ckpt], DType::F32, &dev) }.unwrap();
+    let tail = LiteTail::new(&vb.pp("tail"), &lite.tail_layout(14))
+        .unwrap()
+        .with_pooled_blocks(14, &[13, 15])
+        .unwrap();
+    let expected = values(&tail.forward(&acts).unwrap());
+    let got = values(&got);
+    assert!(
+        expected.iter().any(|v| v.abs() > 1e-2),
+        "vacuous comparison"
+    );
+    assert!(got
+        .iter()
+        .zip(&expected)
+        .all(|(a, b)| (a - b).abs() <= 1e-4 * (1.0 + b.abs())));
+
+    // Frozen: the head trains on the longer features and the classifier
+    // computes them.
+    let mut frozen = cfg(root, &weights);
+    frozen.mode = TrainMode::FrozenPretrained;
+    frozen.out = root.join("frozen");
+    frozen.pooled_blocks = vec![13, 15];
+    let run = trainer::experiment::run(&frozen, 1).unwrap();
+    let clf = Classifier::load(&run.runs[0].checkpoint, &dev).unwrap();
+    assert_eq!(clf.backbone().extract(&images).unwrap().dims(), [3, dim]);
+    assert!(run.report.unwrap().backbone.contains("pooled too"));
+
+    // A pooled block the activation cache does not hold is refused before
+    // anything is cached.
+    let mut early = cfg(root, &weights);
+    early.out = root.join("early");
+    early.cache_dir = root.join("early-cache");
+    early.pooled_blocks = vec![12, 15];
+    let err = format!("{:#}", trainer::experiment::run(&early, 1).err().unwrap());
+    assert!(err.contains("pooled block 12"), "{err}");
+    assert!(!early.cache_dir.exists(), "activations were cached");
+}

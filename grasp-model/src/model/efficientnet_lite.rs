@@ -304,6 +304,9 @@ pub struct EfficientNetLite {
     blocks: Vec<Block>,
     head: Folded,
     fc: Option<Linear>,
+    /// Blocks whose globally pooled outputs follow the head's in the
+    /// feature vector (multi-level features; none by default).
+    pooled_blocks: Vec<usize>,
 }
 
 impl EfficientNetLite {
@@ -346,6 +349,7 @@ impl EfficientNetLite {
             blocks,
             head,
             fc,
+            pooled_blocks: Vec::new(),
         })
     }
 
@@ -355,11 +359,26 @@ impl EfficientNetLite {
 
     /// Length of the pooled feature vector.
     pub fn feature_dim(&self) -> usize {
-        self.cfg.head_channels
+        let pooled = self.pooled_blocks.iter().map(|&i| self.blocks[i].spec.cout);
+        self.cfg.head_channels + pooled.sum::<usize>()
     }
 
-    /// Globally average-pooled features (N, 1280) of normalized images
-    /// (N, 3, H, W), any H and W. A batch runs one image per rayon task,
+    /// Appends the globally pooled outputs of `blocks` (strictly
+    /// increasing indices) to the head's features: mid-level features that
+    /// the ImageNet head convolution has not yet mapped to its classes.
+    pub fn set_pooled_blocks(&mut self, blocks: &[usize]) -> Result<()> {
+        check_pooled_blocks(blocks, self.blocks.len())?;
+        self.pooled_blocks = blocks.to_vec();
+        Ok(())
+    }
+
+    pub fn pooled_blocks(&self) -> &[usize] {
+        &self.pooled_blocks
+    }
+
+    /// Globally average-pooled features (N, D) of normalized images
+    /// (N, 3, H, W), any H and W: the head's 1280 channels, then those of
+    /// the pooled blocks. A batch runs one image per rayon task,
     /// so that each image's activations stay in cache; the kernels split a
     /// single image across threads themselves.
     pub fn features(&self, x: &Tensor) -> Result<Tensor> {
@@ -371,11 +390,11 @@ impl EfficientNetLite {
             );
         }
         if n == 1 {
-            return pool(&self.feature_map(x)?);
+            return self.pooled_features(x);
         }
         let rows = (0..n)
             .into_par_iter()
-            .map(|i| pool(&self.feature_map(&x.narrow(0, i, 1)?)?))
+            .map(|i| self.pooled_features(&x.narrow(0, i, 1)?))
             .collect::<Result<Vec<_>>>()?;
         Tensor::cat(&rows, 0)
     }
@@ -388,10 +407,25 @@ impl EfficientNetLite {
         fc.forward(&self.features(x)?)
     }
 
-    /// The head's activations (N, 1280, H/32, W/32) before pooling.
-    fn feature_map(&self, x: &Tensor) -> Result<Tensor> {
-        let y = self.feature_map_until(x, self.blocks.len())?;
-        pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)
+    /// The pooled head activations, then the pooled outputs of the pooled
+    /// blocks, in one row per image.
+    fn pooled_features(&self, x: &Tensor) -> Result<Tensor> {
+        let mut y = self.stem(x)?;
+        let mut parts = vec![];
+        for (i, b) in self.blocks.iter().enumerate() {
+            y = b.forward(&y)?;
+            if self.pooled_blocks.contains(&i) {
+                parts.push(pool(&y)?);
+            }
+        }
+        let head = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)?;
+        parts.insert(0, pool(&head)?);
+        Tensor::cat(&parts, 1)
+    }
+
+    fn stem(&self, x: &Tensor) -> Result<Tensor> {
+        let cols = im2col(x, 3, 2, Padding::Same)?;
+        pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)
     }
 
     /// Number of MBConv blocks (16 in Lite0).
@@ -405,8 +439,7 @@ impl EfficientNetLite {
         if stop > self.blocks.len() {
             candle_core::bail!("block {stop} of {} blocks", self.blocks.len());
         }
-        let cols = im2col(x, 3, 2, Padding::Same)?;
-        let mut y = pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)?;
+        let mut y = self.stem(x)?;
         for b in &self.blocks[..stop] {
             y = b.forward(&y)?;
         }
@@ -469,6 +502,21 @@ impl EfficientNetLite {
 }
 
 /// Global average pooling: (N, C, H, W) -> (N, C).
+/// Pooled block indices must name blocks of the network, each once, in
+/// order (the order of their channels in the feature vector).
+pub fn check_pooled_blocks(blocks: &[usize], count: usize) -> Result<()> {
+    if let Some(b) = blocks.iter().find(|&&b| b >= count) {
+        candle_core::bail!(
+            "pooled block {b}: the network has blocks 0 to {}",
+            count.saturating_sub(1)
+        );
+    }
+    if blocks.windows(2).any(|w| w[0] >= w[1]) {
+        candle_core::bail!("pooled blocks {blocks:?} must be strictly increasing");
+    }
+    Ok(())
+}
+
 fn pool(x: &Tensor) -> Result<Tensor> {
     x.flatten_from(2)?.mean(D::Minus1)
 }

@@ -40,6 +40,12 @@ impl Pixels {
     fn with_rows(&self, rows: Tensor) -> Self {
         Pixels { rows, ..*self }
     }
+
+    /// Global average pooling: (N, C).
+    fn pool(&self) -> Result<Tensor> {
+        let c = self.rows.dim(1)?;
+        self.rows.reshape((self.n, self.h * self.w, c))?.mean(1)
+    }
 }
 
 /// A folded convolution's trainable weight and bias.
@@ -116,10 +122,16 @@ impl TailBlock {
 
 /// Blocks `from..` of an EfficientNet-Lite and its head convolution, with
 /// global average pooling: activations (N, C, H, W) of block `from - 1` in,
-/// pooled features (N, 1280) out.
+/// pooled features (N, 1280) out, followed by the pooled outputs of the
+/// network's pooled blocks when it has some (see
+/// [`EfficientNetLite::set_pooled_blocks`](super::EfficientNetLite::set_pooled_blocks)).
 pub struct LiteTail {
     blocks: Vec<TailBlock>,
     head: Conv,
+    /// Whether the input (block `from - 1`'s output) is a pooled block.
+    pool_input: bool,
+    /// Positions in `blocks` of the pooled blocks.
+    pooled: Vec<usize>,
 }
 
 impl LiteTail {
@@ -137,19 +149,70 @@ impl LiteTail {
             .map(|(i, spec)| TailBlock::new(vb, *i, *spec))
             .collect::<Result<Vec<_>>>()?;
         let head = Conv::new(vb, "_conv_head", [*head_out, *head_in, 1, 1])?;
-        Ok(LiteTail { blocks, head })
+        Ok(LiteTail {
+            blocks,
+            head,
+            pool_input: false,
+            pooled: Vec::new(),
+        })
     }
 
-    /// Pooled features (N, 1280) of block activations (N, C, H, W).
+    /// Appends the pooled outputs of the network's `pooled_blocks` to the
+    /// features, as the inference network does (see [`tail_pooling`]).
+    pub fn with_pooled_blocks(mut self, from: usize, pooled_blocks: &[usize]) -> Result<Self> {
+        (self.pool_input, self.pooled) =
+            tail_pooling(from, from + self.blocks.len(), pooled_blocks)?;
+        Ok(self)
+    }
+
+    /// Pooled features (N, D) of block activations (N, C, H, W).
     pub fn forward(&self, map: &Tensor) -> Result<Tensor> {
         let mut y = Pixels::from_nchw(map)?;
-        for b in &self.blocks {
-            y = b.forward(&y)?;
+        let mut extra = Vec::with_capacity(self.pooled.len() + 1);
+        if self.pool_input {
+            extra.push(y.pool()?);
         }
-        let y = relu6(self.head.pointwise(&y)?)?;
-        let c = y.rows.dim(1)?;
-        y.rows.reshape((y.n, y.h * y.w, c))?.mean(1)
+        for (k, b) in self.blocks.iter().enumerate() {
+            y = b.forward(&y)?;
+            if self.pooled.contains(&k) {
+                extra.push(y.pool()?);
+            }
+        }
+        let head = relu6(self.head.pointwise(&y)?)?.pool()?;
+        if extra.is_empty() {
+            return Ok(head);
+        }
+        extra.insert(0, head);
+        Tensor::cat(&extra, 1)
     }
+}
+
+/// Where a tail from block `from` of a network of `count` blocks finds the
+/// pooled blocks: whether its input (block `from - 1`) is one, and the
+/// positions of the others among its own blocks. A pooled block before
+/// its input is not in the activation cache, and is refused.
+pub fn tail_pooling(
+    from: usize,
+    count: usize,
+    pooled_blocks: &[usize],
+) -> Result<(bool, Vec<usize>)> {
+    super::efficientnet_lite::check_pooled_blocks(pooled_blocks, count)?;
+    let mut pool_input = false;
+    let mut pooled = Vec::new();
+    for &b in pooled_blocks {
+        if b + 1 == from {
+            pool_input = true;
+        } else if b >= from {
+            pooled.push(b - from);
+        } else {
+            candle_core::bail!(
+                "pooled block {b} lies before the tuned blocks' input (block {}): tune more \
+                 blocks or pool later ones",
+                from.saturating_sub(1)
+            );
+        }
+    }
+    Ok((pool_input, pooled))
 }
 
 /// min(max(x, 0), 6) as relu(x) - relu(x - 6): candle's clamp goes through
@@ -350,6 +413,58 @@ mod tests {
         assert!(rel_diff(&net.features(&x).unwrap(), &changed) < 1e-5);
         // ... and leave the blocks before it alone
         assert!(max_diff(&net.feature_map_until(&x, from).unwrap(), &map) == 0.0);
+    }
+
+    /// The mean over pixels of `map` (N, C, H, W): (N, C).
+    fn mean_pool(map: &Tensor) -> Tensor {
+        map.flatten_from(2).unwrap().mean(2).unwrap()
+    }
+
+    #[test]
+    fn pooled_blocks_follow_the_head_in_the_network_and_in_the_tail() {
+        let dev = Device::Cpu;
+        let (mut net, _) = small_lite();
+        let x = Tensor::randn(0f32, 1., (2, 3, 96, 96), &dev).unwrap();
+        let head = net.features(&x).unwrap();
+        let pooled = [7, 10, 14, 15];
+        net.set_pooled_blocks(&pooled).unwrap();
+        let features = net.features(&x).unwrap();
+        assert_eq!(features.dims(), [2, net.feature_dim()]);
+
+        // the head's features, then each block's output averaged over pixels
+        let mut expected = vec![head];
+        for b in pooled {
+            expected.push(mean_pool(&net.feature_map_until(&x, b + 1).unwrap()));
+        }
+        let expected = Tensor::cat(&expected, 1).unwrap();
+        assert!(rel_diff(&features, &expected) < 1e-5);
+
+        // a tail from block 8 pools its input (block 7) and three of its blocks
+        let from = 8;
+        let vm = tail_varmap(&net.tail_tensors(from));
+        let vb = VarBuilder::from_varmap(&vm, DType::F32, &dev);
+        let tail = LiteTail::new(&vb, &net.tail_layout(from))
+            .unwrap()
+            .with_pooled_blocks(from, &pooled)
+            .unwrap();
+        let map = net.feature_map_until(&x, from).unwrap();
+        assert!(rel_diff(&tail.forward(&map).unwrap(), &features) < 1e-5);
+
+        // a pooled block before the tail's input is not in its cache
+        let late = LiteTail::new(&vb, &net.tail_layout(from)).unwrap();
+        let err = late.with_pooled_blocks(from, &[6, 10]).err().unwrap();
+        assert!(err.to_string().contains("pooled block 6"), "{err}");
+    }
+
+    #[test]
+    fn pooled_blocks_must_exist_and_increase() {
+        let (mut net, _) = small_lite();
+        for bad in [&[16][..], &[10, 7], &[7, 7]] {
+            assert!(net.set_pooled_blocks(bad).is_err(), "{bad:?}");
+        }
+        assert!(net.pooled_blocks().is_empty());
+        net.set_pooled_blocks(&[0, 15]).unwrap();
+        assert_eq!(net.pooled_blocks(), [0, 15]);
     }
 
     #[test]

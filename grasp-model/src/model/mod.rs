@@ -19,7 +19,7 @@ pub mod preprocess;
 pub mod weights;
 
 pub use efficientnet_lite::{BlockSpec, EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
-pub use lite_tail::LiteTail;
+pub use lite_tail::{tail_pooling, LiteTail};
 pub use mobilenet_v2::{make_divisible, MobileNetV2, MobileNetV2Config};
 
 /// The first NaN or infinite value of `t` (read in place when contiguous).

@@ -42,6 +42,16 @@ pub struct Prepared {
 /// `cfg.backbone` (EfficientNet-Lite0 by default). Pretrained files get
 /// their architecture's preprocessing at `cfg.input_size`.
 pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
+    let (mut info, pre) = unpooled_backbone(cfg)?;
+    if !cfg.pooled_blocks.is_empty() {
+        info.pooled_blocks = cfg.pooled_blocks.clone();
+    }
+    Ok((info, pre))
+}
+
+/// The backbone of [`frozen_backbone`] before `cfg.pooled_blocks` apply (a
+/// checkpoint keeps its own when none are asked for).
+fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
     let Some(path) = cfg.weights.as_ref() else {
         let arch = cfg.backbone.unwrap_or(Architecture::EfficientNetLite0);
         let variant = arch
@@ -129,8 +139,8 @@ pub fn prepare(
                 info.arch.name(),
                 acts.shape
             );
-            let (train, val) = cached_frames(cfg, splits, &acts, bad, dev)?;
             let start = TailStart::new(&bb, &acts)?;
+            let (train, val) = cached_frames(cfg, splits, &acts, bad, dev)?;
             let mut info = bb.info.clone();
             info.tuned = Some(TunedTail::new(start.from));
             Ok(Prepared {
@@ -202,6 +212,7 @@ pub(super) fn build_net(
                 weights_prefix: None,
                 source_checkpoint: None,
                 tuned: None,
+                pooled_blocks: Vec::new(),
             };
             let vm = VarMap::new();
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);

@@ -7,7 +7,7 @@ use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{Backbone, Network};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::model::{BlockSpec, EfficientNetLite, LiteTail};
+use grasp_model::model::{tail_pooling, BlockSpec, EfficientNetLite, LiteTail};
 use image::RgbImage;
 
 /// The pretrained EfficientNet-Lite of a backbone, or why there is none.
@@ -59,9 +59,10 @@ impl<'a> BlockActivations<'a> {
 
 impl FeatureExtractor for BlockActivations<'_> {
     fn id(&self) -> String {
+        // the pooled blocks change only what the tail reads from the cache
         format!(
             "{} activations before block {}",
-            self.backbone.id(),
+            self.backbone.network_id(),
             self.from
         )
     }
@@ -86,17 +87,23 @@ pub struct TailStart {
     pub layout: (Vec<(usize, BlockSpec)>, (usize, usize)),
     /// The pretrained folded tensors of the tuned blocks.
     pub tensors: Vec<(String, Tensor)>,
+    /// The network's pooled blocks, whose outputs the tail appends.
+    pub pooled_blocks: Vec<usize>,
 }
 
 impl TailStart {
     pub fn new(backbone: &Backbone, acts: &BlockActivations) -> Result<Self> {
         let net = lite(backbone)?;
-        Ok(TailStart {
+        let start = TailStart {
             from: acts.from,
             shape: acts.shape,
             layout: net.tail_layout(acts.from),
             tensors: net.tail_tensors(acts.from),
-        })
+            pooled_blocks: net.pooled_blocks().to_vec(),
+        };
+        // refused before any activation is cached, not when training starts
+        tail_pooling(start.from, net.block_count(), &start.pooled_blocks)?;
+        Ok(start)
     }
 }
 
@@ -119,7 +126,8 @@ impl Tail {
             }
         }
         let vb = VarBuilder::from_varmap(&vars, DType::F32, dev);
-        let module = LiteTail::new(&vb, &start.layout)?;
+        let module = LiteTail::new(&vb, &start.layout)?
+            .with_pooled_blocks(start.from, &start.pooled_blocks)?;
         Ok(Tail {
             vars,
             module,
