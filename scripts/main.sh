@@ -17,7 +17,9 @@
 #                   per pair and condition (62 videos each). The backbone is
 #                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
 #                   pip-installs; the heads see the central 42 % of each
-#                   frame (--center-crop) at 128 x 128 (--input-size),
+#                   frame (--center-crop) at 128 x 128 (--input-size);
+#                   the frozen heads read the pooled outputs of blocks 7,
+#                   10, 14 and 15 after the head's (--pooled-blocks),
 #                   EXPERIMENTS.md. About 37 minutes on 2 idle cores after
 #                   setup.
 #   --large         the same with 32 training sequences per pair (a third
@@ -40,7 +42,9 @@
 # Environment: SKIP_SETUP=1 skips scripts/setup.sh, BIN (target/release),
 # CONFIG overrides the config, TRAIN_SEQ / TEST_SEQ the sequences per pair,
 # SEEDS (3), CROP (0.42; "none" for whole frames, which needs a CONFIG
-# with center_region = 1), INPUT_SIZE (128, the backbone's input side).
+# with center_region = 1), INPUT_SIZE (128, the backbone's input side),
+# POOLED (7,10,14,15, the frozen heads' pooled blocks; "none" for the
+# head's features alone).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -52,7 +56,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,42p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,47p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -60,8 +64,8 @@ while [ $# -gt 0 ]; do
 done
 [ "$SCRATCH" = 0 ] || [ -z "$WEIGHTS" ] || { echo "--from-scratch takes no --weights" >&2; exit 2; }
 
-SEEDS=${SEEDS:-3}
-CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128}
+SEEDS=${SEEDS:-3} POOLED_FLAGS=()
+CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$LARGE" = 1 ]; then
@@ -84,11 +88,19 @@ else
   TRAIN_FLAGS=(--cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
   [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
   [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
+  # Lite0's blocks only (--weights may be MobileNetV2)
+  [ -n "$WEIGHTS" ] || [ "$POOLED" = none ] || POOLED_FLAGS=(--pooled-blocks "$POOLED")
 fi
+# The frozen heads read pooled blocks; the fine-tuned one does not, as they
+# cost it 3.6 points on unseen_look (EXPERIMENTS.md section 12).
 mode_flags() { # model
   case $1 in
     *-tuned) echo --mode fine-tuned --max-epochs 6 ;;
-    *) if [ "$SCRATCH" = 1 ]; then echo --mode from-scratch; else echo --mode frozen-pretrained; fi ;;
+    *) if [ "$SCRATCH" = 1 ]; then
+      echo --mode from-scratch
+    else
+      echo --mode frozen-pretrained "${POOLED_FLAGS[@]}"
+    fi ;;
   esac
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
