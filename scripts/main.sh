@@ -20,7 +20,7 @@
 #                   frame (--center-crop) at 128 x 128 (--input-size);
 #                   the frozen heads read the pooled outputs of blocks 7,
 #                   10, 14 and 15 after the head's (--pooled-blocks),
-#                   EXPERIMENTS.md. About 37 minutes on 2 idle cores after
+#                   EXPERIMENTS.md. About 35 minutes on 2 idle cores after
 #                   setup.
 #   --large         the same with 32 training sequences per pair (a third
 #                   more training renders and fine-tuning epochs).
