@@ -427,6 +427,13 @@ impl Backbone {
         vb: VarBuilder,
         device: &Device,
     ) -> Result<Self> {
+        if !info.pooled_blocks.is_empty() && info.arch.lite().is_none() {
+            return Err(ModelError::Invalid(format!(
+                "pooled blocks {:?}: only EfficientNet-Lite backbones pool their blocks, not {}",
+                info.pooled_blocks,
+                info.arch.name()
+            )));
+        }
         let net = match info.arch.lite() {
             None => Network::MobileNetV2(
                 MobileNetV2::new(vb, &info.config())
@@ -442,13 +449,6 @@ impl Backbone {
                 Network::EfficientNetLite(net)
             }
         };
-        if !info.pooled_blocks.is_empty() && info.arch.lite().is_none() {
-            return Err(ModelError::Invalid(format!(
-                "pooled blocks {:?}: only EfficientNet-Lite backbones pool their blocks, not {}",
-                info.pooled_blocks,
-                info.arch.name()
-            )));
-        }
         Ok(Backbone {
             net,
             info,

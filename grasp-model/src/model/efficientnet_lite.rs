@@ -501,7 +501,6 @@ impl EfficientNetLite {
     }
 }
 
-/// Global average pooling: (N, C, H, W) -> (N, C).
 /// Pooled block indices must name blocks of the network, each once, in
 /// order (the order of their channels in the feature vector).
 pub fn check_pooled_blocks(blocks: &[usize], count: usize) -> Result<()> {
@@ -517,6 +516,7 @@ pub fn check_pooled_blocks(blocks: &[usize], count: usize) -> Result<()> {
     Ok(())
 }
 
+/// Global average pooling: (N, C, H, W) -> (N, C).
 fn pool(x: &Tensor) -> Result<Tensor> {
     x.flatten_from(2)?.mean(D::Minus1)
 }
