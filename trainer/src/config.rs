@@ -207,6 +207,13 @@ impl TrainConfig {
                  augments every epoch instead (the `augment` settings)"
             );
         }
+        if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
+            anyhow::bail!(
+                "pooled_blocks (--pooled-blocks) {:?} are EfficientNet-Lite blocks, read in the \
+                 frozen-pretrained and fine-tuned modes; from-scratch trains a MobileNetV2",
+                self.pooled_blocks
+            );
+        }
         use grasp_model::backbone::Architecture;
         match (self.mode, self.backbone, &self.weights) {
             (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => anyhow::bail!(

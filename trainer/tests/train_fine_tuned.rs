@@ -193,6 +193,12 @@ fn fine_tuning_refuses_what_it_cannot_tune() {
     let err = format!("{:#}", none.validate().err().unwrap());
     assert!(err.contains("blocks must be at least 1"), "{err}");
 
+    let mut scratch = cfg(root, &weights);
+    scratch.mode = TrainMode::FromScratch;
+    scratch.pooled_blocks = vec![15];
+    let err = format!("{:#}", scratch.validate().err().unwrap());
+    assert!(err.contains("pooled_blocks"), "{err}");
+
     let mut mobilenet = cfg(root, &weights);
     mobilenet.backbone = Some(Architecture::MobileNetV2);
     let err = format!("{:#}", mobilenet.validate().err().unwrap());

@@ -418,8 +418,12 @@ impl EfficientNetLite {
                 parts.push(pool(&y)?);
             }
         }
-        let head = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)?;
-        parts.insert(0, pool(&head)?);
+        let map = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)?;
+        let head = pool(&map)?;
+        if parts.is_empty() {
+            return Ok(head);
+        }
+        parts.insert(0, head);
         Tensor::cat(&parts, 1)
     }
 
