@@ -27,9 +27,9 @@
 #             with the crop resized to 64-224 px, every test condition, and
 #             the sensor probes (unseen_look's noise and blur added to the
 #             default test frames).
-#   draws     four more draws of the default and unseen_look test sets (seeds
-#             5, 7, 9, 11), pooled with the main job's into one report per
-#             head and condition (310 videos).
+#   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
+#             with the main job's into one report per head and condition
+#             (310 videos); default and unseen_look unless DRAW_CONDITIONS.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -37,7 +37,7 @@
 # trainings and evaluations are kept. Knobs (environment): OUT, BIN, SEEDS
 # (3), CROP (0.42), INPUT_SIZE (128: the main job's input side, used by the
 # size stage; the studies' heads keep the trainer's default, 224), DRAW_SEEDS
-# (the draws stage's test seeds).
+# (the draws stage's test seeds), DRAW_CONDITIONS (its test conditions).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/experiments}
@@ -46,6 +46,7 @@ SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
+DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s
@@ -235,13 +236,13 @@ stage_input() {
   done
 }
 
-# More draws of the default and unseen_look test sets (seeds 5, 7, 9, 11; the
-# main job's settings), scored with the main job's own (seed 3) as one pooled
-# set of 310 videos per condition: a binomial error near 2 points, not 4.5.
+# More draws of the test sets (seeds 5, 7, 9, 11; the main job's settings),
+# scored with the main job's own (seed 3) as one pooled set of 310 videos per
+# condition: a binomial error near 2 points, not 4.5.
 stage_draws() {
   local main="$OUT/main" c h sd roots
   mkdir -p "$OUT/draws"
-  for c in default unseen_look; do
+  for c in $DRAW_CONDITIONS; do
     roots=(--data "$main/data/test-$c")
     for sd in $DRAW_SEEDS; do
       # The main job's own test config with another seed.

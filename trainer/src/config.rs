@@ -61,6 +61,12 @@ pub struct TrainConfig {
     /// Truncated back-propagation through time: LSTM chunk length in frames
     /// (0: whole sequences).
     pub tbptt: usize,
+    /// LSTM training: each sequence of a batch starts at a random frame
+    /// among its first `lstm_start_crop` fraction (seeded), so the head does
+    /// not learn to need the reach's opening frames, which a reach from
+    /// another start (`from_ground`, `seated`) does not show. 0: whole
+    /// sequences, the paper's. Validation and evaluation see whole sequences.
+    pub lstm_start_crop: f64,
     pub split: SplitConfig,
     /// Keep at most this many training sequences per object-part pair
     /// (chosen by `split.seed`, nested as it grows; validation and test
@@ -107,6 +113,7 @@ impl Default for TrainConfig {
             seed: 0,
             lstm_hidden: 256,
             tbptt: 0,
+            lstm_start_crop: 0.0,
             split: SplitConfig::default(),
             sequences_per_pair: None,
             reader: ReaderOptions::default(),
@@ -250,6 +257,20 @@ impl TrainConfig {
                 ft.weight_decay
             );
         }
+        if !(0.0..=1.0).contains(&self.lstm_start_crop) {
+            anyhow::bail!(
+                "lstm_start_crop (--lstm-start-crop) must be a fraction in [0, 1], got {}",
+                self.lstm_start_crop
+            );
+        }
+        if self.lstm_start_crop > 0.0 && self.head != HeadKind::Lstm {
+            anyhow::bail!(
+                "lstm_start_crop (--lstm-start-crop) {} crops training sequences for the LSTM \
+                 head; the {} head reads single frames",
+                self.lstm_start_crop,
+                self.head.name()
+            );
+        }
         if self.sequences_per_pair == Some(0) {
             anyhow::bail!("sequences_per_pair must be at least 1");
         }
@@ -308,5 +329,33 @@ mod tests {
         assert_eq!(cfg.batch_size_for(false), 4);
         cfg.batch_size = Some(7);
         assert_eq!(cfg.batch_size_for(false), 7);
+    }
+
+    #[test]
+    fn lstm_start_crop_is_a_fraction_for_the_lstm_head_only() {
+        let lstm = TrainConfig {
+            data: "d".into(),
+            head: HeadKind::Lstm,
+            lstm_start_crop: 0.5,
+            ..Default::default()
+        };
+        lstm.validate().unwrap();
+        for bad in [-0.1, 1.5, f64::NAN] {
+            let cfg = TrainConfig {
+                lstm_start_crop: bad,
+                ..lstm.clone()
+            };
+            let err = format!("{:#}", cfg.validate().unwrap_err());
+            assert!(err.contains("lstm_start_crop"), "{err}");
+        }
+        let fc = TrainConfig {
+            head: HeadKind::Fc,
+            ..lstm
+        };
+        let err = format!("{:#}", fc.validate().unwrap_err());
+        assert!(
+            err.contains("--lstm-start-crop") && err.contains("fc head"),
+            "{err}"
+        );
     }
 }

@@ -221,6 +221,11 @@ struct TrainArgs {
     /// LSTM truncated back-propagation length in frames (0: whole sequence).
     #[arg(long)]
     tbptt: Option<usize>,
+    /// LSTM head: start each training sequence at a random frame among its
+    /// first FRACTION (0: whole sequences, the paper's), so that the head
+    /// does not depend on the reach's opening frames.
+    #[arg(long, value_name = "FRACTION")]
+    lstm_start_crop: Option<f64>,
     /// Frame rate of the authors' real data.
     #[arg(long)]
     real_fps: Option<f64>,
@@ -398,6 +403,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.seed, args.seed);
     set!(cfg.cache_dir, args.cache_dir);
     set!(cfg.tbptt, args.tbptt);
+    set!(cfg.lstm_start_crop, args.lstm_start_crop);
     set!(cfg.reader.real_fps, args.real_fps);
     set!(cfg.reader.camera, args.camera);
     cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);

@@ -23,6 +23,9 @@ pub struct Net {
     pub tail: Option<Tail>,
     pub augment: crate::data::augment::AugmentConfig,
     pub tbptt: usize,
+    /// The fraction of each training sequence's first frames that its
+    /// start is drawn from (LSTM head; 0: whole sequences).
+    pub start_crop: f64,
 }
 
 impl Net {
@@ -135,14 +138,14 @@ impl Net {
         rng: &mut impl Rng,
     ) -> Result<Batch> {
         let dev = Device::Cpu;
-        let t_max = seqs
+        let crop = if train { self.start_crop } else { 0.0 };
+        let seq_rows: Vec<&[usize]> = seqs
             .iter()
-            .map(|s| frames.seq_rows[*s].len())
-            .max()
-            .unwrap_or(0);
+            .map(|s| cropped_start(&frames.seq_rows[*s], crop, rng))
+            .collect();
+        let t_max = seq_rows.iter().map(|r| r.len()).max().unwrap_or(0);
         let (mut rows, mut targets, mut mask) = (Vec::new(), Vec::new(), Vec::new());
-        for s in seqs {
-            let r = &frames.seq_rows[*s];
+        for r in seq_rows {
             let pad = t_max - r.len();
             rows.extend(r.iter().map(|row| Some(*row)));
             rows.extend(std::iter::repeat_n(None, pad));
@@ -245,5 +248,65 @@ impl Batch {
             Some(m) => m.sum_all()?.to_scalar::<f32>()? as usize,
             None => self.targets.dim(0)?,
         })
+    }
+}
+
+/// `rows` from a start drawn uniformly among its first `fraction` of frames
+/// (at least one frame is always kept; 0: all of `rows`, no draw).
+fn cropped_start<'a>(rows: &'a [usize], fraction: f64, rng: &mut impl Rng) -> &'a [usize] {
+    if fraction <= 0.0 || rows.len() < 2 {
+        return rows;
+    }
+    let last_start = ((rows.len() as f64 * fraction).floor() as usize).min(rows.len() - 1);
+    &rows[rng.gen_range(0..=last_start)..]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cropped_start;
+    use rand::Rng;
+
+    #[test]
+    fn no_fraction_or_one_frame_keeps_the_sequence_and_draws_nothing() {
+        let rows: Vec<usize> = (10..18).collect();
+        let mut rng = crate::rng::stream(0, "crop");
+        let before = rng.clone();
+        assert_eq!(cropped_start(&rows, 0.0, &mut rng), &rows[..]);
+        assert_eq!(cropped_start(&rows[..1], 1.0, &mut rng), &rows[..1]);
+        assert_eq!(cropped_start(&[], 1.0, &mut rng), &[] as &[usize]);
+        assert_eq!(rng.gen::<u64>(), before.clone().gen::<u64>());
+    }
+
+    #[test]
+    fn starts_cover_the_fraction_and_never_pass_it() {
+        let rows: Vec<usize> = (0..10).collect();
+        let mut rng = crate::rng::stream(1, "crop");
+        let mut seen = [0usize; 10];
+        for _ in 0..3000 {
+            let kept = cropped_start(&rows, 0.5, &mut rng);
+            assert_eq!(kept.last(), Some(&9), "the end of the reach is always kept");
+            seen[kept[0]] += 1;
+        }
+        // floor(10 x 0.5) = 5: starts 0..=5, each about a sixth of the draws.
+        for (start, n) in seen.iter().enumerate() {
+            if start <= 5 {
+                assert!((350..650).contains(n), "start {start} drawn {n} times");
+            } else {
+                assert_eq!(*n, 0, "start {start} is past the fraction");
+            }
+        }
+    }
+
+    #[test]
+    fn a_whole_fraction_may_start_on_the_last_frame_but_keeps_one() {
+        let rows = [4usize, 5, 6];
+        let mut rng = crate::rng::stream(2, "crop");
+        let mut shortest = usize::MAX;
+        for _ in 0..200 {
+            let kept = cropped_start(&rows, 1.0, &mut rng);
+            assert!(!kept.is_empty());
+            shortest = shortest.min(kept.len());
+        }
+        assert_eq!(shortest, 1);
     }
 }

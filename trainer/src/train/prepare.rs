@@ -241,6 +241,7 @@ pub(super) fn build_net(
             tail: prep.tail.as_ref().map(|t| Tail::new(t, dev)).transpose()?,
             augment: cfg.augment.clone(),
             tbptt: cfg.tbptt,
+            start_crop: cfg.lstm_start_crop,
         },
         info,
     ))
