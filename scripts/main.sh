@@ -97,7 +97,7 @@ fi
 # The frozen heads read pooled blocks; the fine-tuned one does not, as they
 # cost it 3.6 points on unseen_look (EXPERIMENTS.md section 12). The LSTM
 # trains on sequences started anywhere in their first half, which a reach
-# from the ground needs (section 2).
+# from the ground needs (section 13).
 mode_flags() { # model
   case $1 in
     *-tuned) echo --mode fine-tuned --max-epochs 6 ;;

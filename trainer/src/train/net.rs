@@ -270,11 +270,11 @@ mod tests {
     fn no_fraction_or_one_frame_keeps_the_sequence_and_draws_nothing() {
         let rows: Vec<usize> = (10..18).collect();
         let mut rng = crate::rng::stream(0, "crop");
-        let before = rng.clone();
+        let mut untouched = rng.clone();
         assert_eq!(cropped_start(&rows, 0.0, &mut rng), &rows[..]);
         assert_eq!(cropped_start(&rows[..1], 1.0, &mut rng), &rows[..1]);
         assert_eq!(cropped_start(&[], 1.0, &mut rng), &[] as &[usize]);
-        assert_eq!(rng.gen::<u64>(), before.clone().gen::<u64>());
+        assert_eq!(rng.gen::<u64>(), untouched.gen::<u64>());
     }
 
     #[test]
