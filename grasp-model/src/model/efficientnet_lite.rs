@@ -419,12 +419,7 @@ impl EfficientNetLite {
             }
         }
         let map = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)?;
-        let head = pool(&map)?;
-        if parts.is_empty() {
-            return Ok(head);
-        }
-        parts.insert(0, head);
-        Tensor::cat(&parts, 1)
+        head_then_blocks(pool(&map)?, parts)
     }
 
     fn stem(&self, x: &Tensor) -> Result<Tensor> {
@@ -518,6 +513,16 @@ pub fn check_pooled_blocks(blocks: &[usize], count: usize) -> Result<()> {
         candle_core::bail!("pooled blocks {blocks:?} must be strictly increasing");
     }
     Ok(())
+}
+
+/// The feature vector's layout, shared with the fine-tuned tail: the pooled
+/// head (N, 1280), then the pooled blocks' outputs in block order.
+pub(super) fn head_then_blocks(head: Tensor, mut blocks: Vec<Tensor>) -> Result<Tensor> {
+    if blocks.is_empty() {
+        return Ok(head);
+    }
+    blocks.insert(0, head);
+    Tensor::cat(&blocks, 1)
 }
 
 /// Global average pooling: (N, C, H, W) -> (N, C).

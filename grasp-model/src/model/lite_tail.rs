@@ -8,7 +8,7 @@
 //! the tuned tensors back into the fused inference kernels.
 
 use super::depthwise::{depthwise_conv, Padding};
-use super::efficientnet_lite::BlockSpec;
+use super::efficientnet_lite::{head_then_blocks, BlockSpec};
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 
@@ -178,12 +178,7 @@ impl LiteTail {
                 extra.push(y.pool()?);
             }
         }
-        let head = relu6(self.head.pointwise(&y)?)?.pool()?;
-        if extra.is_empty() {
-            return Ok(head);
-        }
-        extra.insert(0, head);
-        Tensor::cat(&extra, 1)
+        head_then_blocks(relu6(self.head.pointwise(&y)?)?.pool()?, extra)
     }
 }
 
