@@ -7,7 +7,8 @@ use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
 use crate::model::{
-    EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
+    ChannelStyle, EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2,
+    MobileNetV2Config,
 };
 use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
@@ -510,6 +511,24 @@ impl FeatureExtractor for Backbone {
     fn extract(&self, images: &[RgbImage]) -> Result<Tensor> {
         let x = self.input(images)?;
         Ok(self.net.features(&x, false)?)
+    }
+
+    fn block_channels(&self) -> Vec<usize> {
+        match &self.net {
+            Network::EfficientNetLite(n) => n.block_channels(),
+            Network::MobileNetV2(_) => Vec::new(),
+        }
+    }
+
+    fn extract_styled(&self, images: &[RgbImage], styles: &[Vec<ChannelStyle>]) -> Result<Tensor> {
+        let Network::EfficientNetLite(net) = &self.net else {
+            return Err(ModelError::Invalid(format!(
+                "{} cannot restyle its blocks: style views need an EfficientNet-Lite backbone",
+                self.info.arch.name()
+            )));
+        };
+        let x = self.input(images)?;
+        Ok(net.styled_features(&x, styles)?)
     }
 }
 

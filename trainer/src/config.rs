@@ -214,6 +214,28 @@ impl TrainConfig {
                  augments every epoch instead (the `augment` settings)"
             );
         }
+        if self.views.style > 0.0 {
+            if self.views.count == 0 {
+                anyhow::bail!(
+                    "views.style (--view-style) {} restyles the extra views, but there are none: \
+                     set views.count (--feature-views)",
+                    self.views.style
+                );
+            }
+            if self.mode != TrainMode::FrozenPretrained {
+                anyhow::bail!(
+                    "views.style (--view-style) restyles the blocks of the frozen backbone while \
+                     its features are cached; the {} mode does not cache them",
+                    self.mode.name()
+                );
+            }
+            if self.backbone == Some(grasp_model::backbone::Architecture::MobileNetV2) {
+                anyhow::bail!(
+                    "views.style (--view-style) needs an EfficientNet-Lite backbone, not \
+                     MobileNetV2"
+                );
+            }
+        }
         if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
                 "pooled_blocks (--pooled-blocks) {:?} are EfficientNet-Lite blocks, read in the \
@@ -329,6 +351,52 @@ mod tests {
         assert_eq!(cfg.batch_size_for(false), 4);
         cfg.batch_size = Some(7);
         assert_eq!(cfg.batch_size_for(false), 7);
+    }
+
+    #[test]
+    fn style_views_are_for_the_frozen_efficientnet_lite_only() {
+        let styled = TrainConfig {
+            data: "d".into(),
+            views: ViewConfig {
+                count: 2,
+                style: 0.3,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        styled.validate().unwrap();
+        let tuned = TrainConfig {
+            mode: TrainMode::FineTuned,
+            ..styled.clone()
+        };
+        let err = format!("{:#}", tuned.validate().unwrap_err());
+        assert!(
+            err.contains("--view-style") && err.contains("fine-tuned"),
+            "{err}"
+        );
+        let mnv2 = TrainConfig {
+            backbone: Some(grasp_model::backbone::Architecture::MobileNetV2),
+            ..styled.clone()
+        };
+        let err = format!("{:#}", mnv2.validate().unwrap_err());
+        assert!(err.contains("MobileNetV2"), "{err}");
+        for (style, blocks) in [
+            (-0.1, vec![2]),
+            (1.5, vec![2]),
+            (f32::NAN, vec![2]),
+            (0.3, vec![]),
+        ] {
+            let cfg = TrainConfig {
+                views: ViewConfig {
+                    style,
+                    style_blocks: blocks,
+                    ..styled.views.clone()
+                },
+                ..styled.clone()
+            };
+            let err = format!("{:#}", cfg.validate().unwrap_err());
+            assert!(err.contains("views.style"), "{style}: {err}");
+        }
     }
 
     #[test]

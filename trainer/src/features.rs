@@ -132,6 +132,10 @@ fn sequence_hash(seq: &Sequence) -> Result<String> {
         h.update(b"probe");
         h.update(serde_json::to_vec(p)?);
     }
+    if let Some(s) = &seq.style {
+        h.update(b"style");
+        h.update(serde_json::to_vec(s)?);
+    }
     for f in &seq.frames {
         let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());
         h.update(abs.to_string_lossy().as_bytes());
@@ -156,19 +160,27 @@ fn compute(
     let dim = ex.feature_dim();
     let mut rows = Vec::with_capacity(seq.frames.len() * dim);
     let mut valid = Vec::with_capacity(seq.frames.len());
+    let channels = ex.block_channels();
     for (c, chunk) in seq.frames.chunks(batch).enumerate() {
         let mut images = Vec::with_capacity(chunk.len());
+        let mut styles = vec![];
         for i in 0..chunk.len() {
-            let img = seq.load_frame(c * batch + i, bad)?;
+            let frame = c * batch + i;
+            let img = seq.load_frame(frame, bad)?;
             valid.push(img.is_some());
+            if let (Some(_), Some(style)) = (&img, &seq.style) {
+                styles.push(style.frame_styles(frame + seq.first_frame, &channels)?);
+            }
             images.extend(img);
         }
         if images.is_empty() {
             continue;
         }
-        let t = ex
-            .extract(&images)
-            .with_context(|| format!("feature extraction failed in {}", seq.dir.display()))?;
+        let t = match seq.style {
+            None => ex.extract(&images),
+            Some(_) => ex.extract_styled(&images, &styles),
+        }
+        .with_context(|| format!("feature extraction failed in {}", seq.dir.display()))?;
         let v: Vec<f32> = t.to_dtype(DType::F32)?.flatten_all()?.to_vec1()?;
         if let Some(i) = v.iter().position(|x| !x.is_finite()) {
             anyhow::bail!(

@@ -240,6 +240,12 @@ struct TrainArgs {
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
     feature_views: Option<usize>,
+    /// Frozen mode, with --feature-views: style views, which also move the
+    /// channel statistics of some backbone blocks' outputs (`[views]
+    /// style_blocks`; Lite0's 2, 4, 7 by default) by draws of this standard
+    /// deviation, a new draw every frame (0: off; the main job uses 0.3).
+    #[arg(long, value_name = "SIGMA")]
+    view_style: Option<f32>,
     /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
     /// its head convolution) with the head.
     #[arg(long, value_name = "N")]
@@ -408,6 +414,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.reader.camera, args.camera);
     cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
     set!(cfg.views.count, args.feature_views);
+    set!(cfg.views.style, args.view_style);
     set!(cfg.fine_tune.blocks, args.tune_blocks);
     set!(cfg.fine_tune.lr, args.tune_lr);
     set!(cfg.fine_tune.probe_epochs, args.probe_epochs);

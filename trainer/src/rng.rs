@@ -2,7 +2,7 @@
 //! stream derived from the run seed and a name, so adding draws in one place
 //! never shifts another, and runs repeat exactly.
 
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sha2::{Digest, Sha256};
 
@@ -13,6 +13,13 @@ pub fn stream(seed: u64, name: &str) -> ChaCha8Rng {
     h.update(name.as_bytes());
     let digest: [u8; 32] = h.finalize().into();
     ChaCha8Rng::from_seed(digest)
+}
+
+/// One standard normal draw (Box-Muller).
+pub fn standard_normal(rng: &mut impl Rng) -> f32 {
+    let u1: f32 = rng.gen::<f32>().max(f32::MIN_POSITIVE);
+    let u2: f32 = rng.gen();
+    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
 }
 
 #[cfg(test)]

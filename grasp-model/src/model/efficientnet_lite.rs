@@ -36,6 +36,7 @@ use super::batch_norm::BatchNorm2d;
 use super::depthwise::{depthwise_conv_bias_act, Padding};
 use super::mobilenet_v2::make_divisible;
 use super::pointwise::{im2col, pointwise_conv_bias_act};
+use super::style::{restyle, ChannelStyle};
 
 /// Batch-norm epsilon of the TensorFlow-trained files.
 pub const BN_EPS: f64 = 1e-3;
@@ -390,13 +391,43 @@ impl EfficientNetLite {
             );
         }
         if n == 1 {
-            return self.pooled_features(x);
+            return self.pooled_features(x, &[]);
         }
         let rows = (0..n)
             .into_par_iter()
-            .map(|i| self.pooled_features(&x.narrow(0, i, 1)?))
+            .map(|i| self.pooled_features(&x.narrow(0, i, 1)?, &[]))
             .collect::<Result<Vec<_>>>()?;
         Tensor::cat(&rows, 0)
+    }
+
+    /// [`Self::features`] with some blocks' outputs restyled: `styles[i]`
+    /// for image `i` (see [`ChannelStyle`]).
+    pub fn styled_features(&self, x: &Tensor, styles: &[Vec<ChannelStyle>]) -> Result<Tensor> {
+        let n = x.dim(0)?;
+        if styles.len() != n {
+            candle_core::bail!("{} styles for {n} images", styles.len());
+        }
+        if let Some(s) = styles
+            .iter()
+            .flatten()
+            .find(|s| s.block >= self.blocks.len())
+        {
+            candle_core::bail!(
+                "no block {} to restyle: {} blocks",
+                s.block,
+                self.blocks.len()
+            );
+        }
+        let rows = (0..n)
+            .into_par_iter()
+            .map(|i| self.pooled_features(&x.narrow(0, i, 1)?, &styles[i]))
+            .collect::<Result<Vec<_>>>()?;
+        Tensor::cat(&rows, 0)
+    }
+
+    /// Output channels of each block, in order.
+    pub fn block_channels(&self) -> Vec<usize> {
+        self.blocks.iter().map(|b| b.spec.cout).collect()
     }
 
     /// ImageNet logits (N, classes); needs the `_fc` layer.
@@ -408,12 +439,13 @@ impl EfficientNetLite {
     }
 
     /// The pooled head activations, then the pooled outputs of the pooled
-    /// blocks, in one row per image.
-    fn pooled_features(&self, x: &Tensor) -> Result<Tensor> {
+    /// blocks, in one row per image; `styles` restyle block outputs on the way.
+    fn pooled_features(&self, x: &Tensor, styles: &[ChannelStyle]) -> Result<Tensor> {
         let mut y = self.stem(x)?;
         let mut parts = vec![];
         for (i, b) in self.blocks.iter().enumerate() {
             y = b.forward(&y)?;
+            y = restyle(y, i, styles)?;
             if self.pooled_blocks.contains(&i) {
                 parts.push(pool(&y)?);
             }

@@ -16,11 +16,13 @@ pub mod lstm;
 mod mobilenet_v2;
 pub mod pointwise;
 pub mod preprocess;
+pub mod style;
 pub mod weights;
 
 pub use efficientnet_lite::{BlockSpec, EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
 pub use lite_tail::{tail_pooling, LiteTail};
 pub use mobilenet_v2::{make_divisible, MobileNetV2, MobileNetV2Config};
+pub use style::ChannelStyle;
 
 /// The first NaN or infinite value of `t` (read in place when contiguous).
 pub fn first_non_finite(t: &candle_core::Tensor) -> candle_core::Result<Option<f32>> {

@@ -8,6 +8,7 @@ pub mod images;
 pub mod probe;
 pub mod reader;
 pub mod split;
+pub mod style;
 pub mod synthetic;
 pub mod view;
 
@@ -73,6 +74,10 @@ pub struct Sequence {
     /// (`eval --probe-noise/--probe-blur`); None: the frames as rendered.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe: Option<probe::SensorProbe>,
+    /// Block outputs restyled in the frozen backbone (a style view,
+    /// [`view::with_views`]); None: the backbone as it is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub style: Option<style::StyleDraw>,
 }
 
 impl Sequence {

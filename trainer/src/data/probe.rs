@@ -8,7 +8,6 @@
 //! sensor views (`[views] noise`, `blur_px`) draw one probe per view.
 
 use image::RgbImage;
-use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 /// Degradation added to every frame.
@@ -66,7 +65,7 @@ impl SensorProbe {
             let mut rng = crate::rng::stream(0, &format!("probe/{key}"));
             let scale = 255.0 * self.noise_sigma;
             for v in out.iter_mut() {
-                let noisy = f32::from(*v) + scale * standard_normal(&mut rng);
+                let noisy = f32::from(*v) + scale * crate::rng::standard_normal(&mut rng);
                 *v = noisy.round().clamp(0.0, 255.0) as u8;
             }
         }
@@ -80,13 +79,6 @@ impl SensorProbe {
             self.noise_sigma, self.blur_sigma_px
         )
     }
-}
-
-/// One standard normal draw (Box-Muller).
-fn standard_normal(rng: &mut impl Rng) -> f32 {
-    let u1: f32 = rng.gen::<f32>().max(f32::MIN_POSITIVE);
-    let u2: f32 = rng.gen();
-    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
 }
 
 #[cfg(test)]

@@ -182,6 +182,7 @@ fn from_record(
         rendered_region: (region < 1.0).then_some(region),
         view: None,
         probe: None,
+        style: None,
     }
 }
 
@@ -210,6 +211,7 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         rendered_region: None,
         view: None,
         probe: None,
+        style: None,
     })
 }
 

@@ -160,6 +160,7 @@ mod tests {
                     rendered_region: None,
                     view: None,
                     probe: None,
+                    style: None,
                 });
             }
         }

@@ -6,7 +6,9 @@
 //! when `noise` or `blur_px` is set, a noisier or softer sensor (the
 //! evaluation probe's degradation, [`SensorProbe`]). A view is one draw per
 //! sequence, the same for all its frames, as a slightly different lens,
-//! aim, white balance and sensor would be.
+//! aim, white balance and sensor would be. With `style` set, a view also
+//! restyles some of the backbone's block outputs, a new draw every frame
+//! ([`super::style`]).
 
 use super::augment::jitter;
 use super::probe::{SensorProbe, MAX_BLUR_PX, MAX_NOISE_SIGMA};
@@ -16,7 +18,7 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 /// How many views, and how far they stray from the plain centre crop.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ViewConfig {
     /// Extra views per training sequence (0: the frames as they are).
@@ -36,7 +38,21 @@ pub struct ViewConfig {
     /// Gaussian defocus blur before that noise, pixels of the frame, drawn
     /// uniformly from this range. [0, 0]: none.
     pub blur_px: [f32; 2],
+    /// Style views: the outputs of `style_blocks` get each channel's mean
+    /// moved by N(0, style) of its spread and its spread scaled by
+    /// exp(N(0, style)), drawn per frame. 0: off.
+    pub style: f32,
+    /// The blocks restyled (EfficientNet-Lite's block indices; the default
+    /// ends Lite0's stages 1, 2 and 3).
+    pub style_blocks: Vec<usize>,
 }
+
+/// Style views' blocks by default: the ends of Lite0's 24-, 40- and
+/// 80-channel stages, where the look is still separate from the layout.
+pub const DEFAULT_STYLE_BLOCKS: [usize; 3] = [2, 4, 7];
+
+/// Style strengths accepted: at 1 a channel's spread varies by e either way.
+pub const MAX_STYLE: f32 = 1.0;
 
 impl Default for ViewConfig {
     fn default() -> Self {
@@ -47,6 +63,8 @@ impl Default for ViewConfig {
             color: 0.2,
             noise: [0.0, 0.0],
             blur_px: [0.0, 0.0],
+            style: 0.0,
+            style_blocks: DEFAULT_STYLE_BLOCKS.to_vec(),
         }
     }
 }
@@ -80,6 +98,16 @@ impl ViewConfig {
             range_ok(self.blur_px, MAX_BLUR_PX),
             "views.blur_px must be a range [low, high] within [0, 50] pixels, got {:?}",
             self.blur_px
+        );
+        anyhow::ensure!(
+            self.style.is_finite() && (0.0..=MAX_STYLE).contains(&self.style),
+            "views.style must be in [0, {MAX_STYLE}], got {}",
+            self.style
+        );
+        anyhow::ensure!(
+            self.style == 0.0 || !self.style_blocks.is_empty(),
+            "views.style is {} but views.style_blocks is empty: name the blocks to restyle",
+            self.style
         );
         Ok(())
     }
@@ -154,6 +182,7 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
             v.id = format!("{}#view{k}", seq.id);
             v.view = Some(ViewJitter::draw(cfg, &mut rng));
             v.probe = draw_sensor(cfg, &mut rng);
+            v.style = super::style::draw(cfg.style, &cfg.style_blocks, &mut rng);
             sequences.push(v);
         }
     }
@@ -273,13 +302,18 @@ mod tests {
             scale: 0.0,
             shift: 0.0,
             color: 0.0,
-            ..cfg
+            ..cfg.clone()
         };
         assert_eq!(ViewJitter::draw(&none, &mut a), plain());
-        assert!(ViewConfig { scale: 2.0, ..cfg }.validate().is_err());
+        assert!(ViewConfig {
+            scale: 2.0,
+            ..cfg.clone()
+        }
+        .validate()
+        .is_err());
         assert!(ViewConfig {
             color: f32::NAN,
-            ..cfg
+            ..cfg.clone()
         }
         .validate()
         .is_err());
@@ -305,6 +339,7 @@ mod tests {
             rendered_region: None,
             view: None,
             probe: None,
+            style: None,
         }
     }
 
@@ -375,13 +410,18 @@ mod tests {
         }
         for bad in [[0.02, 0.01], [-0.1, 0.0], [0.0, f32::NAN], [0.0, 2.0]] {
             assert!(
-                ViewConfig { noise: bad, ..cfg }.validate().is_err(),
+                ViewConfig {
+                    noise: bad,
+                    ..cfg.clone()
+                }
+                .validate()
+                .is_err(),
                 "{bad:?}"
             );
         }
         assert!(ViewConfig {
             blur_px: [0.0, 60.0],
-            ..cfg
+            ..cfg.clone()
         }
         .validate()
         .is_err());

@@ -1,0 +1,144 @@
+//! Style views (`--feature-views N --view-style SIGMA`): the frozen
+//! EfficientNet-Lite sees a view's frames with some blocks' channel
+//! statistics moved, a new draw per frame. Their features differ from the
+//! plain view's, repeat exactly, are cached under their own keys, and a
+//! style of zero strength changes nothing.
+
+use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
+use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::extractor::FeatureExtractor;
+use grasp_model::heads::HeadKind;
+use std::path::{Path, PathBuf};
+use trainer::config::TrainConfig;
+use trainer::data::style::StyleDraw;
+use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::data::{BadData, OnBadData};
+use trainer::features::FeatureCache;
+
+/// A small generated dataset in `root/data` and random EfficientNet-Lite0
+/// weights (returned) beside it.
+fn data_and_weights(root: &Path) -> PathBuf {
+    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, grasp_model::model::LiteVariant::Lite0, 3).unwrap();
+    weights
+}
+
+fn cfg(root: &Path, weights: &Path, out: &str) -> TrainConfig {
+    TrainConfig {
+        data: root.join("data"),
+        out: root.join(out),
+        mode: TrainMode::FrozenPretrained,
+        head: HeadKind::Fc,
+        weights: Some(weights.to_path_buf()),
+        input_size: 32,
+        cache_dir: root.join("cache"),
+        batch_size: Some(16),
+        max_epochs: 2,
+        ..Default::default()
+    }
+}
+
+fn cache_entries(root: &Path) -> usize {
+    std::fs::read_dir(root.join("cache"))
+        .unwrap()
+        .map(|key| std::fs::read_dir(key.unwrap().path()).unwrap().count())
+        .sum()
+}
+
+#[test]
+fn styled_features_differ_repeat_and_vanish_at_zero_strength() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let weights = data_and_weights(root);
+    let dev = candle_core::Device::Cpu;
+    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    let net =
+        Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(32), &dev)
+            .unwrap();
+    assert_eq!(net.block_channels().len(), 16);
+
+    let data = trainer::data::reader::read_dataset(
+        &root.join("data"),
+        &Default::default(),
+        &BadData::new(OnBadData::Fail),
+    )
+    .unwrap();
+    let plain = data.sequences[0].clone();
+    let styled = |sigma: f32, seed: u64| {
+        let mut s = plain.clone();
+        s.style = Some(StyleDraw {
+            sigma,
+            blocks: vec![2, 4, 7],
+            seed,
+        });
+        s
+    };
+    let bad = BadData::new(OnBadData::Fail);
+    let features = |cache: &str, seq: &trainer::data::Sequence| {
+        FeatureCache::new(root.join(cache), 8)
+            .sequence(&net, seq, &bad)
+            .unwrap()
+    };
+    let (base, _) = features("a", &plain);
+    let (moved, hit) = features("a", &styled(0.5, 1));
+    assert!(!hit, "a style is not the plain view's cache entry");
+    let (again, hit) = features("b", &styled(0.5, 1));
+    assert!(!hit);
+    assert_eq!(moved.rows, again.rows, "a style's draws repeat");
+    let (other, _) = features("a", &styled(0.5, 2));
+    let diff = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0f32, f32::max)
+    };
+    assert!(
+        diff(&base.rows, &moved.rows) > 1e-3,
+        "the style moved nothing"
+    );
+    assert!(
+        diff(&moved.rows, &other.rows) > 1e-3,
+        "the seed drew nothing"
+    );
+    // Zero strength: shifts 0 and scales 1, the plain features (up to the
+    // spread's epsilon).
+    let (none, _) = features("a", &styled(0.0, 1));
+    assert!(diff(&base.rows, &none.rows) < 1e-3);
+}
+
+#[test]
+fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let weights = data_and_weights(root);
+
+    let mut views = cfg(root, &weights, "views");
+    views.views.count = 1;
+    trainer::experiment::run(&views, 1).unwrap();
+    let plain_entries = cache_entries(root);
+    let mut styled = cfg(root, &weights, "styled");
+    styled.views.count = 1;
+    styled.views.style = 0.3;
+    let run = trainer::experiment::run(&styled, 1).unwrap();
+    let train = Classifier::load(&run.runs[0].checkpoint, &candle_core::Device::Cpu)
+        .unwrap()
+        .meta
+        .train_sequences
+        .unwrap();
+    assert!(train > 0);
+    assert_eq!(cache_entries(root), plain_entries + train);
+    // The run's config records the style; a second run computes nothing new.
+    let saved = std::fs::read_to_string(root.join("styled/config.toml")).unwrap();
+    assert!(saved.contains("style = 0.3"), "{saved}");
+    let mut again = styled.clone();
+    again.out = root.join("styled-again");
+    trainer::experiment::run(&again, 1).unwrap();
+    assert_eq!(cache_entries(root), plain_entries + train);
+
+    // A style without views would do nothing: refused.
+    let mut idle = cfg(root, &weights, "idle");
+    idle.views.style = 0.3;
+    let err = format!("{:#}", trainer::experiment::run(&idle, 1).err().unwrap());
+    assert!(err.contains("--feature-views"), "{err}");
+}
