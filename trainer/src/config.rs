@@ -222,13 +222,6 @@ impl TrainConfig {
                     self.views.style
                 );
             }
-            if self.mode != TrainMode::FrozenPretrained {
-                anyhow::bail!(
-                    "views.style (--view-style) restyles the blocks of the frozen backbone while \
-                     its features are cached; the {} mode does not cache them",
-                    self.mode.name()
-                );
-            }
             if self.backbone == Some(grasp_model::backbone::Architecture::MobileNetV2) {
                 anyhow::bail!(
                     "views.style (--view-style) needs an EfficientNet-Lite backbone, not \
@@ -354,7 +347,7 @@ mod tests {
     }
 
     #[test]
-    fn style_views_are_for_the_frozen_efficientnet_lite_only() {
+    fn style_views_need_views_and_an_efficientnet_lite() {
         let styled = TrainConfig {
             data: "d".into(),
             views: ViewConfig {
@@ -369,9 +362,23 @@ mod tests {
             mode: TrainMode::FineTuned,
             ..styled.clone()
         };
-        let err = format!("{:#}", tuned.validate().unwrap_err());
+        tuned.validate().unwrap();
+        let scratch = TrainConfig {
+            mode: TrainMode::FromScratch,
+            ..styled.clone()
+        };
+        let err = format!("{:#}", scratch.validate().unwrap_err());
+        assert!(err.contains("--feature-views"), "{err}");
+        let no_views = TrainConfig {
+            views: ViewConfig {
+                count: 0,
+                ..styled.views.clone()
+            },
+            ..styled.clone()
+        };
+        let err = format!("{:#}", no_views.validate().unwrap_err());
         assert!(
-            err.contains("--view-style") && err.contains("fine-tuned"),
+            err.contains("--view-style") && err.contains("views.count"),
             "{err}"
         );
         let mnv2 = TrainConfig {

@@ -240,7 +240,7 @@ struct TrainArgs {
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
     feature_views: Option<usize>,
-    /// Frozen mode, with --feature-views: style views, which also move the
+    /// Frozen and fine-tuned modes, with --feature-views: style views, which also move the
     /// channel statistics of some backbone blocks' outputs (`[views]
     /// style_blocks`; Lite0's 2, 4, 7 by default) by draws of this standard
     /// deviation, a new draw every frame (0: off; the main job uses 0.3).

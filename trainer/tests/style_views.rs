@@ -142,3 +142,34 @@ fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
     let err = format!("{:#}", trainer::experiment::run(&idle, 1).err().unwrap());
     assert!(err.contains("--feature-views"), "{err}");
 }
+
+#[test]
+fn fine_tuned_style_views_restyle_the_frozen_blocks_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let weights = data_and_weights(root);
+    let mut tuned = cfg(root, &weights, "tuned");
+    tuned.mode = TrainMode::FineTuned;
+    tuned.fine_tune.blocks = 2;
+    tuned.max_epochs = 1;
+    tuned.views.count = 1;
+    tuned.views.style = 0.3;
+    let run = trainer::experiment::run(&tuned, 1).unwrap();
+    let train = Classifier::load(&run.runs[0].checkpoint, &candle_core::Device::Cpu)
+        .unwrap()
+        .meta
+        .train_sequences
+        .unwrap();
+    // The plain sequences, their styled views and the validation ones.
+    assert!(cache_entries(root) >= 2 * train);
+
+    // Block 14 is tuned: its output is not cached, so it cannot be restyled.
+    let mut late = tuned.clone();
+    late.out = root.join("late");
+    late.views.style_blocks = vec![4, 14];
+    let err = format!("{:#}", trainer::experiment::run(&late, 1).err().unwrap());
+    assert!(
+        err.contains("views.style_blocks") && err.contains("block 14"),
+        "{err}"
+    );
+}

@@ -403,24 +403,32 @@ impl EfficientNetLite {
     /// [`Self::features`] with some blocks' outputs restyled: `styles[i]`
     /// for image `i` (see [`ChannelStyle`]).
     pub fn styled_features(&self, x: &Tensor, styles: &[Vec<ChannelStyle>]) -> Result<Tensor> {
-        let n = x.dim(0)?;
-        if styles.len() != n {
-            candle_core::bail!("{} styles for {n} images", styles.len());
-        }
-        if let Some(s) = styles
-            .iter()
-            .flatten()
-            .find(|s| s.block >= self.blocks.len())
-        {
-            candle_core::bail!(
-                "no block {} to restyle: {} blocks",
-                s.block,
-                self.blocks.len()
-            );
-        }
-        let rows = (0..n)
+        check_styles(x, styles, self.blocks.len())?;
+        let rows = (0..x.dim(0)?)
             .into_par_iter()
             .map(|i| self.pooled_features(&x.narrow(0, i, 1)?, &styles[i]))
+            .collect::<Result<Vec<_>>>()?;
+        Tensor::cat(&rows, 0)
+    }
+
+    /// [`Self::feature_map_until`] with some blocks' outputs restyled:
+    /// `styles[i]` for image `i`; only blocks before `stop` can be.
+    pub fn styled_feature_map_until(
+        &self,
+        x: &Tensor,
+        stop: usize,
+        styles: &[Vec<ChannelStyle>],
+    ) -> Result<Tensor> {
+        check_styles(x, styles, stop.min(self.blocks.len()))?;
+        let rows = (0..x.dim(0)?)
+            .into_par_iter()
+            .map(|i| {
+                let mut y = self.stem(&x.narrow(0, i, 1)?)?;
+                for (j, b) in self.blocks[..stop].iter().enumerate() {
+                    y = restyle(b.forward(&y)?, j, &styles[i])?;
+                }
+                Ok(y)
+            })
             .collect::<Result<Vec<_>>>()?;
         Tensor::cat(&rows, 0)
     }
@@ -560,6 +568,23 @@ pub(super) fn head_then_blocks(head: Tensor, mut blocks: Vec<Tensor>) -> Result<
 /// Global average pooling: (N, C, H, W) -> (N, C).
 fn pool(x: &Tensor) -> Result<Tensor> {
     x.flatten_from(2)?.mean(D::Minus1)
+}
+
+/// One style list per image of `x`, every style for one of the first
+/// `blocks` blocks.
+fn check_styles(x: &Tensor, styles: &[Vec<ChannelStyle>], blocks: usize) -> Result<()> {
+    let n = x.dim(0)?;
+    if styles.len() != n {
+        candle_core::bail!("{} styles for {n} images", styles.len());
+    }
+    if let Some(s) = styles.iter().flatten().find(|s| s.block >= blocks) {
+        candle_core::bail!(
+            "block {} cannot be restyled here: only blocks 0 to {} are run before the output",
+            s.block,
+            blocks.saturating_sub(1)
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]

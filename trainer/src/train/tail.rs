@@ -7,7 +7,7 @@ use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{Backbone, Network};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::model::{tail_pooling, BlockSpec, EfficientNetLite, LiteTail};
+use grasp_model::model::{tail_pooling, BlockSpec, ChannelStyle, EfficientNetLite, LiteTail};
 use image::RgbImage;
 
 /// The pretrained EfficientNet-Lite of a backbone, or why there is none.
@@ -76,6 +76,29 @@ impl FeatureExtractor for BlockActivations<'_> {
         let net = lite(self.backbone)
             .map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))?;
         Ok(net.feature_map_until(&x, self.from)?.flatten_from(1)?)
+    }
+
+    fn block_channels(&self) -> Vec<usize> {
+        self.backbone.block_channels()
+    }
+
+    fn extract_styled(
+        &self,
+        images: &[RgbImage],
+        styles: &[Vec<ChannelStyle>],
+    ) -> grasp_model::error::Result<Tensor> {
+        let x = self.backbone.input(images)?;
+        let net = lite(self.backbone)
+            .map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))?;
+        let map = net
+            .styled_feature_map_until(&x, self.from, styles)
+            .map_err(|e| {
+                grasp_model::error::ModelError::Invalid(format!(
+                    "views.style_blocks in front of the {} tuned blocks: {e}",
+                    net.block_count() - self.from
+                ))
+            })?;
+        Ok(map.flatten_from(1)?)
     }
 }
 
