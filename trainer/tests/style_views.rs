@@ -46,6 +46,17 @@ fn cache_entries(root: &Path) -> usize {
         .sum()
 }
 
+/// Trains `cfg` (one seed) and returns the real training sequences its
+/// checkpoint counts.
+fn train_sequences(cfg: &TrainConfig) -> usize {
+    let run = trainer::experiment::run(cfg, 1).unwrap();
+    Classifier::load(&run.runs[0].checkpoint, &candle_core::Device::Cpu)
+        .unwrap()
+        .meta
+        .train_sequences
+        .unwrap()
+}
+
 #[test]
 fn styled_features_differ_repeat_and_vanish_at_zero_strength() {
     let dir = tempfile::tempdir().unwrap();
@@ -120,12 +131,7 @@ fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
     let mut styled = cfg(root, &weights, "styled");
     styled.views.count = 1;
     styled.views.style = 0.3;
-    let run = trainer::experiment::run(&styled, 1).unwrap();
-    let train = Classifier::load(&run.runs[0].checkpoint, &candle_core::Device::Cpu)
-        .unwrap()
-        .meta
-        .train_sequences
-        .unwrap();
+    let train = train_sequences(&styled);
     assert!(train > 0);
     assert_eq!(cache_entries(root), plain_entries + train);
     // The run's config records the style; a second run computes nothing new.
@@ -154,12 +160,7 @@ fn fine_tuned_style_views_restyle_the_frozen_blocks_only() {
     tuned.max_epochs = 1;
     tuned.views.count = 1;
     tuned.views.style = 0.3;
-    let run = trainer::experiment::run(&tuned, 1).unwrap();
-    let train = Classifier::load(&run.runs[0].checkpoint, &candle_core::Device::Cpu)
-        .unwrap()
-        .meta
-        .train_sequences
-        .unwrap();
+    let train = train_sequences(&tuned);
     // The plain sequences, their styled views and the validation ones.
     assert!(cache_entries(root) >= 2 * train);
 
