@@ -21,7 +21,9 @@
 #                   the frozen heads read the pooled outputs of blocks 7,
 #                   10, 14 and 15 after the head's (--pooled-blocks), and
 #                   the LSTM trains on sequences started anywhere in their
-#                   first half (--lstm-start-crop 0.5), EXPERIMENTS.md.
+#                   first half (--lstm-start-crop 0.5); the frozen FC head
+#                   adds style views (configs/train-style-views.toml),
+#                   EXPERIMENTS.md.
 #                   About 35 minutes on 2 idle cores after setup.
 #   --large         the same with 32 training sequences per pair (a third
 #                   more training renders and fine-tuning epochs).
@@ -46,7 +48,8 @@
 # with center_region = 1), INPUT_SIZE (128, the backbone's input side),
 # POOLED (7,10,14,15, the frozen heads' pooled blocks; "none" for the
 # head's features alone), LSTM_START_CROP (0.5; 0 trains the LSTM on whole
-# sequences).
+# sequences), STYLE (configs/train-style-views.toml, the frozen FC head's
+# views; "none" for none).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -58,7 +61,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,47p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,52p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -69,6 +72,7 @@ done
 SEEDS=${SEEDS:-3} POOLED_FLAGS=()
 CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
 LSTM_START_CROP=${LSTM_START_CROP:-0.5}
+STYLE=${STYLE:-configs/train-style-views.toml} STYLE_FLAGS=()
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$LARGE" = 1 ]; then
@@ -93,11 +97,14 @@ else
   [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
   # Lite0's blocks only (--weights may be MobileNetV2)
   [ -n "$WEIGHTS" ] || [ "$POOLED" = none ] || POOLED_FLAGS=(--pooled-blocks "$POOLED")
+  # style views restyle Lite0's blocks (--weights may be MobileNetV2)
+  [ -n "$WEIGHTS" ] || [ "$STYLE" = none ] || STYLE_FLAGS=(-c "$STYLE")
 fi
 # The frozen heads read pooled blocks; the fine-tuned one does not, as they
 # cost it 3.6 points on unseen_look (EXPERIMENTS.md section 12). The LSTM
 # trains on sequences started anywhere in their first half, which a reach
-# from the ground needs (section 13).
+# from the ground needs (section 13). The frozen FC head also trains on four
+# style views of every sequence (section 14).
 mode_flags() { # model
   case $1 in
     *-tuned) echo --mode fine-tuned --max-epochs 6 ;;
@@ -108,6 +115,7 @@ mode_flags() { # model
     fi ;;
   esac
   [ "$1" != lstm ] || echo --lstm-start-crop "$LSTM_START_CROP"
+  [ "$1" != fc ] || echo "${STYLE_FLAGS[@]}"
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
