@@ -160,7 +160,10 @@ fn compute(
     let dim = ex.feature_dim();
     let mut rows = Vec::with_capacity(seq.frames.len() * dim);
     let mut valid = Vec::with_capacity(seq.frames.len());
-    let channels = ex.block_channels();
+    let channels = seq
+        .style
+        .as_ref()
+        .map_or_else(Vec::new, |_| ex.block_channels());
     for (c, chunk) in seq.frames.chunks(batch).enumerate() {
         let mut images = Vec::with_capacity(chunk.len());
         let mut styles = vec![];

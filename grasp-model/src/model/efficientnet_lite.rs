@@ -383,6 +383,12 @@ impl EfficientNetLite {
     /// so that each image's activations stay in cache; the kernels split a
     /// single image across threads themselves.
     pub fn features(&self, x: &Tensor) -> Result<Tensor> {
+        self.styled_features(x, &vec![Vec::new(); x.dim(0)?])
+    }
+
+    /// [`Self::features`] with some blocks' outputs restyled: `styles[i]`
+    /// for image `i` (see [`ChannelStyle`]).
+    pub fn styled_features(&self, x: &Tensor, styles: &[Vec<ChannelStyle>]) -> Result<Tensor> {
         let (n, c, _, _) = x.dims4()?;
         if c != 3 {
             candle_core::bail!(
@@ -390,21 +396,11 @@ impl EfficientNetLite {
                 x.dims()
             );
         }
+        check_styles(n, styles, self.blocks.len())?;
         if n == 1 {
-            return self.pooled_features(x, &[]);
+            return self.pooled_features(x, &styles[0]);
         }
         let rows = (0..n)
-            .into_par_iter()
-            .map(|i| self.pooled_features(&x.narrow(0, i, 1)?, &[]))
-            .collect::<Result<Vec<_>>>()?;
-        Tensor::cat(&rows, 0)
-    }
-
-    /// [`Self::features`] with some blocks' outputs restyled: `styles[i]`
-    /// for image `i` (see [`ChannelStyle`]).
-    pub fn styled_features(&self, x: &Tensor, styles: &[Vec<ChannelStyle>]) -> Result<Tensor> {
-        check_styles(x, styles, self.blocks.len())?;
-        let rows = (0..x.dim(0)?)
             .into_par_iter()
             .map(|i| self.pooled_features(&x.narrow(0, i, 1)?, &styles[i]))
             .collect::<Result<Vec<_>>>()?;
@@ -419,16 +415,10 @@ impl EfficientNetLite {
         stop: usize,
         styles: &[Vec<ChannelStyle>],
     ) -> Result<Tensor> {
-        check_styles(x, styles, stop.min(self.blocks.len()))?;
+        check_styles(x.dim(0)?, styles, stop)?;
         let rows = (0..x.dim(0)?)
             .into_par_iter()
-            .map(|i| {
-                let mut y = self.stem(&x.narrow(0, i, 1)?)?;
-                for (j, b) in self.blocks[..stop].iter().enumerate() {
-                    y = restyle(b.forward(&y)?, j, &styles[i])?;
-                }
-                Ok(y)
-            })
+            .map(|i| self.map_until(&x.narrow(0, i, 1)?, stop, &styles[i]))
             .collect::<Result<Vec<_>>>()?;
         Tensor::cat(&rows, 0)
     }
@@ -475,12 +465,17 @@ impl EfficientNetLite {
     /// The activations (N, C, H, W) of normalized images after the stem
     /// and blocks `0..stop`: the input of a tail tuned from block `stop`.
     pub fn feature_map_until(&self, x: &Tensor, stop: usize) -> Result<Tensor> {
+        self.map_until(x, stop, &[])
+    }
+
+    /// The output of the blocks before `stop`, restyled by `styles` on the way.
+    fn map_until(&self, x: &Tensor, stop: usize, styles: &[ChannelStyle]) -> Result<Tensor> {
         if stop > self.blocks.len() {
             candle_core::bail!("block {stop} of {} blocks", self.blocks.len());
         }
         let mut y = self.stem(x)?;
-        for b in &self.blocks[..stop] {
-            y = b.forward(&y)?;
+        for (i, b) in self.blocks[..stop].iter().enumerate() {
+            y = restyle(b.forward(&y)?, i, styles)?;
         }
         Ok(y)
     }
@@ -570,10 +565,9 @@ fn pool(x: &Tensor) -> Result<Tensor> {
     x.flatten_from(2)?.mean(D::Minus1)
 }
 
-/// One style list per image of `x`, every style for one of the first
-/// `blocks` blocks.
-fn check_styles(x: &Tensor, styles: &[Vec<ChannelStyle>], blocks: usize) -> Result<()> {
-    let n = x.dim(0)?;
+/// One style list for each of `n` images, every style for one of the
+/// first `blocks` blocks.
+fn check_styles(n: usize, styles: &[Vec<ChannelStyle>], blocks: usize) -> Result<()> {
     if styles.len() != n {
         candle_core::bail!("{} styles for {n} images", styles.len());
     }
