@@ -240,10 +240,11 @@ struct TrainArgs {
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
     feature_views: Option<usize>,
-    /// Frozen and fine-tuned modes, with --feature-views: style views, which also move the
-    /// channel statistics of some backbone blocks' outputs (`[views]
-    /// style_blocks`; Lite0's 2, 4, 7 by default) by draws of this standard
-    /// deviation, a new draw every frame (0: off; the main job uses 0.3).
+    /// With --feature-views (frozen and fine-tuned modes): style views,
+    /// which also move the channel statistics of some frozen blocks'
+    /// outputs (`[views] style_blocks`; Lite0's 2, 4, 7 by default) by draws
+    /// of this standard deviation, a new draw every frame (0: off; the main
+    /// job's FC head uses 0.3).
     #[arg(long, value_name = "SIGMA")]
     view_style: Option<f32>,
     /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and

@@ -33,14 +33,7 @@ impl StyleDraw {
         self.blocks
             .iter()
             .map(|&block| {
-                let &c = channels.get(block).with_context(|| {
-                    format!(
-                        "views.style_blocks: no block {block} to restyle; this backbone has {} \
-                         (0 to {})",
-                        channels.len(),
-                        channels.len().saturating_sub(1)
-                    )
-                })?;
+                let c = restylable(block, channels)?;
                 let mut normal = || self.sigma * crate::rng::standard_normal(&mut rng);
                 let shift = (0..c).map(|_| normal()).collect();
                 let scale = (0..c).map(|_| normal().exp()).collect();
@@ -52,6 +45,18 @@ impl StyleDraw {
             })
             .collect()
     }
+}
+
+/// The channels of `block`, when the extractor whose restylable blocks
+/// have `channels` can restyle it.
+pub fn restylable(block: usize, channels: &[usize]) -> anyhow::Result<usize> {
+    channels.get(block).copied().with_context(|| {
+        format!(
+            "views.style_blocks: no block {block} to restyle; the frozen blocks in front of the \
+             features are 0 to {}",
+            channels.len().saturating_sub(1)
+        )
+    })
 }
 
 /// A view's restyling, when `sigma` > 0.

@@ -183,6 +183,13 @@ fn cached_frames(
     bad: &BadData,
     dev: &Device,
 ) -> Result<(SplitFrames, SplitFrames)> {
+    if cfg.views.style > 0.0 {
+        // refused before anything is cached, not at the first style view
+        let channels = extractor.block_channels();
+        for &block in &cfg.views.style_blocks {
+            crate::data::style::restylable(block, &channels)?;
+        }
+    }
     let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
     let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
     let tf = cache.dataset(extractor, &train, bad)?;

@@ -73,13 +73,17 @@ impl FeatureExtractor for BlockActivations<'_> {
 
     fn extract(&self, images: &[RgbImage]) -> grasp_model::error::Result<Tensor> {
         let x = self.backbone.input(images)?;
-        let net = lite(self.backbone)
-            .map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))?;
-        Ok(net.feature_map_until(&x, self.from)?.flatten_from(1)?)
+        Ok(self
+            .net()?
+            .feature_map_until(&x, self.from)?
+            .flatten_from(1)?)
     }
 
+    /// Only the frozen blocks in front of the tuned ones.
     fn block_channels(&self) -> Vec<usize> {
-        self.backbone.block_channels()
+        let mut channels = self.backbone.block_channels();
+        channels.truncate(self.from);
+        channels
     }
 
     fn extract_styled(
@@ -88,17 +92,16 @@ impl FeatureExtractor for BlockActivations<'_> {
         styles: &[Vec<ChannelStyle>],
     ) -> grasp_model::error::Result<Tensor> {
         let x = self.backbone.input(images)?;
-        let net = lite(self.backbone)
-            .map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))?;
-        let map = net
-            .styled_feature_map_until(&x, self.from, styles)
-            .map_err(|e| {
-                grasp_model::error::ModelError::Invalid(format!(
-                    "views.style_blocks in front of the {} tuned blocks: {e}",
-                    net.block_count() - self.from
-                ))
-            })?;
+        let map = self
+            .net()?
+            .styled_feature_map_until(&x, self.from, styles)?;
         Ok(map.flatten_from(1)?)
+    }
+}
+
+impl BlockActivations<'_> {
+    fn net(&self) -> grasp_model::error::Result<&EfficientNetLite> {
+        lite(self.backbone).map_err(|e| grasp_model::error::ModelError::Invalid(e.to_string()))
     }
 }
 
