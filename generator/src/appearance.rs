@@ -19,9 +19,9 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The texture families the Blender side knows (`blender_scripts/materials.py`).
-pub const FAMILIES: [&str; 11] = [
+pub const FAMILIES: [&str; 13] = [
     "noise", "voronoi", "brick", "checker", "wave", "marble", "image", "gingham", "dots", "gabor",
-    "magic",
+    "magic", "mosaic", "rings",
 ];
 pub const LIGHT_KINDS: [&str; 3] = ["point", "spot", "area"];
 

@@ -141,6 +141,7 @@ fn unseen_look_stays_apart_under_the_shipped_configs() {
         "main-small.toml",
         "authors.toml",
         "test-sets.toml",
+        "test-look-b.toml",
     ] {
         let mut c = GeneratorConfig::load(&root.join(name)).unwrap();
         // The carton planner needs the d435 camera's arm's-length starts.
@@ -151,6 +152,66 @@ fn unseen_look_stays_apart_under_the_shipped_configs() {
         c.plan.trajectory.standoff_m = 0.12;
         assert_unseen_apart(&c, 10);
     }
+}
+
+/// The second held-out look (`configs/test-look-b.toml`) is apart from the
+/// default unseen_look too, on the axes it changes: families, lens, light
+/// count and temperatures, tone mapping, exposure and noise.
+#[test]
+fn look_b_differs_from_the_default_unseen_look() {
+    let root = generator::python::workspace_root().join("configs");
+    let mut b = GeneratorConfig::load(&root.join("test-look-b.toml")).unwrap();
+    b.plan.camera = generator::plan::CameraConfig {
+        resolution: b.plan.camera.resolution,
+        ..Default::default()
+    };
+    b.plan.trajectory.standoff_m = 0.12;
+    let mut a = b.clone();
+    a.appearance.unseen_look = Default::default();
+    let unseen = |c: &GeneratorConfig| plans(c, &[Condition::UnseenLook], 20);
+    let (pa, pb) = (unseen(&a), unseen(&b));
+    let look = |p: &SequencePlan| p.appearance.clone().unwrap();
+    let families = |ps: &[SequencePlan]| {
+        ps.iter()
+            .flat_map(|p| {
+                let l = look(p);
+                [l.wall.family, l.floor.family, l.table.family]
+            })
+            .collect::<std::collections::BTreeSet<_>>()
+    };
+    assert!(
+        families(&pa).is_disjoint(&families(&pb)),
+        "{:?} vs {:?}",
+        families(&pa),
+        families(&pb)
+    );
+    assert_eq!(
+        families(&pb).into_iter().collect::<Vec<_>>(),
+        ["mosaic", "rings"]
+    );
+    let axes: [(&str, fn(&SequencePlan) -> Vec<f64>); 5] = [
+        ("fov", |p| vec![p.intrinsics.fov_y_deg]),
+        ("lights", |p| {
+            vec![p.appearance.as_ref().unwrap().lights.len() as f64]
+        }),
+        ("kelvin", |p| {
+            let l = &p.appearance.as_ref().unwrap().lights;
+            l.iter().map(|l| l.color_temperature_k).collect()
+        }),
+        ("exposure", |p| vec![p.appearance.as_ref().unwrap().exposure]),
+        ("noise", |p| {
+            let s = p.appearance.as_ref().unwrap().sensor.as_ref();
+            s.and_then(|s| s.noise_sigma).into_iter().collect()
+        }),
+    ];
+    for (name, values) in axes {
+        let r = |ps: &[SequencePlan]| range(ps.iter().flat_map(values));
+        let (ra, rb) = (r(&pa), r(&pb));
+        assert!(disjoint(ra, rb), "{name}: {ra:?} vs {rb:?}");
+    }
+    let tone = |ps: &[SequencePlan]| look(&ps[0]).tone.unwrap().view_transform;
+    assert_eq!(tone(&pb), "Filmic");
+    assert_ne!(tone(&pa), tone(&pb));
 }
 
 /// A config changed by `edit` must be refused with an error naming `field`.
