@@ -154,6 +154,13 @@ fn unseen_look_stays_apart_under_the_shipped_configs() {
     }
 }
 
+/// The values of one appearance axis drawn in a plan.
+type Axis = fn(&SequencePlan) -> Vec<f64>;
+
+fn appearance(p: &SequencePlan) -> &grasp_schema::appearance::Appearance {
+    p.appearance.as_ref().unwrap()
+}
+
 /// The second held-out look (`configs/test-look-b.toml`) is apart from the
 /// default unseen_look too, on the axes it changes: families, lens, light
 /// count and temperatures, tone mapping, exposure and noise.
@@ -189,19 +196,17 @@ fn look_b_differs_from_the_default_unseen_look() {
         families(&pb).into_iter().collect::<Vec<_>>(),
         ["mosaic", "rings"]
     );
-    let axes: [(&str, fn(&SequencePlan) -> Vec<f64>); 5] = [
+    let axes: [(&str, Axis); 5] = [
         ("fov", |p| vec![p.intrinsics.fov_y_deg]),
-        ("lights", |p| {
-            vec![p.appearance.as_ref().unwrap().lights.len() as f64]
-        }),
+        ("lights", |p| vec![appearance(p).lights.len() as f64]),
         ("kelvin", |p| {
-            let l = &p.appearance.as_ref().unwrap().lights;
-            l.iter().map(|l| l.color_temperature_k).collect()
+            let lights = &appearance(p).lights;
+            lights.iter().map(|l| l.color_temperature_k).collect()
         }),
-        ("exposure", |p| vec![p.appearance.as_ref().unwrap().exposure]),
+        ("exposure", |p| vec![appearance(p).exposure]),
         ("noise", |p| {
-            let s = p.appearance.as_ref().unwrap().sensor.as_ref();
-            s.and_then(|s| s.noise_sigma).into_iter().collect()
+            let sensor = appearance(p).sensor.as_ref();
+            sensor.and_then(|s| s.noise_sigma).into_iter().collect()
         }),
     ];
     for (name, values) in axes {
