@@ -2,7 +2,9 @@
 # The main job, the paper's protocol: set the machine up, then check the
 # catalog, plan and render (Cycles) a training set, a validation set and the
 # six test conditions (the paper's five and unseen_look, an appearance
-# training never draws), verify and preview them, train FC and LSTM heads on
+# training never draws) and look B (unseen_look with the appearance of
+# configs/test-look-b.toml, a second held-out look nothing was tuned on),
+# verify and preview them, train FC and LSTM heads on
 # frozen, cached EfficientNet-Lite0 ImageNet features and an FC head with
 # Lite0's last eight blocks fine-tuned after a linear probe (3 seeds each),
 # evaluate them on every test condition, and replay one test sequence
@@ -61,7 +63,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,52p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,54p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -118,6 +120,9 @@ mode_flags() { # model
   [ "$1" != fc ] || echo "${STYLE_FLAGS[@]}"
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
+# Test sets scored: the conditions and look B (EXPERIMENTS.md, section 15).
+TEST_SETS=("${CONDITIONS[@]}" look_b)
+LOOK_B=configs/test-look-b.toml
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
@@ -133,7 +138,7 @@ $BIN/grasp-gen objects list | tail -6
 $BIN/grasp-gen objects check
 $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 
-echo "== render: train, validation, and the six test conditions"
+echo "== render: train, validation, the six test conditions and look B"
 derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
@@ -149,6 +154,13 @@ for condition in "${CONDITIONS[@]}"; do
   derived_config 3 "$TEST_SEQ" "\"$condition\"" "test-$condition"
   render "test-$condition"
 done
+# Look B: the unseen_look test config with its [appearance.unseen_look]
+# table replaced by configs/test-look-b.toml's (the last table there).
+derived_config 3 "$TEST_SEQ" '"unseen_look"' test-look_b
+awk '/^\[/ { skip = ($0 == "[appearance.unseen_look]") } !skip' "$OUT/test-look_b.toml" >"$OUT/test-look_b.tmp"
+sed -n '/^\[appearance.unseen_look\]/,$p' "$LOOK_B" >>"$OUT/test-look_b.tmp"
+mv "$OUT/test-look_b.tmp" "$OUT/test-look_b.toml"
+render test-look_b
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$OUT/train.toml"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$OUT/train.toml" --show "$OUT/paths.png"
@@ -168,7 +180,7 @@ for model in "${MODELS[@]}"; do
       --head "${model%%-*}" $(mode_flags "$model") --seeds "$SEEDS" "${TRAIN_FLAGS[@]}" --out "$MODEL"
     touch "$MODEL/.done"
   }
-  for condition in "${CONDITIONS[@]}"; do
+  for condition in "${TEST_SETS[@]}"; do
     [ -f "$OUT/report/$model/$condition/report.json" ] ||
       $BIN/grasp-train eval "${CHECKPOINTS[@]}" --data "$OUT/data/test-$condition" \
         "${EVAL_FLAGS[@]}" --out "$OUT/report/$model/$condition"
