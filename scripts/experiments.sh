@@ -29,11 +29,9 @@
 #             default test frames).
 #   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
 #             with the main job's into one report per head and condition
-#             (310 videos); default and unseen_look unless DRAW_CONDITIONS.
-#   lookb     a second held-out look (configs/test-look-b.toml: its own
-#             families, a narrow lens, warm low light, Filmic, its own noise),
-#             five draws (seeds 3 and DRAW_SEEDS), every main-job head scored
-#             on them pooled: does what was chosen on unseen_look carry?
+#             (310 videos); default, unseen_look and look B (look_b, the
+#             second held-out look: EXPERIMENTS.md section 15) unless
+#             DRAW_CONDITIONS.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -50,7 +48,7 @@ SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
-DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look}
+DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s
@@ -265,26 +263,6 @@ stage_draws() {
   done
 }
 
-# Look B (EXPERIMENTS.md section 15): five draws of a second held-out look,
-# rendered as the main job's test sets are, scored pooled for every head.
-stage_lookb() {
-  local main="$OUT/main" h sd roots=()
-  mkdir -p "$OUT/lookb"
-  for sd in 3 $DRAW_SEEDS; do
-    sed -e "s/^seed = .*/seed = $sd/" configs/test-look-b.toml >"$OUT/lookb/s$sd.toml"
-    run "$BIN/grasp-gen" render --config "$OUT/lookb/s$sd.toml" --out "$OUT/lookb/s$sd/test-look_b" \
-      --resume --no-progress
-    roots+=(--data "$OUT/lookb/s$sd/test-look_b")
-  done
-  for h in fc lstm fc-tuned; do
-    [ -d "$main/model-$h" ] || continue
-    checkpoints_of "$main/model-$h"
-    [ -f "$OUT/lookb/report/$h/report.json" ] ||
-      run "$BIN/grasp-train" eval "${CKPTS[@]}" "${roots[@]}" --out "$OUT/lookb/report/$h" \
-        --cache-dir "$main/features"
-  done
-}
-
 # unseen_look's middle defocus and noise added to the default test frames.
 probes() { # runs
   local runs=$1 main="$OUT/main" p
@@ -334,7 +312,7 @@ stage_summary() {
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws lookb summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"
