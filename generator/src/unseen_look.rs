@@ -25,10 +25,12 @@ use grasp_schema::Condition;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-/// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`);
-/// its defaults draw the first three, `mosaic` and `rings` are kept for a
-/// second held-out look (EXPERIMENTS.md, section 15).
+/// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`):
+/// its defaults, and `mosaic` and `rings`, kept for a second held-out look
+/// (`configs/test-look-b.toml`, EXPERIMENTS.md section 15).
 pub const UNSEEN_FAMILIES: [&str; 5] = ["dots", "gabor", "magic", "mosaic", "rings"];
+/// The families `[appearance.unseen_look]` draws by default.
+pub const DEFAULT_UNSEEN_FAMILIES: [&str; 3] = ["dots", "gabor", "magic"];
 /// Light kinds only `unseen_look` uses.
 pub const UNSEEN_LIGHT_KINDS: [&str; 2] = ["sun", "ring"];
 /// Lights of the ring the Blender side pools.
@@ -72,7 +74,7 @@ pub struct UnseenLookConfig {
 impl Default for UnseenLookConfig {
     fn default() -> Self {
         UnseenLookConfig {
-            families: UNSEEN_FAMILIES[..3].iter().map(|f| f.to_string()).collect(),
+            families: DEFAULT_UNSEEN_FAMILIES.map(String::from).to_vec(),
             sun_strength: [1.5, 3.0],
             sun_elevation_deg: [50.0, 80.0],
             ring_lights: [4, 6],
@@ -360,6 +362,9 @@ mod tests {
 
     #[test]
     fn defaults_are_valid_and_disjoint_from_training() {
+        assert!(DEFAULT_UNSEEN_FAMILIES
+            .iter()
+            .all(|f| UNSEEN_FAMILIES.contains(f)));
         let a = AppearanceConfig::default();
         a.unseen_look.validate().unwrap();
         a.unseen_look
