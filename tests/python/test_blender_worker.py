@@ -5,6 +5,8 @@ skipping."""
 
 import json
 import os
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -76,6 +78,21 @@ def test_every_family_builds(family):
     mat = bpy.data.materials.new(f"test_{family}")
     materials.apply_surface(mat, surface(family))
     assert len(mat.node_tree.nodes) > 3
+
+
+def _rust_families(path, name):
+    """The string array `pub const NAME: [&str; N] = [...]` of a Rust file."""
+    src = (Path(__file__).resolve().parents[2] / path).read_text()
+    block = re.search(rf"pub const {name}: \[&str; \d+\] = \[(.*?)\];", src, re.S)
+    assert block, f"{name} not found in {path}"
+    return re.findall(r'"([a-z_]+)"', block.group(1))
+
+
+def test_families_match_the_generator():
+    # The planner draws families by name; each must have a builder here.
+    assert set(_rust_families("generator/src/appearance.rs", "FAMILIES")) == set(materials.FAMILIES)
+    reserved = _rust_families("generator/src/unseen_look.rs", "UNSEEN_FAMILIES")
+    assert reserved == list(materials.UNSEEN_FAMILIES)
 
 
 def test_unknown_family_is_refused():
