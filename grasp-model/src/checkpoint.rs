@@ -151,6 +151,25 @@ impl BackboneInfo {
     }
 }
 
+/// Refuses a checkpoint whose head reads features of another width than its
+/// backbone gives, naming both (a hand-edited `pooled_blocks`, or a
+/// checkpoint written before pooled blocks were recorded), instead of
+/// failing later at the first frame with bare tensor shapes.
+fn check_head_width(meta: &CheckpointMeta, backbone_width: usize, dir: &Path) -> Result<()> {
+    if meta.head.feature_dim == backbone_width {
+        return Ok(());
+    }
+    Err(ModelError::Corrupt {
+        path: dir.join(META_FILE),
+        reason: format!(
+            "its head reads {} features per frame, but its backbone ({}, backbone.pooled_blocks \
+             {:?}) gives {backbone_width}: the recorded pooled blocks are not the ones it was \
+             trained with",
+            meta.head.feature_dim, meta.backbone.id, meta.backbone.pooled_blocks
+        ),
+    })
+}
+
 /// The backbone of a fine-tuned checkpoint in `dir`: the pretrained file it
 /// recorded, with its tuned blocks read from the checkpoint's weights.
 fn tuned_backbone(meta: &CheckpointMeta, dir: &Path) -> Result<BackboneInfo> {
@@ -253,6 +272,7 @@ impl Classifier {
                 device,
             )?,
         };
+        check_head_width(&meta, backbone.net.feature_dim(), &dir)?;
         let center_crop = trained_center_crop(&meta, &dir)?;
         Ok(Classifier {
             meta,

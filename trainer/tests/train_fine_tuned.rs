@@ -304,6 +304,23 @@ fn pooled_blocks_travel_in_the_checkpoint_in_both_modes() {
     let clf = Classifier::load(&run.runs[0].checkpoint, &dev).unwrap();
     assert_eq!(clf.backbone().extract(&images).unwrap().dims(), [3, dim]);
     assert!(run.report.unwrap().backbone.contains("pooled too"));
+    // Without its pooled blocks on record the checkpoint is refused at
+    // load, with both widths named.
+    let json = run.runs[0].checkpoint.join("best.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    meta["backbone"]["pooled_blocks"] = serde_json::json!([]);
+    std::fs::write(&json, meta.to_string()).unwrap();
+    let err = Classifier::load(&run.runs[0].checkpoint, &dev)
+        .err()
+        .unwrap();
+    let err = format!("{err:#}");
+    assert!(
+        err.contains("best.json")
+            && err.contains(&format!("reads {dim} features"))
+            && err.contains("gives 1280"),
+        "{err}"
+    );
 
     // A pooled block the activation cache does not hold is refused before
     // anything is cached.
