@@ -165,17 +165,22 @@ def _cell_offset(nodes, links, vec):
     return flat.outputs["Vector"], centred.outputs["Vector"]
 
 
-def _dots(nodes, links, vec, spec):
-    # Polka dots: the distance to the centre of each unit cell of the UV
-    # plane, thresholded at a radius set by `detail`.
+def _cell_radius(nodes, links, vec):
+    """Distance to the centre of the unit cell of the UV plane."""
     _, centred = _cell_offset(nodes, links, vec)
     length = nodes.new("ShaderNodeVectorMath")
     length.operation = "LENGTH"
     links.new(centred, length.inputs[0])
+    return length.outputs["Value"]
+
+
+def _dots(nodes, links, vec, spec):
+    # Polka dots: the distance to the centre of each unit cell of the UV
+    # plane, thresholded at a radius set by `detail`.
     inside = nodes.new("ShaderNodeMath")
     inside.operation = "LESS_THAN"
     inside.inputs[1].default_value = 0.15 + 0.25 * spec["detail"]
-    links.new(length.outputs["Value"], inside.inputs[0])
+    links.new(_cell_radius(nodes, links, vec), inside.inputs[0])
     return _ramp(nodes, links, inside.outputs[0], spec["color_a"], spec["color_b"])
 
 
@@ -235,14 +240,10 @@ def _mosaic(nodes, links, vec, spec):
 def _rings(nodes, links, vec, spec):
     # Concentric rings around the centre of every unit cell (targets); their
     # count per cell grows with `detail`.
-    _, centred = _cell_offset(nodes, links, vec)
-    length = nodes.new("ShaderNodeVectorMath")
-    length.operation = "LENGTH"
-    links.new(centred, length.inputs[0])
     freq = nodes.new("ShaderNodeMath")
     freq.operation = "MULTIPLY"
     freq.inputs[1].default_value = 3.0 + 4.0 * spec["detail"]
-    links.new(length.outputs["Value"], freq.inputs[0])
+    links.new(_cell_radius(nodes, links, vec), freq.inputs[0])
     band = nodes.new("ShaderNodeMath")
     band.operation = "FRACT"
     links.new(freq.outputs["Value"], band.inputs[0])

@@ -177,12 +177,11 @@ fn look_b_differs_from_the_default_unseen_look() {
     a.appearance.unseen_look = Default::default();
     let unseen = |c: &GeneratorConfig| plans(c, &[Condition::UnseenLook], 20);
     let (pa, pb) = (unseen(&a), unseen(&b));
-    let look = |p: &SequencePlan| p.appearance.clone().unwrap();
     let families = |ps: &[SequencePlan]| {
         ps.iter()
             .flat_map(|p| {
-                let l = look(p);
-                [l.wall.family, l.floor.family, l.table.family]
+                let l = appearance(p);
+                [&l.wall.family, &l.floor.family, &l.table.family].map(String::clone)
             })
             .collect::<std::collections::BTreeSet<_>>()
     };
@@ -214,7 +213,7 @@ fn look_b_differs_from_the_default_unseen_look() {
         let (ra, rb) = (r(&pa), r(&pb));
         assert!(disjoint(ra, rb), "{name}: {ra:?} vs {rb:?}");
     }
-    let tone = |ps: &[SequencePlan]| look(&ps[0]).tone.unwrap().view_transform;
+    let tone = |ps: &[SequencePlan]| appearance(&ps[0]).tone.clone().unwrap().view_transform;
     assert_eq!(tone(&pb), "Filmic");
     assert_ne!(tone(&pa), tone(&pb));
 }
