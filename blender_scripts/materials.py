@@ -11,8 +11,9 @@ import bpy
 HELD_OUT_FAMILY = "gingham"
 # Families only the `unseen_look` test condition draws (never training).
 # Its defaults draw the first three; `mosaic` and `rings` are kept for a
-# second held-out look (EXPERIMENTS.md, section 15).
-UNSEEN_FAMILIES = ("dots", "gabor", "magic", "mosaic", "rings")
+# second held-out look and `chevron` and `triangles` for a third (EXPERIMENTS.md,
+# sections 15 and 16).
+UNSEEN_FAMILIES = ("dots", "gabor", "magic", "mosaic", "rings", "chevron", "triangles")
 FAMILIES = (
     "noise",
     "voronoi",
@@ -254,6 +255,60 @@ def _rings(nodes, links, vec, spec):
     return _ramp(nodes, links, on.outputs["Value"], spec["color_a"], spec["color_b"])
 
 
+def _chevron(nodes, links, vec, spec):
+    # Zigzag stripes: bands along V bent by a triangle wave of U, whose
+    # amplitude `detail` sets.
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(vec, sep.inputs["Vector"])
+    tri = nodes.new("ShaderNodeMath")
+    tri.operation = "PINGPONG"
+    tri.inputs[1].default_value = 0.5
+    links.new(sep.outputs["X"], tri.inputs[0])
+    bent = nodes.new("ShaderNodeMath")
+    bent.operation = "MULTIPLY_ADD"
+    bent.inputs[1].default_value = 1.0 + 2.0 * spec["detail"]
+    links.new(tri.outputs["Value"], bent.inputs[0])
+    links.new(sep.outputs["Y"], bent.inputs[2])
+    band = nodes.new("ShaderNodeMath")
+    band.operation = "FRACT"
+    links.new(bent.outputs["Value"], band.inputs[0])
+    on = nodes.new("ShaderNodeMath")
+    on.operation = "LESS_THAN"
+    on.inputs[1].default_value = 0.5
+    links.new(band.outputs["Value"], on.inputs[0])
+    return _ramp(nodes, links, on.outputs["Value"], spec["color_a"], spec["color_b"])
+
+
+def _triangles(nodes, links, vec, spec):
+    # Every unit cell cut along its diagonal into two triangles of one random
+    # shade each (between the two colours); `detail` tilts the shades
+    # towards the second colour.
+    flat, centred = _cell_offset(nodes, links, vec)
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(centred, sep.inputs["Vector"])
+    upper = nodes.new("ShaderNodeMath")
+    upper.operation = "GREATER_THAN"
+    links.new(sep.outputs["Y"], upper.inputs[0])
+    links.new(sep.outputs["X"], upper.inputs[1])
+    cell = nodes.new("ShaderNodeVectorMath")
+    cell.operation = "FLOOR"
+    links.new(flat, cell.inputs[0])
+    half = nodes.new("ShaderNodeCombineXYZ")
+    links.new(upper.outputs["Value"], half.inputs["Z"])
+    which = nodes.new("ShaderNodeVectorMath")
+    which.operation = "ADD"
+    links.new(cell.outputs["Vector"], which.inputs[0])
+    links.new(half.outputs["Vector"], which.inputs[1])
+    shade = nodes.new("ShaderNodeTexWhiteNoise")
+    shade.noise_dimensions = "3D"
+    links.new(which.outputs["Vector"], shade.inputs["Vector"])
+    tilt = nodes.new("ShaderNodeMath")
+    tilt.operation = "POWER"
+    tilt.inputs[1].default_value = 1.0 - 0.6 * spec["detail"]
+    links.new(shade.outputs["Value"], tilt.inputs[0])
+    return _ramp(nodes, links, tilt.outputs["Value"], spec["color_a"], spec["color_b"])
+
+
 _BUILDERS = {
     "noise": _noise,
     "voronoi": _voronoi,
@@ -268,17 +323,46 @@ _BUILDERS = {
     "magic": _magic,
     "mosaic": _mosaic,
     "rings": _rings,
+    "chevron": _chevron,
+    "triangles": _triangles,
 }
+
+
+def _pattern(nodes, links, spec):
+    family = spec["family"]
+    if family not in _BUILDERS:
+        raise ValueError(f"unknown texture family '{family}' (expected one of {FAMILIES})")
+    vec = _uv_vector(nodes, links, float(spec["scale"]))
+    return _BUILDERS[family](nodes, links, vec, spec)
+
+
+def _overlaid(nodes, links, base, overlay):
+    # A second pattern over the patches of a noise mask covering
+    # `coverage` of the surface (noise values spread around 0.5).
+    top = _pattern(nodes, links, overlay["material"])
+    mask = nodes.new("ShaderNodeTexNoise")
+    mask.inputs["Detail"].default_value = 2.0
+    links.new(_uv_vector(nodes, links, float(overlay["mask_scale"])), mask.inputs["Vector"])
+    cut = nodes.new("ShaderNodeMapRange")
+    edge = 0.5 + 0.25 * (0.5 - float(overlay["coverage"]))
+    cut.inputs["From Min"].default_value = edge - 0.01
+    cut.inputs["From Max"].default_value = edge + 0.01
+    links.new(mask.outputs["Fac"], cut.inputs["Value"])
+    mix = nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    links.new(cut.outputs["Result"], mix.inputs["Factor"])
+    links.new(base, mix.inputs["A"])
+    links.new(top, mix.inputs["B"])
+    return mix.outputs["Result"]
 
 
 def apply_surface(mat, spec):
     """Rebuilds `mat`'s node tree from a SurfaceMaterial dict."""
-    family = spec["family"]
-    if family not in _BUILDERS:
-        raise ValueError(f"unknown texture family '{family}' (expected one of {FAMILIES})")
     nodes, links, bsdf = _clear(mat)
-    vec = _uv_vector(nodes, links, float(spec["scale"]))
-    color = _BUILDERS[family](nodes, links, vec, spec)
+    color = _pattern(nodes, links, spec)
+    overlay = spec.get("overlay")
+    if overlay:
+        color = _overlaid(nodes, links, color, overlay)
     links.new(color, bsdf.inputs["Base Color"])
     bsdf.inputs["Roughness"].default_value = float(spec["roughness"])
     mean = [(a + b) / 2 for a, b in zip(spec["color_a"], spec["color_b"])]

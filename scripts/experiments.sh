@@ -29,9 +29,9 @@
 #             default test frames).
 #   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
 #             with the main job's into one report per head and condition
-#             (310 videos); default, unseen_look and look B (look_b, the
-#             second held-out look: EXPERIMENTS.md section 15) unless
-#             DRAW_CONDITIONS.
+#             (310 videos); default, unseen_look and looks B and C (look_b,
+#             look_c, more held-out looks: EXPERIMENTS.md sections 15 and 16)
+#             unless DRAW_CONDITIONS.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -48,7 +48,7 @@ SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
-DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b}
+DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b look_c}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s

@@ -2,8 +2,8 @@
 # The main job, the paper's protocol: set the machine up, then check the
 # catalog, plan and render (Cycles) a training set, a validation set and the
 # six test conditions (the paper's five and unseen_look, an appearance
-# training never draws) and look B (unseen_look with the appearance of
-# configs/test-look-b.toml, a second held-out look nothing was tuned on),
+# training never draws) and looks B and C (unseen_look with the appearance
+# of configs/test-look-b.toml and -c.toml, held-out looks nothing was tuned on),
 # verify and preview them, train FC and LSTM heads on
 # frozen, cached EfficientNet-Lite0 ImageNet features and an FC head with
 # Lite0's last eight blocks fine-tuned after a linear probe (3 seeds each),
@@ -120,9 +120,11 @@ mode_flags() { # model
   [ "$1" != fc ] || echo "${STYLE_FLAGS[@]}"
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
-# Test sets scored: the conditions and look B (EXPERIMENTS.md, section 15).
-TEST_SETS=("${CONDITIONS[@]}" look_b)
-LOOK_B=configs/test-look-b.toml
+# More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
+# (EXPERIMENTS.md, sections 15 and 16).
+LOOKS=(look_b look_c)
+# Test sets scored: the conditions and the held-out looks.
+TEST_SETS=("${CONDITIONS[@]}" "${LOOKS[@]}")
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
@@ -138,7 +140,7 @@ $BIN/grasp-gen objects list | tail -6
 $BIN/grasp-gen objects check
 $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 
-echo "== render: train, validation, the six test conditions and look B"
+echo "== render: train, validation, the six test conditions and looks B and C"
 derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
@@ -154,13 +156,15 @@ for condition in "${CONDITIONS[@]}"; do
   derived_config 3 "$TEST_SEQ" "\"$condition\"" "test-$condition"
   render "test-$condition"
 done
-# Look B: the unseen_look test config with its [appearance.unseen_look]
-# table replaced by configs/test-look-b.toml's (the last table there).
-derived_config 3 "$TEST_SEQ" '"unseen_look"' test-look_b
-awk '/^\[/ { skip = ($0 == "[appearance.unseen_look]") } !skip' "$OUT/test-look_b.toml" >"$OUT/test-look_b.tmp"
-sed -n '/^\[appearance.unseen_look\]/,$p' "$LOOK_B" >>"$OUT/test-look_b.tmp"
-mv "$OUT/test-look_b.tmp" "$OUT/test-look_b.toml"
-render test-look_b
+# Each look: the unseen_look test config with its [appearance.unseen_look]
+# table replaced by configs/test-look-X.toml's (the last table there).
+for look in "${LOOKS[@]}"; do
+  derived_config 3 "$TEST_SEQ" '"unseen_look"' "test-$look"
+  awk '/^\[/ { skip = ($0 == "[appearance.unseen_look]") } !skip' "$OUT/test-$look.toml" >"$OUT/test-$look.tmp"
+  sed -n '/^\[appearance.unseen_look\]/,$p' "configs/test-${look/_/-}.toml" >>"$OUT/test-$look.tmp"
+  mv "$OUT/test-$look.tmp" "$OUT/test-$look.toml"
+  render "test-$look"
+done
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$OUT/train.toml"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$OUT/train.toml" --show "$OUT/paths.png"

@@ -19,9 +19,22 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The texture families the Blender side knows (`blender_scripts/materials.py`).
-pub const FAMILIES: [&str; 13] = [
-    "noise", "voronoi", "brick", "checker", "wave", "marble", "image", "gingham", "dots", "gabor",
-    "magic", "mosaic", "rings",
+pub const FAMILIES: [&str; 15] = [
+    "noise",
+    "voronoi",
+    "brick",
+    "checker",
+    "wave",
+    "marble",
+    "image",
+    "gingham",
+    "dots",
+    "gabor",
+    "magic",
+    "mosaic",
+    "rings",
+    "chevron",
+    "triangles",
 ];
 pub const LIGHT_KINDS: [&str; 3] = ["point", "spot", "area"];
 
@@ -279,6 +292,7 @@ pub(crate) fn surface(
         roughness,
         detail,
         image,
+        overlay: None,
     }
 }
 

@@ -26,9 +26,18 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 /// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`):
-/// its defaults, and `mosaic` and `rings`, kept for a second held-out look
-/// (`configs/test-look-b.toml`, EXPERIMENTS.md section 15).
-pub const UNSEEN_FAMILIES: [&str; 5] = ["dots", "gabor", "magic", "mosaic", "rings"];
+/// its defaults, `mosaic` and `rings`, kept for a second held-out look
+/// (`configs/test-look-b.toml`, EXPERIMENTS.md section 15), and `chevron`
+/// and `triangles` for a third (`configs/test-look-c.toml`, section 16).
+pub const UNSEEN_FAMILIES: [&str; 7] = [
+    "dots",
+    "gabor",
+    "magic",
+    "mosaic",
+    "rings",
+    "chevron",
+    "triangles",
+];
 /// The families `[appearance.unseen_look]` draws by default.
 pub const DEFAULT_UNSEEN_FAMILIES: [&str; 3] = ["dots", "gabor", "magic"];
 /// Light kinds only `unseen_look` uses.

@@ -142,6 +142,7 @@ fn unseen_look_stays_apart_under_the_shipped_configs() {
         "authors.toml",
         "test-sets.toml",
         "test-look-b.toml",
+        "test-look-c.toml",
     ] {
         let mut c = GeneratorConfig::load(&root.join(name)).unwrap();
         // The carton planner needs the d435 camera's arm's-length starts.
@@ -161,61 +162,98 @@ fn appearance(p: &SequencePlan) -> &grasp_schema::appearance::Appearance {
     p.appearance.as_ref().unwrap()
 }
 
-/// The second held-out look (`configs/test-look-b.toml`) is apart from the
-/// default unseen_look too, on the axes it changes: families, lens, light
-/// count and temperatures, tone mapping, exposure and noise.
-#[test]
-fn look_b_differs_from_the_default_unseen_look() {
+/// A held-out look's unseen_look plans: the default unseen_look when `file`
+/// is `None`, else the config in `configs/`.
+fn held_out_look(file: Option<&str>) -> Vec<SequencePlan> {
     let root = generator::python::workspace_root().join("configs");
-    let mut b = GeneratorConfig::load(&root.join("test-look-b.toml")).unwrap();
-    b.plan.camera = generator::plan::CameraConfig {
-        resolution: b.plan.camera.resolution,
+    let mut c = GeneratorConfig::load(&root.join("test-look-b.toml")).unwrap();
+    c.appearance.unseen_look = match file {
+        Some(f) => {
+            GeneratorConfig::load(&root.join(f))
+                .unwrap()
+                .appearance
+                .unseen_look
+        }
+        None => Default::default(),
+    };
+    c.plan.camera = generator::plan::CameraConfig {
+        resolution: c.plan.camera.resolution,
         ..Default::default()
     };
-    b.plan.trajectory.standoff_m = 0.12;
-    let mut a = b.clone();
-    a.appearance.unseen_look = Default::default();
-    let unseen = |c: &GeneratorConfig| plans(c, &[Condition::UnseenLook], 20);
-    let (pa, pb) = (unseen(&a), unseen(&b));
-    let families = |ps: &[SequencePlan]| {
-        ps.iter()
-            .flat_map(|p| {
-                let l = appearance(p);
-                [&l.wall.family, &l.floor.family, &l.table.family].map(String::clone)
-            })
-            .collect::<std::collections::BTreeSet<_>>()
-    };
+    c.plan.trajectory.standoff_m = 0.12;
+    plans(&c, &[Condition::UnseenLook], 20)
+}
+
+fn families(ps: &[SequencePlan]) -> std::collections::BTreeSet<String> {
+    ps.iter()
+        .flat_map(|p| {
+            let l = appearance(p);
+            [&l.wall.family, &l.floor.family, &l.table.family].map(String::clone)
+        })
+        .collect()
+}
+
+fn view_transform(ps: &[SequencePlan]) -> String {
+    appearance(&ps[0]).tone.clone().unwrap().view_transform
+}
+
+/// Two held-out looks are apart on the given axes, and in their texture
+/// families and view transform.
+fn assert_looks_apart(a: &[SequencePlan], b: &[SequencePlan], axes: &[(&str, Axis)]) {
     assert!(
-        families(&pa).is_disjoint(&families(&pb)),
+        families(a).is_disjoint(&families(b)),
         "{:?} vs {:?}",
-        families(&pa),
-        families(&pb)
+        families(a),
+        families(b)
     );
-    assert_eq!(
-        families(&pb).into_iter().collect::<Vec<_>>(),
-        ["mosaic", "rings"]
-    );
-    let axes: [(&str, Axis); 5] = [
-        ("fov", |p| vec![p.intrinsics.fov_y_deg]),
-        ("lights", |p| vec![appearance(p).lights.len() as f64]),
-        ("kelvin", |p| {
-            let lights = &appearance(p).lights;
-            lights.iter().map(|l| l.color_temperature_k).collect()
-        }),
-        ("exposure", |p| vec![appearance(p).exposure]),
-        ("noise", |p| {
-            let sensor = appearance(p).sensor.as_ref();
-            sensor.and_then(|s| s.noise_sigma).into_iter().collect()
-        }),
-    ];
+    assert_ne!(view_transform(a), view_transform(b));
     for (name, values) in axes {
         let r = |ps: &[SequencePlan]| range(ps.iter().flat_map(values));
-        let (ra, rb) = (r(&pa), r(&pb));
+        let (ra, rb) = (r(a), r(b));
         assert!(disjoint(ra, rb), "{name}: {ra:?} vs {rb:?}");
     }
-    let tone = |ps: &[SequencePlan]| appearance(&ps[0]).tone.clone().unwrap().view_transform;
-    assert_eq!(tone(&pb), "Filmic");
-    assert_ne!(tone(&pa), tone(&pb));
+}
+
+const FOV: (&str, Axis) = ("fov", |p| vec![p.intrinsics.fov_y_deg]);
+const LIGHTS: (&str, Axis) = ("lights", |p| vec![appearance(p).lights.len() as f64]);
+const KELVIN: (&str, Axis) = ("kelvin", |p| {
+    let lights = &appearance(p).lights;
+    lights.iter().map(|l| l.color_temperature_k).collect()
+});
+const EXPOSURE: (&str, Axis) = ("exposure", |p| vec![appearance(p).exposure]);
+const NOISE: (&str, Axis) = ("noise", |p| {
+    let sensor = appearance(p).sensor.as_ref();
+    sensor.and_then(|s| s.noise_sigma).into_iter().collect()
+});
+
+/// The second held-out look (`configs/test-look-b.toml`) is apart from the
+/// default unseen_look on the axes it changes: families, lens, light count
+/// and temperatures, tone mapping, exposure and noise.
+#[test]
+fn look_b_differs_from_the_default_unseen_look() {
+    let (unseen, b) = (held_out_look(None), held_out_look(Some("test-look-b.toml")));
+    assert_looks_apart(&unseen, &b, &[FOV, LIGHTS, KELVIN, EXPOSURE, NOISE]);
+    assert_eq!(
+        families(&b).into_iter().collect::<Vec<_>>(),
+        ["mosaic", "rings"]
+    );
+    assert_eq!(view_transform(&b), "Filmic");
+}
+
+/// The third (`configs/test-look-c.toml`) is apart from both in families,
+/// lens, light count and temperatures and tone mapping (its exposure and
+/// noise lie between theirs and may meet them).
+#[test]
+fn look_c_differs_from_the_other_held_out_looks() {
+    let c = held_out_look(Some("test-look-c.toml"));
+    for other in [None, Some("test-look-b.toml")] {
+        assert_looks_apart(&held_out_look(other), &c, &[FOV, LIGHTS, KELVIN]);
+    }
+    assert_eq!(
+        families(&c).into_iter().collect::<Vec<_>>(),
+        ["chevron", "triangles"]
+    );
+    assert_eq!(view_transform(&c), "Standard");
 }
 
 /// A config changed by `edit` must be refused with an error naming `field`.
@@ -372,7 +410,16 @@ fn without(mut v: serde_json::Value, paths: &[&str]) -> serde_json::Value {
 #[test]
 fn switching_a_lever_changes_only_its_own_values() {
     type Edit = fn(&mut GeneratorConfig);
-    let cases: [(&str, Edit, &[&str]); 8] = [
+    let cases: [(&str, Edit, &[&str]); 9] = [
+        (
+            "texture_mix",
+            |c| c.randomize.texture_mix.enabled = true,
+            &[
+                "appearance.wall.overlay",
+                "appearance.floor.overlay",
+                "appearance.table.overlay",
+            ],
+        ),
         (
             "world_light",
             |c| c.randomize.world_light.enabled = false,
@@ -452,12 +499,49 @@ fn switching_a_lever_changes_only_its_own_values() {
     }
 }
 
+/// Texture mixing draws its overlays from training's own families, with
+/// the configured share of surfaces, and leaves the `background`
+/// condition's held-out cloth whole.
+#[test]
+fn texture_mix_overlays_training_families_and_spares_the_held_out_cloth() {
+    let mut c = GeneratorConfig::default();
+    c.randomize.texture_mix.enabled = true;
+    let ps = plans(&c, &[Condition::Default, Condition::Background], 40);
+    let (mut surfaces, mut overlaid) = (0, 0);
+    for p in &ps {
+        let a = appearance(p);
+        for s in [&a.wall, &a.floor, &a.table] {
+            surfaces += 1;
+            let Some(o) = &s.overlay else { continue };
+            overlaid += 1;
+            assert!(
+                c.appearance.families.contains(&o.material.family),
+                "{}",
+                o.material.family
+            );
+            assert!(o.material.overlay.is_none());
+            assert!((0.3..=0.7).contains(&o.coverage) && (0.5..=4.0).contains(&o.mask_scale));
+            assert_ne!(s.family, c.appearance.held_out_family);
+        }
+        if p.key.condition == Condition::Background {
+            assert!(a.table.overlay.is_none());
+        }
+    }
+    // 160 sequences, two or three surfaces each at probability 0.5.
+    let share = f64::from(overlaid) / f64::from(surfaces);
+    assert!((0.3..0.6).contains(&share), "{overlaid} of {surfaces}");
+}
+
 #[test]
 fn the_master_switch_turns_every_lever_off() {
     let mut c = GeneratorConfig::default();
+    c.randomize.texture_mix.enabled = true;
     c.randomize.enabled = false;
     for p in plans(&c, &[Condition::Default], 10) {
         let a = p.appearance.unwrap();
+        assert!([&a.wall, &a.floor, &a.table]
+            .iter()
+            .all(|s| s.overlay.is_none()));
         assert!(a.world.is_none() && a.motion_blur.is_none() && a.sensor.is_none());
         assert!(!a.object.plausible && p.distractors.is_empty());
         assert!((p.intrinsics.fov_y_deg - 42.0).abs() < 1e-9);
