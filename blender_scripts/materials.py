@@ -175,6 +175,18 @@ def _cell_radius(nodes, links, vec):
     return length.outputs["Value"]
 
 
+def _bands(nodes, links, value, spec):
+    """Hard-edged bands of the two colours, one per unit of `value`."""
+    band = nodes.new("ShaderNodeMath")
+    band.operation = "FRACT"
+    links.new(value, band.inputs[0])
+    on = nodes.new("ShaderNodeMath")
+    on.operation = "LESS_THAN"
+    on.inputs[1].default_value = 0.5
+    links.new(band.outputs["Value"], on.inputs[0])
+    return _ramp(nodes, links, on.outputs["Value"], spec["color_a"], spec["color_b"])
+
+
 def _dots(nodes, links, vec, spec):
     # Polka dots: the distance to the centre of each unit cell of the UV
     # plane, thresholded at a radius set by `detail`.
@@ -245,14 +257,7 @@ def _rings(nodes, links, vec, spec):
     freq.operation = "MULTIPLY"
     freq.inputs[1].default_value = 3.0 + 4.0 * spec["detail"]
     links.new(_cell_radius(nodes, links, vec), freq.inputs[0])
-    band = nodes.new("ShaderNodeMath")
-    band.operation = "FRACT"
-    links.new(freq.outputs["Value"], band.inputs[0])
-    on = nodes.new("ShaderNodeMath")
-    on.operation = "LESS_THAN"
-    on.inputs[1].default_value = 0.5
-    links.new(band.outputs["Value"], on.inputs[0])
-    return _ramp(nodes, links, on.outputs["Value"], spec["color_a"], spec["color_b"])
+    return _bands(nodes, links, freq.outputs["Value"], spec)
 
 
 def _chevron(nodes, links, vec, spec):
@@ -269,14 +274,7 @@ def _chevron(nodes, links, vec, spec):
     bent.inputs[1].default_value = 1.0 + 2.0 * spec["detail"]
     links.new(tri.outputs["Value"], bent.inputs[0])
     links.new(sep.outputs["Y"], bent.inputs[2])
-    band = nodes.new("ShaderNodeMath")
-    band.operation = "FRACT"
-    links.new(bent.outputs["Value"], band.inputs[0])
-    on = nodes.new("ShaderNodeMath")
-    on.operation = "LESS_THAN"
-    on.inputs[1].default_value = 0.5
-    links.new(band.outputs["Value"], on.inputs[0])
-    return _ramp(nodes, links, on.outputs["Value"], spec["color_a"], spec["color_b"])
+    return _bands(nodes, links, bent.outputs["Value"], spec)
 
 
 def _triangles(nodes, links, vec, spec):

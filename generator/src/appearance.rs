@@ -18,24 +18,28 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The texture families the Blender side knows (`blender_scripts/materials.py`).
-pub const FAMILIES: [&str; 15] = [
-    "noise",
-    "voronoi",
-    "brick",
-    "checker",
-    "wave",
-    "marble",
-    "image",
-    "gingham",
-    "dots",
-    "gabor",
-    "magic",
-    "mosaic",
-    "rings",
-    "chevron",
-    "triangles",
+/// The families training and the `background` condition draw from.
+pub const BASE_FAMILIES: [&str; 8] = [
+    "noise", "voronoi", "brick", "checker", "wave", "marble", "image", "gingham",
 ];
+/// The texture families the Blender side knows (`blender_scripts/materials.py`):
+/// the base families and those reserved for `unseen_look`.
+pub const FAMILIES: [&str; 15] = concat(BASE_FAMILIES, crate::unseen_look::UNSEEN_FAMILIES);
+
+/// `a` followed by `b` (`N` must be their total length).
+const fn concat<const A: usize, const B: usize, const N: usize>(
+    a: [&'static str; A],
+    b: [&'static str; B],
+) -> [&'static str; N] {
+    assert!(A + B == N);
+    let mut out = [""; N];
+    let mut i = 0;
+    while i < N {
+        out[i] = if i < A { a[i] } else { b[i - A] };
+        i += 1;
+    }
+    out
+}
 pub const LIGHT_KINDS: [&str; 3] = ["point", "spot", "area"];
 
 /// Ranges of the randomized appearance values (`[appearance]` in the config).
