@@ -339,6 +339,7 @@ def _overlaid(nodes, links, base, overlay):
     # `coverage` of the surface (noise values spread around 0.5).
     top = _pattern(nodes, links, overlay["material"])
     mask = nodes.new("ShaderNodeTexNoise")
+    mask.inputs["Scale"].default_value = 1.0  # the mapping sets it: mask_scale per metre
     mask.inputs["Detail"].default_value = 2.0
     links.new(_uv_vector(nodes, links, float(overlay["mask_scale"])), mask.inputs["Vector"])
     cut = nodes.new("ShaderNodeMapRange")

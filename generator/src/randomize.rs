@@ -270,7 +270,7 @@ pub struct TextureMixLever {
     pub enabled: bool,
     /// Chance that a surface gets an overlay.
     pub probability: f64,
-    /// Mask pattern scale, per metre (log-uniform).
+    /// Mask noise frequency, per metre (log-uniform).
     pub mask_scale: [f64; 2],
     /// Fraction of the surface the overlay covers.
     pub coverage: [f64; 2],
@@ -281,7 +281,7 @@ impl Default for TextureMixLever {
         TextureMixLever {
             enabled: false,
             probability: 0.5,
-            mask_scale: [0.5, 4.0],
+            mask_scale: [2.5, 20.0],
             coverage: [0.3, 0.7],
         }
     }

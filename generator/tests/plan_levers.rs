@@ -520,7 +520,7 @@ fn texture_mix_overlays_training_families_and_spares_the_held_out_cloth() {
                 o.material.family
             );
             assert!(o.material.overlay.is_none());
-            assert!((0.3..=0.7).contains(&o.coverage) && (0.5..=4.0).contains(&o.mask_scale));
+            assert!((0.3..=0.7).contains(&o.coverage) && (2.5..=20.0).contains(&o.mask_scale));
             assert_ne!(s.family, c.appearance.held_out_family);
         }
         if p.key.condition == Condition::Background {

@@ -10,8 +10,9 @@ use serde::{Deserialize, Serialize};
 pub struct SurfaceMaterial {
     /// Texture family: `noise`, `voronoi`, `brick`, `checker`, `wave`,
     /// `marble`, `image`, the held-out family reserved for `background`, or
-    /// one of the `unseen_look` condition's own families (`dots`, `gabor`,
-    /// `magic`).
+    /// one of the families reserved for the `unseen_look` condition and the
+    /// other held-out looks (`dots`, `gabor`, `magic`, `mosaic`, `rings`,
+    /// `chevron`, `triangles`).
     pub family: String,
     /// Two linear RGB colours the pattern blends between.
     pub color_a: [f64; 3],
@@ -34,7 +35,7 @@ pub struct SurfaceMaterial {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceOverlay {
     pub material: SurfaceMaterial,
-    /// Mask pattern scale, texture coordinates per metre.
+    /// Mask noise frequency, per metre.
     pub mask_scale: f64,
     /// Fraction of the surface the overlay covers, in (0, 1).
     pub coverage: f64,
