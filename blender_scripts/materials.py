@@ -175,6 +175,14 @@ def _cell_radius(nodes, links, vec):
     return length.outputs["Value"]
 
 
+def _cell_shade(nodes, links, cell):
+    """A random value in [0, 1) per distinct `cell` vector."""
+    shade = nodes.new("ShaderNodeTexWhiteNoise")
+    shade.noise_dimensions = "3D"
+    links.new(cell, shade.inputs["Vector"])
+    return shade
+
+
 def _bands(nodes, links, value, spec):
     """Hard-edged bands of the two colours, one per unit of `value`."""
     band = nodes.new("ShaderNodeMath")
@@ -227,9 +235,7 @@ def _mosaic(nodes, links, vec, spec):
     tile = nodes.new("ShaderNodeVectorMath")
     tile.operation = "FLOOR"
     links.new(flat, tile.inputs[0])
-    shade = nodes.new("ShaderNodeTexWhiteNoise")
-    shade.noise_dimensions = "3D"
-    links.new(tile.outputs["Vector"], shade.inputs["Vector"])
+    shade = _cell_shade(nodes, links, tile.outputs["Vector"])
     edge = nodes.new("ShaderNodeVectorMath")
     edge.operation = "ABSOLUTE"
     links.new(centred, edge.inputs[0])
@@ -297,9 +303,7 @@ def _triangles(nodes, links, vec, spec):
     which.operation = "ADD"
     links.new(cell.outputs["Vector"], which.inputs[0])
     links.new(half.outputs["Vector"], which.inputs[1])
-    shade = nodes.new("ShaderNodeTexWhiteNoise")
-    shade.noise_dimensions = "3D"
-    links.new(which.outputs["Vector"], shade.inputs["Vector"])
+    shade = _cell_shade(nodes, links, which.outputs["Vector"])
     tilt = nodes.new("ShaderNodeMath")
     tilt.operation = "POWER"
     tilt.inputs[1].default_value = 1.0 - 0.6 * spec["detail"]
