@@ -339,8 +339,9 @@ def _pattern(nodes, links, spec):
 
 
 def _overlaid(nodes, links, base, overlay):
-    # A second pattern over the patches of a noise mask covering
-    # `coverage` of the surface (noise values spread around 0.5).
+    # A second pattern over the patches of a noise mask, cut where its
+    # values (spread around 0.5) exceed a threshold that falls as `coverage`
+    # rises: roughly, not exactly, that share of the surface.
     top = _pattern(nodes, links, overlay["material"])
     mask = nodes.new("ShaderNodeTexNoise")
     mask.inputs["Scale"].default_value = 1.0  # the mapping sets it: mask_scale per metre

@@ -272,7 +272,8 @@ pub struct TextureMixLever {
     pub probability: f64,
     /// Mask noise frequency, per metre (log-uniform).
     pub mask_scale: [f64; 2],
-    /// Fraction of the surface the overlay covers.
+    /// The overlay's nominal share of the surface (the mask's threshold;
+    /// the share covered is close to it, not exact).
     pub coverage: [f64; 2],
 }
 

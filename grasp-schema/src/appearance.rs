@@ -37,7 +37,8 @@ pub struct SurfaceOverlay {
     pub material: SurfaceMaterial,
     /// Mask noise frequency, per metre.
     pub mask_scale: f64,
-    /// Fraction of the surface the overlay covers, in (0, 1).
+    /// The overlay's nominal share of the surface, in (0, 1): it sets the
+    /// mask's threshold, so the share covered is close to it, not exact.
     pub coverage: f64,
 }
 
