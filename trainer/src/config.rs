@@ -77,6 +77,12 @@ pub struct TrainConfig {
     /// Frozen mode's augmentation: extra, seeded views of each training
     /// sequence, cached like the frames themselves.
     pub views: ViewConfig,
+    /// Frozen mode with views: damp the feature directions along which the
+    /// views move a frame's features, each principal direction of those
+    /// changes scaled by 1 / sqrt(1 + view_damping x its variance / the
+    /// mean variance), folded into the head's input weights when saved
+    /// ([`crate::train::ViewDamping`]). 0: off.
+    pub view_damping: f64,
     /// Fine-tuned mode: which blocks train, and their optimizer.
     pub fine_tune: FineTuneConfig,
     pub cache_dir: PathBuf,
@@ -119,6 +125,7 @@ impl Default for TrainConfig {
             reader: ReaderOptions::default(),
             augment: AugmentConfig::default(),
             views: ViewConfig::default(),
+            view_damping: 0.0,
             fine_tune: FineTuneConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
@@ -203,6 +210,23 @@ impl TrainConfig {
         self.batch_size.unwrap_or(default)
     }
 
+    fn validate_view_damping(&self) -> Result<()> {
+        let d = self.view_damping;
+        if !d.is_finite() || d < 0.0 {
+            anyhow::bail!("view_damping (--view-damping) must be 0 or positive, got {d}");
+        }
+        if d > 0.0 && (self.mode != TrainMode::FrozenPretrained || self.views.count == 0) {
+            anyhow::bail!(
+                "view_damping (--view-damping) {d} damps what the extra views change in the \
+                 cached features: it needs frozen-pretrained mode and views.count \
+                 (--feature-views), got {} mode and {} views",
+                self.mode.name(),
+                self.views.count
+            );
+        }
+        Ok(())
+    }
+
     pub fn validate(&self) -> Result<()> {
         if self.data.as_os_str().is_empty() {
             anyhow::bail!("no training data: set `data` in the config or pass --data");
@@ -229,6 +253,7 @@ impl TrainConfig {
                 );
             }
         }
+        self.validate_view_damping()?;
         if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
                 "pooled_blocks (--pooled-blocks) {:?} are EfficientNet-Lite blocks, read in the \
@@ -403,6 +428,41 @@ mod tests {
             };
             let err = format!("{:#}", cfg.validate().unwrap_err());
             assert!(err.contains("views.style"), "{style}: {err}");
+        }
+    }
+
+    #[test]
+    fn view_damping_needs_frozen_views_and_a_finite_strength() {
+        let damped = TrainConfig {
+            data: PathBuf::from("d"),
+            view_damping: 1.0,
+            views: ViewConfig {
+                count: 2,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        damped.validate().unwrap();
+        for bad in [
+            TrainConfig {
+                view_damping: -1.0,
+                ..damped.clone()
+            },
+            TrainConfig {
+                view_damping: f64::NAN,
+                ..damped.clone()
+            },
+            TrainConfig {
+                mode: TrainMode::FineTuned,
+                ..damped.clone()
+            },
+            TrainConfig {
+                views: ViewConfig::default(),
+                ..damped.clone()
+            },
+        ] {
+            let err = format!("{:#}", bad.validate().unwrap_err());
+            assert!(err.contains("--view-damping"), "{err}");
         }
     }
 

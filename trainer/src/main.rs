@@ -247,6 +247,12 @@ struct TrainArgs {
     /// job's FC head uses 0.3).
     #[arg(long, value_name = "SIGMA")]
     view_style: Option<f32>,
+    /// With --feature-views (frozen mode): damp the feature directions the
+    /// views change most, each by 1 / sqrt(1 + STRENGTH x its share of the
+    /// change over the mean share), folded into the saved head (0: off;
+    /// EXPERIMENTS.md section 17).
+    #[arg(long, value_name = "STRENGTH")]
+    view_damping: Option<f64>,
     /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
     /// its head convolution) with the head.
     #[arg(long, value_name = "N")]
@@ -416,6 +422,7 @@ fn train(args: TrainArgs) -> Result<()> {
     cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
     set!(cfg.views.count, args.feature_views);
     set!(cfg.views.style, args.view_style);
+    set!(cfg.view_damping, args.view_damping);
     set!(cfg.fine_tune.blocks, args.tune_blocks);
     set!(cfg.fine_tune.lr, args.tune_lr);
     set!(cfg.fine_tune.probe_epochs, args.probe_epochs);

@@ -59,6 +59,7 @@ fn prepared(train: usize, noise: f32) -> Prepared {
         feature_dim: DIM,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
         tail: None,
+        damping: None,
     }
 }
 

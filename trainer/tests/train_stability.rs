@@ -90,6 +90,7 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         feature_dim: dim,
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
         tail: None,
+        damping: None,
     }
 }
 

@@ -12,10 +12,11 @@
 //! One module per concept: [`splits`] (loading and splitting the data),
 //! [`frames`] (the frame index), [`net`] (the network's forward pass and
 //! loss), [`balance`] (class balancing), [`plateau`] (the learning-rate
-//! schedule), [`prepare`] (backbone and features), [`tail`] (the tuned
+//! schedule), [`prepare`] (backbone and features), [`damping`] (view damping), [`tail`] (the tuned
 //! blocks), [`probe`] (the linear probe); this file holds the loop.
 
 mod balance;
+mod damping;
 mod frames;
 mod net;
 mod plateau;
@@ -25,6 +26,7 @@ mod splits;
 mod tail;
 
 pub use balance::epoch_units;
+pub use damping::ViewDamping;
 pub use frames::{FrameSource, SplitFrames};
 pub use net::Net;
 pub use plateau::{Plateau, PlateauStep};
@@ -145,7 +147,11 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 train_sequences: Some(prep.train_sequences),
                 train_config: serde_json::to_value(cfg)?,
             };
-            checkpoint::save(out, &meta, &net.tensors())?;
+            let tensors = match &prep.damping {
+                Some(d) => d.fold(net.tensors(), net.feature_weight_name())?,
+                None => net.tensors(),
+            };
+            checkpoint::save(out, &meta, &tensors)?;
         }
         grasp_schema::atomic::write_atomic(
             &out.join("history.json"),

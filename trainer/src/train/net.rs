@@ -188,6 +188,15 @@ impl Net {
         Ok(Tensor::cat(&outs, 1)?)
     }
 
+    /// The checkpoint tensor that reads the features: the FC head's
+    /// weights, or the LSTM's input weights.
+    pub(super) fn feature_weight_name(&self) -> &'static str {
+        match self.head.cfg.kind {
+            HeadKind::Fc => "head.fc.weight",
+            HeadKind::Lstm => "head.lstm.weight_ih_l0",
+        }
+    }
+
     /// Tensors of the checkpoint: `head.*`, plus `backbone.*` from scratch
     /// or `tail.*` fine-tuned.
     pub fn tensors(&self) -> Vec<(String, Tensor)> {

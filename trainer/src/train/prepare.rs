@@ -2,6 +2,7 @@
 //! pretrained file, or the venv's ImageNet weights), the splits' frames
 //! or cached features, and the network built for a seed.
 
+use super::damping::ViewDamping;
 use super::tail::{BlockActivations, Tail, TailStart};
 use super::{Net, SplitFrames, Splits};
 use crate::config::TrainConfig;
@@ -33,6 +34,8 @@ pub struct Prepared {
     pub preprocess: Preprocess,
     /// Fine-tuned mode: the blocks that train, as pretrained.
     pub tail: Option<TailStart>,
+    /// Frozen mode with `view_damping`: the map the features went through.
+    pub damping: Option<ViewDamping>,
 }
 
 /// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
@@ -107,7 +110,8 @@ pub fn prepare(
         TrainMode::FrozenPretrained => {
             let (info, pre) = frozen_backbone(cfg)?;
             let bb = Backbone::load_pretrained(&info, pre, dev)?;
-            let (train, val) = cached_frames(cfg, splits, &bb, bad, dev)?;
+            let (mut train, mut val) = cached_frames(cfg, splits, &bb, bad, dev)?;
+            let damping = damp_views(cfg, &mut train, &mut val, splits.train.sequences.len())?;
             Ok(Prepared {
                 train,
                 val,
@@ -117,6 +121,7 @@ pub fn prepare(
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
                 tail: None,
+                damping,
             })
         }
         TrainMode::FineTuned => {
@@ -152,6 +157,7 @@ pub fn prepare(
                 preprocess: bb.preprocess.clone(),
                 backbone: Some(info),
                 tail: Some(start),
+                damping: None,
             })
         }
         TrainMode::FromScratch => {
@@ -169,9 +175,38 @@ pub fn prepare(
                 feature_dim: 0,
                 preprocess: Preprocess::imagenet(cfg.input_size),
                 tail: None,
+                damping: None,
             })
         }
     }
+}
+
+/// With `cfg.view_damping`, the damping of what the training views change,
+/// applied to both splits' features.
+fn damp_views(
+    cfg: &TrainConfig,
+    train: &mut SplitFrames,
+    val: &mut SplitFrames,
+    originals: usize,
+) -> Result<Option<ViewDamping>> {
+    if cfg.view_damping <= 0.0 {
+        return Ok(None);
+    }
+    let damping = ViewDamping::from_views(train, originals, cfg.view_damping)
+        .context("computing the views' feature changes")?;
+    match &damping {
+        Some(d) => {
+            tracing::info!(
+                "view damping {}: the views' largest feature change holds {:.1} % of them",
+                cfg.view_damping,
+                100.0 * d.leading_share
+            );
+            d.apply_to_frames(train)?;
+            d.apply_to_frames(val)?;
+        }
+        None => tracing::warn!("view damping: the views change no feature, nothing to damp"),
+    }
+    Ok(damping)
 }
 
 /// The training split (with its configured views) and the validation
