@@ -24,7 +24,8 @@
 #                   10, 14 and 15 after the head's (--pooled-blocks), and
 #                   the LSTM trains on sequences started anywhere in their
 #                   first half (--lstm-start-crop 0.5); the frozen FC head
-#                   adds style views (configs/train-style-views.toml),
+#                   adds style views (configs/train-style-views.toml)
+#                   and damps what they change (--view-damping 1),
 #                   EXPERIMENTS.md.
 #                   About 35 minutes on 2 idle cores after setup.
 #   --large         the same with 32 training sequences per pair (a third
@@ -51,7 +52,8 @@
 # POOLED (7,10,14,15, the frozen heads' pooled blocks; "none" for the
 # head's features alone), LSTM_START_CROP (0.5; 0 trains the LSTM on whole
 # sequences), STYLE (configs/train-style-views.toml, the frozen FC head's
-# views; "none" for none).
+# views; "none" for none), DAMPING (1, the frozen FC head's --view-damping
+# of what its views change; 0 for none).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -63,7 +65,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,54p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,56p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -74,7 +76,7 @@ done
 SEEDS=${SEEDS:-3} POOLED_FLAGS=()
 CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
 LSTM_START_CROP=${LSTM_START_CROP:-0.5}
-STYLE=${STYLE:-configs/train-style-views.toml} STYLE_FLAGS=()
+STYLE=${STYLE:-configs/train-style-views.toml} STYLE_FLAGS=() DAMPING=${DAMPING:-1}
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$LARGE" = 1 ]; then
@@ -101,12 +103,14 @@ else
   [ -n "$WEIGHTS" ] || [ "$POOLED" = none ] || POOLED_FLAGS=(--pooled-blocks "$POOLED")
   # style views restyle Lite0's blocks (--weights may be MobileNetV2)
   [ -n "$WEIGHTS" ] || [ "$STYLE" = none ] || STYLE_FLAGS=(-c "$STYLE")
+  [ "${#STYLE_FLAGS[@]}" = 0 ] || [ "$DAMPING" = 0 ] || STYLE_FLAGS+=(--view-damping "$DAMPING")
 fi
 # The frozen heads read pooled blocks; the fine-tuned one does not, as they
 # cost it 3.6 points on unseen_look (EXPERIMENTS.md section 12). The LSTM
 # trains on sequences started anywhere in their first half, which a reach
 # from the ground needs (section 13). The frozen FC head also trains on four
-# style views of every sequence (section 14).
+# style views of every sequence (section 14), with the feature directions
+# they change damped (section 17).
 mode_flags() { # model
   case $1 in
     *-tuned) echo --mode fine-tuned --max-epochs 6 ;;
