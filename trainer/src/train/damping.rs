@@ -2,7 +2,7 @@
 //! training views change. A view shows the same frame in another look
 //! (style views) or through another crop, so whatever moves between a frame
 //! and its views is not the grasp. The principal directions of those
-//! changes (the views' change covariance `C`) are scaled down in the
+//! changes (their uncentred covariance `C`) are scaled down in the
 //! features, `x -> (I + damping C / mean eigenvalue)^(-1/2) x`, so the head
 //! needs large weights, which its L2 penalty resists, to read them. The
 //! map is linear and folded into the head's input weights when the
@@ -41,7 +41,8 @@ impl ViewDamping {
         let Some(diff) = view_changes(x, &frames.seq_rows, originals)? else {
             return Ok(None);
         };
-        // f64 for the sum over tens of thousands of rows.
+        // Uncentred: a shift that every view shares is a change too. f64 for
+        // the sum over tens of thousands of rows.
         let diff = diff.to_dtype(DType::F64)?;
         let cov = diff.t()?.matmul(&diff)?;
         let dim = cov.dim(0)?;
