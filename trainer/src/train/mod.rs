@@ -12,8 +12,9 @@
 //! One module per concept: [`splits`] (loading and splitting the data),
 //! [`frames`] (the frame index), [`net`] (the network's forward pass and
 //! loss), [`balance`] (class balancing), [`plateau`] (the learning-rate
-//! schedule), [`prepare`] (backbone and features), [`damping`] (view damping), [`tail`] (the tuned
-//! blocks), [`probe`] (the linear probe); this file holds the loop.
+//! schedule), [`prepare`] (backbone and features), [`damping`] (view
+//! damping), [`tail`] (the tuned blocks), [`probe`] (the linear probe);
+//! this file holds the loop.
 
 mod balance;
 mod damping;
