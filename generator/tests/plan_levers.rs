@@ -682,3 +682,64 @@ fn object_scale_resizes_the_object_that_the_plan_checks_and_records() {
         "[randomize.object_scale] scale",
     );
 }
+
+/// Look twins (`[dataset] look_seed`): every sequence keeps its reach, frame
+/// for frame, and draws its look and lens again, differently per look seed,
+/// within the condition's own ranges.
+#[test]
+fn a_look_seed_keeps_the_reach_and_draws_the_look_again() {
+    let conditions = [Condition::Default, Condition::UnseenLook];
+    let base = GeneratorConfig::default();
+    let with_seed = |s| {
+        let mut c = base.clone();
+        c.dataset.look_seed = Some(s);
+        plans(&c, &conditions, 3)
+    };
+    let (own, twins, others) = (plans(&base, &conditions, 3), with_seed(1), with_seed(2));
+    assert_eq!(twins, with_seed(1), "twins reproduce from their seeds");
+    for ((p, t), o) in own.iter().zip(&twins).zip(&others) {
+        let id = p.key.id();
+        assert_eq!(p.key, t.key);
+        assert_eq!(p.object, t.object, "{id}: placement");
+        assert_eq!(p.frames, t.frames, "{id}: camera path and labels");
+        assert_eq!((p.target, p.other_end), (t.target, t.other_end), "{id}");
+        assert_eq!(p.distractors, t.distractors, "{id}");
+        assert_ne!(p.appearance, t.appearance, "{id}: the look is drawn again");
+        assert_ne!(t.appearance, o.appearance, "{id}: per look seed");
+        assert_ne!(p.intrinsics.fov_y_deg, t.intrinsics.fov_y_deg, "{id}: lens");
+        assert_eq!(t.sampled["look_seed"], 1);
+        assert!(!p.sampled.contains_key("look_seed"));
+    }
+    // A default twin stays in training's ranges, an unseen_look one in its own.
+    let fov = |ps: &[SequencePlan], c| {
+        range(
+            ps.iter()
+                .filter(|p| p.key.condition == c)
+                .map(|p| p.sampled["fov_scale"].as_f64().unwrap()),
+        )
+    };
+    let [lo, hi] = fov(&twins, Condition::Default);
+    assert!(lo >= base.randomize.fov.scale[0] && hi <= base.randomize.fov.scale[1]);
+    let [lo, hi] = fov(&twins, Condition::UnseenLook);
+    let unseen = base.appearance.unseen_look.fov_scale;
+    assert!(lo >= unseen[0] && hi <= unseen[1]);
+}
+
+/// The fourth held-out look (`configs/test-look-d.toml`) has a lens and
+/// light temperatures apart from the other three; its families are one of
+/// look B's and one of look C's.
+#[test]
+fn look_d_differs_from_the_other_held_out_looks_in_lens_and_light() {
+    let d = held_out_look(Some("test-look-d.toml"));
+    for other in [None, Some("test-look-b.toml"), Some("test-look-c.toml")] {
+        let o = held_out_look(other);
+        for (name, values) in [FOV, KELVIN] {
+            let r = |ps: &[SequencePlan]| range(ps.iter().flat_map(values));
+            assert!(disjoint(r(&o), r(&d)), "{name} vs {other:?}");
+        }
+    }
+    assert_eq!(
+        families(&d).into_iter().collect::<Vec<_>>(),
+        ["mosaic", "triangles"]
+    );
+}

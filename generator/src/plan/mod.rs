@@ -45,6 +45,11 @@ pub struct DatasetConfig {
     pub objects: Option<Vec<String>>,
     /// Only these parts, as `part` or `object/part` (all when absent).
     pub parts: Option<Vec<String>>,
+    /// Look twins: with a look seed, every sequence keeps its path (object
+    /// placement, trajectory, wrist, distractors) and draws its look (the
+    /// appearance and lens levers) again from a sub-stream salted by the
+    /// seed. The same reaches in another look, frame for frame.
+    pub look_seed: Option<u64>,
 }
 
 impl Default for DatasetConfig {
@@ -55,6 +60,7 @@ impl Default for DatasetConfig {
             conditions: vec![Condition::Default],
             objects: None,
             parts: None,
+            look_seed: None,
         }
     }
 }

@@ -301,7 +301,23 @@ impl Planner {
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
             .with_context(|| format!("planning {}", key.id()))?;
-        self.build_plan(key, geo, part_index, part, stream, &draws, accepted)
+        let (look, draws) = match self.config.dataset.look_seed {
+            // The path was searched with the sequence's own lens; only the
+            // picture changes.
+            Some(seed) => {
+                let look = substream_seed(stream, &format!("look/{seed}"));
+                let relooked = self.sequence_draws(key.condition, look);
+                let draws = SequenceDraws {
+                    intrinsics: relooked.intrinsics,
+                    fov_scale: relooked.fov_scale,
+                    principal_point_shift: relooked.principal_point_shift,
+                    ..draws
+                };
+                (look, draws)
+            }
+            None => (stream, draws),
+        };
+        self.build_plan(key, geo, part_index, part, (stream, look), &draws, accepted)
     }
 
     /// The lens (`[randomize.fov]`, or `unseen_look`'s own, and the
@@ -505,7 +521,7 @@ impl Planner {
         geo: &ObjectGeometry,
         part_index: usize,
         part: &GraspPart,
-        stream: u64,
+        (stream, look): (u64, u64),
         draws: &SequenceDraws,
         accepted: Accepted,
     ) -> Result<SequencePlan> {
@@ -538,6 +554,9 @@ impl Planner {
         if head.is_some() {
             put("head_elbows", json!(elbows));
         }
+        if let Some(seed) = self.config.dataset.look_seed {
+            put("look_seed", json!(seed));
+        }
 
         let (distractors, rejected) = self.distractors(geo, c, s, stream);
         if self.levers.distractors.enabled {
@@ -553,7 +572,7 @@ impl Planner {
             &self.config.appearance,
             &self.levers,
             key.condition,
-            stream,
+            look,
             &colors,
             c.placement.position.into(),
             &self.images,
