@@ -253,6 +253,11 @@ struct TrainArgs {
     /// EXPERIMENTS.md section 17).
     #[arg(long, value_name = "STRENGTH")]
     view_damping: Option<f64>,
+    /// Frozen and fine-tuned modes: a look-twin dataset of --data (grasp-gen's `[dataset]
+    /// look_seed`: the same reaches in another look); each sequence's twin
+    /// trains as one more view and, with --view-damping, is damped with them.
+    #[arg(long, value_name = "DIR")]
+    look_twins: Option<PathBuf>,
     /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
     /// its head convolution) with the head.
     #[arg(long, value_name = "N")]
@@ -423,6 +428,7 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.views.count, args.feature_views);
     set!(cfg.views.style, args.view_style);
     set!(cfg.view_damping, args.view_damping);
+    cfg.look_twins = args.look_twins.or(cfg.look_twins);
     set!(cfg.fine_tune.blocks, args.tune_blocks);
     set!(cfg.fine_tune.lr, args.tune_lr);
     set!(cfg.fine_tune.probe_epochs, args.probe_epochs);
