@@ -1,6 +1,7 @@
 //! View damping (`--view-damping`): the frozen features' directions that
 //! the training views change are damped before the head, and the damping
 //! is folded into the saved head, so the checkpoint reads plain features.
+//! Look twins (`--look-twins`) join the views and are damped with them.
 
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
@@ -102,4 +103,54 @@ fn a_damped_run_saves_a_plain_checkpoint_that_records_the_damping() {
     assert_ne!(plain, damped, "the damping changed what the head reads");
     let saved = std::fs::read_to_string(root.join("damped/config.toml")).unwrap();
     assert!(saved.contains("view_damping = 3.0"), "{saved}");
+}
+
+/// `from` copied to `to` with every frame given a colour cast: the same
+/// reaches in another look, as grasp-gen's `[dataset] look_seed` renders.
+fn write_look_twin(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        let target = to.join(path.file_name().unwrap());
+        if path.is_dir() {
+            write_look_twin(&path, &target);
+        } else if path.extension().is_some_and(|e| e == "png") {
+            let mut img = image::open(&path).unwrap().to_rgb8();
+            for p in img.pixels_mut() {
+                p.0 = [p.0[0] / 2, p.0[1], 255 - p.0[2] / 2];
+            }
+            img.save(&target).unwrap();
+        } else {
+            std::fs::copy(&path, &target).unwrap();
+        }
+    }
+}
+
+#[test]
+fn look_twins_train_as_views_and_their_look_is_damped() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = BadData::new(OnBadData::Fail);
+    let dev = candle_core::Device::Cpu;
+    let twins = dir.path().join("twins");
+    let change = |damping: f64| {
+        let mut cfg = cfg(dir.path(), damping, "unused");
+        if !twins.exists() {
+            write_look_twin(&cfg.data, &twins);
+        }
+        cfg.views.count = 0;
+        cfg.views.style = 0.0;
+        cfg.look_twins = Some(twins.clone());
+        let splits = trainer::train::load_splits(&cfg, &bad).unwrap();
+        let prep = trainer::train::prepare(&cfg, &splits, &bad, &dev).unwrap();
+        let n = splits.train.sequences.len();
+        assert_eq!(prep.train.seq_ids.len(), 2 * n, "one twin per sequence");
+        for (i, id) in prep.train.seq_ids[n..].iter().enumerate() {
+            assert_eq!(id, &format!("{}#twin", prep.train.seq_ids[i]));
+            assert_eq!(prep.train.seq_class[n + i], prep.train.seq_class[i]);
+        }
+        relative_view_change(&prep.train, n)
+    };
+    let (plain, damped) = (change(0.0), change(20.0));
+    assert!(plain > 0.0, "the twins' look changes the features");
+    assert!(damped < 0.5 * plain, "damped {damped} against {plain}");
 }
