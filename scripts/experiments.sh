@@ -29,8 +29,9 @@
 #             default test frames).
 #   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
 #             with the main job's into one report per head and condition
-#             (310 videos); default, unseen_look and looks B and C (look_b,
-#             look_c, more held-out looks: EXPERIMENTS.md sections 15 and 16)
+#             (310 videos); default, unseen_look and looks B, C and D
+#             (look_b, look_c, look_d, more held-out looks: EXPERIMENTS.md
+#             sections 15, 16 and 18)
 #             unless DRAW_CONDITIONS.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
@@ -48,7 +49,7 @@ SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
-DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b look_c}
+DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b look_c look_d}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s

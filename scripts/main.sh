@@ -2,8 +2,9 @@
 # The main job, the paper's protocol: set the machine up, then check the
 # catalog, plan and render (Cycles) a training set, a validation set and the
 # six test conditions (the paper's five and unseen_look, an appearance
-# training never draws) and looks B and C (unseen_look with the appearance
-# of configs/test-look-b.toml and -c.toml, held-out looks nothing was tuned on),
+# training never draws) and looks B, C and D (unseen_look with the appearance
+# of configs/test-look-b.toml, -c.toml and -d.toml, held-out looks nothing
+# was tuned on),
 # verify and preview them, train FC and LSTM heads on
 # frozen, cached EfficientNet-Lite0 ImageNet features and an FC head with
 # Lite0's last eight blocks fine-tuned after a linear probe (3 seeds each),
@@ -65,7 +66,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,56p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,57p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -125,8 +126,8 @@ mode_flags() { # model
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
 # More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
-# (EXPERIMENTS.md, sections 15 and 16).
-LOOKS=(look_b look_c)
+# (EXPERIMENTS.md, sections 15, 16 and 18).
+LOOKS=(look_b look_c look_d)
 # Test sets scored: the conditions and the held-out looks.
 TEST_SETS=("${CONDITIONS[@]}" "${LOOKS[@]}")
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
@@ -144,7 +145,7 @@ $BIN/grasp-gen objects list | tail -6
 $BIN/grasp-gen objects check
 $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 
-echo "== render: train, validation, the six test conditions and looks B and C"
+echo "== render: train, validation, the six test conditions and looks B, C and D"
 derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
