@@ -83,10 +83,11 @@ pub struct TrainConfig {
     /// mean variance), folded into the head's input weights when saved
     /// ([`crate::train::ViewDamping`]). 0: off.
     pub view_damping: f64,
-    /// Frozen and fine-tuned modes: a look-twin dataset of `data` (rendered with grasp-gen's
-    /// `[dataset] look_seed`: the same reaches in another look). Each
-    /// training sequence's twin joins the training set as one more view, after
-    /// the configured ones, so `view_damping` damps what the look changes too.
+    /// Frozen and fine-tuned modes: a look-twin dataset of `data` (rendered
+    /// with grasp-gen's `[dataset] look_seed`: the same reaches in another
+    /// look). Each training sequence's twin joins the training set as one
+    /// more view, after the configured ones, so `view_damping` damps what
+    /// the look changes too.
     pub look_twins: Option<PathBuf>,
     /// Fine-tuned mode: which blocks train, and their optimizer.
     pub fine_tune: FineTuneConfig,

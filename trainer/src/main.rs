@@ -253,9 +253,10 @@ struct TrainArgs {
     /// EXPERIMENTS.md section 17).
     #[arg(long, value_name = "STRENGTH")]
     view_damping: Option<f64>,
-    /// Frozen and fine-tuned modes: a look-twin dataset of --data (grasp-gen's `[dataset]
-    /// look_seed`: the same reaches in another look); each sequence's twin
-    /// trains as one more view and, with --view-damping, is damped with them.
+    /// Frozen and fine-tuned modes: a look-twin dataset of --data
+    /// (grasp-gen's `[dataset] look_seed`: the same reaches in another
+    /// look); each sequence's twin trains as one more view and, with
+    /// --view-damping, is damped with them.
     #[arg(long, value_name = "DIR")]
     look_twins: Option<PathBuf>,
     /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
