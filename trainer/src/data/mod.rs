@@ -66,6 +66,10 @@ pub struct Sequence {
     /// views stay inside it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rendered_region: Option<f64>,
+    /// The plan's stream seed (generated data): shared by a sequence and
+    /// its look twins (`[dataset] look_seed`), another for any other reach.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach_seed: Option<u64>,
     /// An augmented view of the frames (frozen mode's training
     /// augmentation, [`view::with_views`]); None: the frames as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]

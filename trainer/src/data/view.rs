@@ -196,7 +196,7 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
 /// set `data`'s views were drawn from), in their order: one more view of
 /// every sequence, rendered in another look (grasp-gen's `[dataset]
 /// look_seed`), the twin whose id is the original's. Every original needs
-/// a twin with as many frames.
+/// a twin of the same reach: the same plan stream, frames and pre-shape.
 pub fn with_look_twins(
     data: Dataset,
     originals: &[super::Sequence],
@@ -214,6 +214,17 @@ pub fn with_look_twins(
                 seq.id
             );
         };
+        if twin.reach_seed.is_none() || twin.reach_seed != seq.reach_seed {
+            anyhow::bail!(
+                "look twins {}: sequence {} comes from another plan than its training original \
+                 (stream seed {:?} against {:?}): not a look twin of this training set (render \
+                 it with the training set's config plus [dataset] look_seed)",
+                twins.root.display(),
+                seq.id,
+                twin.reach_seed,
+                seq.reach_seed
+            );
+        }
         if twin.frames.len() != seq.frames.len() || twin.preshape != seq.preshape {
             anyhow::bail!(
                 "look twins {}: sequence {} has {} frames of {:?}, its training original {} of \
@@ -381,6 +392,7 @@ mod tests {
             lead_in: 0,
             first_frame: 0,
             rendered_region: None,
+            reach_seed: Some(7),
             view: None,
             probe: None,
             style: None,
@@ -487,6 +499,16 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.to_string().contains("not the same reach"), "{err}");
+        // Same ids, frames and pre-shape, but another plan: another dataset.
+        let mut elsewhere = twin_of(&originals[1]);
+        elsewhere.reach_seed = Some(8);
+        let err = with_look_twins(
+            data(),
+            &originals,
+            &twins(vec![twin_of(&originals[0]), elsewhere]),
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("another plan"), "{err}");
     }
 
     #[test]
