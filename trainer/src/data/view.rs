@@ -464,51 +464,37 @@ mod tests {
     #[test]
     fn a_missing_or_different_twin_is_refused_by_name() {
         let originals: Vec<_> = ["s0", "s1"].map(one_sequence).to_vec();
-        let data = || Dataset {
-            root: Default::default(),
-            sequences: originals.clone(),
+        // The error when s0 has its twin and s1 has `second` (or none).
+        let refusal = |second: Option<crate::data::Sequence>| {
+            let data = Dataset {
+                root: Default::default(),
+                sequences: originals.clone(),
+            };
+            let twins = Dataset {
+                root: "twins".into(),
+                sequences: std::iter::once(twin_of(&originals[0]))
+                    .chain(second)
+                    .collect(),
+            };
+            with_look_twins(data, &originals, &twins)
+                .unwrap_err()
+                .to_string()
         };
-        let twins = |seqs: Vec<crate::data::Sequence>| Dataset {
-            root: "twins".into(),
-            sequences: seqs,
-        };
-        let missing = twins(vec![twin_of(&originals[0])]);
-        let err = with_look_twins(data(), &originals, &missing).unwrap_err();
-        assert!(
-            err.to_string().contains("no twin of training sequence s1"),
-            "{err}"
-        );
+        let err = refusal(None);
+        assert!(err.contains("no twin of training sequence s1"), "{err}");
         let mut short = twin_of(&originals[1]);
         short.frames.pop();
-        let err = with_look_twins(
-            data(),
-            &originals,
-            &twins(vec![twin_of(&originals[0]), short]),
-        )
-        .unwrap_err();
-        assert!(
-            err.to_string().contains("sequence s1 has 1 frames"),
-            "{err}"
-        );
+        let err = refusal(Some(short));
+        assert!(err.contains("sequence s1 has 1 frames"), "{err}");
         let mut other = twin_of(&originals[1]);
         other.preshape = grasp_schema::taxonomy::Preshape::Lateral;
-        let err = with_look_twins(
-            data(),
-            &originals,
-            &twins(vec![twin_of(&originals[0]), other]),
-        )
-        .unwrap_err();
-        assert!(err.to_string().contains("not the same reach"), "{err}");
+        let err = refusal(Some(other));
+        assert!(err.contains("not the same reach"), "{err}");
         // Same ids, frames and pre-shape, but another plan: another dataset.
         let mut elsewhere = twin_of(&originals[1]);
         elsewhere.reach_seed = Some(8);
-        let err = with_look_twins(
-            data(),
-            &originals,
-            &twins(vec![twin_of(&originals[0]), elsewhere]),
-        )
-        .unwrap_err();
-        assert!(err.to_string().contains("another plan"), "{err}");
+        let err = refusal(Some(elsewhere));
+        assert!(err.contains("another plan"), "{err}");
     }
 
     #[test]
