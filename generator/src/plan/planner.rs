@@ -306,11 +306,11 @@ impl Planner {
             // picture changes.
             Some(seed) => {
                 let look = substream_seed(stream, &format!("look/{seed}"));
-                let relooked = self.sequence_draws(key.condition, look);
+                let (intrinsics, fov_scale, principal_point_shift) = self.lens(key.condition, look);
                 let draws = SequenceDraws {
-                    intrinsics: relooked.intrinsics,
-                    fov_scale: relooked.fov_scale,
-                    principal_point_shift: relooked.principal_point_shift,
+                    intrinsics,
+                    fov_scale,
+                    principal_point_shift,
                     ..draws
                 };
                 (look, draws)
@@ -325,6 +325,20 @@ impl Planner {
     /// own sub-stream.
     fn sequence_draws(&self, condition: Condition, stream: u64) -> SequenceDraws {
         let r = &self.levers;
+        let (intrinsics, fov_scale, principal_point_shift) = self.lens(condition, stream);
+        SequenceDraws {
+            intrinsics,
+            fov_scale,
+            principal_point_shift,
+            approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
+            object_scale: randomize::object_scale(r, stream),
+        }
+    }
+
+    /// The lens of a sequence drawn from `stream`: its intrinsics, lens
+    /// factor and principal-point shift.
+    fn lens(&self, condition: Condition, stream: u64) -> (CameraIntrinsics, f64, [f64; 2]) {
+        let r = &self.levers;
         let fov = if condition == Condition::UnseenLook {
             Some(self.config.appearance.unseen_look.fov_scale)
         } else {
@@ -335,15 +349,7 @@ impl Planner {
             .enabled
             .then_some(r.principal_point.max_shift);
         let base = self.config.plan.camera.intrinsics();
-        let (intrinsics, fov_scale, principal_point_shift) =
-            randomize::intrinsics(&base, fov, shift, stream);
-        SequenceDraws {
-            intrinsics,
-            fov_scale,
-            principal_point_shift,
-            approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
-            object_scale: randomize::object_scale(r, stream),
-        }
+        randomize::intrinsics(&base, fov, shift, stream)
     }
 
     fn path_context(&self, condition: Condition, standoff: f64) -> PathContext<'_> {
