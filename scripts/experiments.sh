@@ -33,6 +33,14 @@
 #             (look_b, look_c, look_d, more held-out looks: EXPERIMENTS.md
 #             sections 15, 16 and 18)
 #             unless DRAW_CONDITIONS.
+#   inlook    how much of a held-out look's gap is transfer: each look of
+#             INLOOK_CONDITIONS (unseen_look, look_b, look_d) gets a training
+#             and a validation set of its own (the main job's test config of
+#             that look with the training and validation seeds and sizes),
+#             and the main job's frozen FC recipe, with and without its style
+#             views and damping, trains on it; scored on that look's and
+#             default's pooled draws (the draws stage first). EXPERIMENTS.md
+#             section 19.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -40,7 +48,8 @@
 # trainings and evaluations are kept. Knobs (environment): OUT, BIN, SEEDS
 # (3), CROP (0.42), INPUT_SIZE (128: the main job's input side, used by the
 # size stage; the studies' heads keep the trainer's default, 224), DRAW_SEEDS
-# (the draws stage's test seeds), DRAW_CONDITIONS (its test conditions).
+# (the draws stage's test seeds), DRAW_CONDITIONS (its test conditions),
+# INLOOK_CONDITIONS (the inlook stage's looks).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/experiments}
@@ -50,6 +59,7 @@ CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
 DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b look_c look_d}
+INLOOK_CONDITIONS=${INLOOK_CONDITIONS:-unseen_look look_b look_d}
 LEVERS=(fov principal_point sensor_noise motion_blur white_balance jpeg world_light object_color
   distractors standoff aim approach_ends)
 # name = resolution, samples, denoiser, frames/s
@@ -243,23 +253,77 @@ stage_input() {
 # scored with the main job's own (seed 3) as one pooled set of 310 videos per
 # condition: a binomial error near 2 points, not 4.5.
 stage_draws() {
-  local main="$OUT/main" c h sd roots
+  local main="$OUT/main" c h sd
   mkdir -p "$OUT/draws"
   for c in $DRAW_CONDITIONS; do
-    roots=(--data "$main/data/test-$c")
     for sd in $DRAW_SEEDS; do
       # The main job's own test config with another seed.
       sed -e "s/^seed = .*/seed = $sd/" "$main/test-$c.toml" >"$OUT/draws/s$sd-$c.toml"
       run "$BIN/grasp-gen" render --config "$OUT/draws/s$sd-$c.toml" --out "$OUT/draws/s$sd/test-$c" \
         --resume --no-progress
-      roots+=(--data "$OUT/draws/s$sd/test-$c")
     done
+    pooled_roots "$c"
     for h in fc lstm fc-tuned; do
       [ -d "$main/model-$h" ] || continue
       checkpoints_of "$main/model-$h"
       [ -f "$OUT/draws/report/$h-$c/report.json" ] ||
-        run "$BIN/grasp-train" eval "${CKPTS[@]}" "${roots[@]}" --out "$OUT/draws/report/$h-$c" \
+        run "$BIN/grasp-train" eval "${CKPTS[@]}" "${POOLED_ROOTS[@]}" --out "$OUT/draws/report/$h-$c" \
           --cache-dir "$main/features"
+    done
+  done
+}
+
+# The --data flags of a condition's pooled draws (the main job's and the
+# draws stage's), in POOLED_ROOTS.
+pooled_roots() { # condition
+  local sd
+  POOLED_ROOTS=(--data "$OUT/main/data/test-$1")
+  for sd in $DRAW_SEEDS; do POOLED_ROOTS+=(--data "$OUT/draws/s$sd/test-$1"); done
+}
+
+# Heads trained on a held-out look's own renders, against the same heads
+# trained on the default look: how much of the look's gap is transfer.
+stage_inlook() {
+  local main="$OUT/main" look set seed per_pair dir
+  inlook_heads "$OUT/inlook/default" "$main/data" default $INLOOK_CONDITIONS
+  for look in $INLOOK_CONDITIONS; do
+    dir="$OUT/inlook/$look"
+    mkdir -p "$dir/data"
+    for set in train val; do
+      # The look's test config with the training (seed 1, 24 per pair) or
+      # validation (seed 2, 1 per pair) set's seed and size.
+      seed=$(sed -n 's/^seed = //p' "$main/$set.toml")
+      per_pair=$(sed -n 's/^sequences_per_pair = //p' "$main/$set.toml")
+      sed -e "s/^seed = .*/seed = $seed/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $per_pair/" \
+        "$main/test-$look.toml" >"$dir/$set.toml"
+      run "$BIN/grasp-gen" render --config "$dir/$set.toml" --out "$dir/data/$set" --resume --no-progress
+    done
+    inlook_heads "$dir" "$dir/data" default "$look"
+  done
+}
+
+# The main job's frozen FC recipe with (style-damped) and without (plain)
+# its style views and damping, trained on DATA/train, scored on each
+# condition's pooled draws.
+inlook_heads() { # dir data conditions...
+  local dir=$1 data=$2 recipe c
+  shift 2
+  local -A recipes=([plain]="" [style-damped]="-c configs/train-style-views.toml --view-damping 1")
+  for recipe in plain style-damped; do
+    [ -f "$dir/fc-$recipe/.done" ] || {
+      # shellcheck disable=SC2086 # the recipe's flags are words
+      run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --head fc \
+        --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --input-size "$INPUT_SIZE" \
+        --pooled-blocks 7,10,14,15 --cache-dir "$OUT/main/features" --out "$dir/fc-$recipe" \
+        ${recipes[$recipe]}
+      touch "$dir/fc-$recipe/.done"
+    }
+    checkpoints_of "$dir/fc-$recipe"
+    for c in "$@"; do
+      pooled_roots "$c"
+      [ -f "$dir/fc-$recipe/draws-$c/report.json" ] ||
+        run "$BIN/grasp-train" eval "${CKPTS[@]}" "${POOLED_ROOTS[@]}" --out "$dir/fc-$recipe/draws-$c" \
+          --cache-dir "$OUT/main/features"
     done
   done
 }
@@ -313,7 +377,7 @@ stage_summary() {
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws inlook summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"
