@@ -38,9 +38,9 @@
 #             and a validation set of its own (the main job's test config of
 #             that look with the training and validation seeds and sizes),
 #             and the main job's frozen FC recipe, with and without its style
-#             views and damping, trains on it; scored on that look's and
-#             default's pooled draws (the draws stage first). EXPERIMENTS.md
-#             section 19.
+#             views and damping, trains on it, as on the default look's;
+#             scored on the draws stage's pooled draws (that stage first).
+#             EXPERIMENTS.md section 19.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -285,7 +285,7 @@ pooled_roots() { # condition
 # trained on the default look: how much of the look's gap is transfer.
 stage_inlook() {
   local main="$OUT/main" look set seed per_pair dir
-  inlook_heads "$OUT/inlook/default" "$main/data" default $INLOOK_CONDITIONS
+  inlook_heads "$OUT/inlook/default" "$main/data"
   for look in $INLOOK_CONDITIONS; do
     dir="$OUT/inlook/$look"
     mkdir -p "$dir/data"
@@ -298,16 +298,15 @@ stage_inlook() {
         "$main/test-$look.toml" >"$dir/$set.toml"
       run "$BIN/grasp-gen" render --config "$dir/$set.toml" --out "$dir/data/$set" --resume --no-progress
     done
-    inlook_heads "$dir" "$dir/data" default "$look"
+    inlook_heads "$dir" "$dir/data"
   done
 }
 
 # The main job's frozen FC recipe with (style-damped) and without (plain)
-# its style views and damping, trained on DATA/train, scored on each
-# condition's pooled draws.
-inlook_heads() { # dir data conditions...
+# its style views and damping, trained on DATA/train, scored on the pooled
+# draws of every condition of the draws stage.
+inlook_heads() { # dir data
   local dir=$1 data=$2 recipe c
-  shift 2
   local -A recipes=([plain]="" [style-damped]="-c configs/train-style-views.toml --view-damping 1")
   for recipe in plain style-damped; do
     [ -f "$dir/fc-$recipe/.done" ] || {
@@ -319,7 +318,7 @@ inlook_heads() { # dir data conditions...
       touch "$dir/fc-$recipe/.done"
     }
     checkpoints_of "$dir/fc-$recipe"
-    for c in "$@"; do
+    for c in $DRAW_CONDITIONS; do
       pooled_roots "$c"
       [ -f "$dir/fc-$recipe/draws-$c/report.json" ] ||
         run "$BIN/grasp-train" eval "${CKPTS[@]}" "${POOLED_ROOTS[@]}" --out "$dir/fc-$recipe/draws-$c" \
