@@ -210,17 +210,25 @@ stage_main() {
   SKIP_SETUP=1 run scripts/main.sh "$OUT/main"
 }
 
+# Frozen FC heads (SEEDS of them) trained on DATA/train and DATA/val with
+# the main job's feature cache, unless RUNS is done.
+frozen_fc() { # runs data train-flags...
+  local runs=$1 data=$2
+  shift 2
+  [ -f "$runs/.done" ] || {
+    run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --head fc \
+      --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --out "$runs" \
+      --cache-dir "$OUT/main/features" "$@"
+    touch "$runs/.done"
+  }
+}
+
 # An FC head on the main job's data (extra train flags), evaluated on every
 # test condition; the checkpoints are RUNS/seed-*.
 main_fc() { # runs train-flags...
   local runs=$1 main="$OUT/main" c
   shift
-  [ -f "$runs/.done" ] || {
-    run "$BIN/grasp-train" train --data "$main/data/train" --val-data "$main/data/val" --head fc \
-      --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --out "$runs" \
-      --cache-dir "$main/features" "$@"
-    touch "$runs/.done"
-  }
+  frozen_fc "$runs" "$main/data" "$@"
   checkpoints_of "$runs"
   for c in default fast from_ground seated background unseen_look; do
     [ -f "$runs/report/$c/report.json" ] ||
@@ -309,14 +317,9 @@ inlook_heads() { # dir data
   local dir=$1 data=$2 recipe c
   local -A recipes=([plain]="" [style-damped]="-c configs/train-style-views.toml --view-damping 1")
   for recipe in plain style-damped; do
-    [ -f "$dir/fc-$recipe/.done" ] || {
-      # shellcheck disable=SC2086 # the recipe's flags are words
-      run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --head fc \
-        --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --input-size "$INPUT_SIZE" \
-        --pooled-blocks 7,10,14,15 --cache-dir "$OUT/main/features" --out "$dir/fc-$recipe" \
-        ${recipes[$recipe]}
-      touch "$dir/fc-$recipe/.done"
-    }
+    # shellcheck disable=SC2086 # the recipe's flags are words
+    frozen_fc "$dir/fc-$recipe" "$data" --input-size "$INPUT_SIZE" --pooled-blocks 7,10,14,15 \
+      ${recipes[$recipe]}
     checkpoints_of "$dir/fc-$recipe"
     for c in $DRAW_CONDITIONS; do
       pooled_roots "$c"
