@@ -6,6 +6,7 @@
 
 mod batch_norm;
 mod cpu;
+pub mod denoise;
 pub mod depthwise;
 pub mod efficientnet_lite;
 pub mod gather;
