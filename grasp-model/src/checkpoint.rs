@@ -213,14 +213,28 @@ pub fn save(dir: &Path, meta: &CheckpointMeta, tensors: &[(String, Tensor)]) -> 
     Ok(write_atomic(&dir.join(META_FILE), json.as_bytes())?)
 }
 
+/// The centre crop a head was trained on, applied to every camera frame
+/// before the backbone.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CentreCrop {
+    /// A fixed fraction of the frame's shorter side (`--center-crop`).
+    Fraction(f64),
+    /// The square spanning a fixed angle, in degrees (`--crop-angle-deg`):
+    /// its fraction of a frame follows from the camera's focal length.
+    AngleDeg(f64),
+}
+
 /// A trained pre-shape classifier: backbone plus head, for inference.
 pub struct Classifier {
     pub meta: CheckpointMeta,
     backbone: Backbone,
     head: Head,
-    /// The centre crop the head was trained on (`--center-crop`), applied
-    /// to every camera frame before the backbone.
-    center_crop: Option<f64>,
+    crop: Option<CentreCrop>,
+    /// The crop is denoised before the backbone (`--denoise`).
+    denoise: bool,
+    /// Focal length in pixels, along the frames' shorter side, of the
+    /// camera whose frames `predict` is given ([`Classifier::set_focal_px`]).
+    focal_px: Option<f64>,
 }
 
 impl Classifier {
@@ -273,12 +287,15 @@ impl Classifier {
             )?,
         };
         check_head_width(&meta, backbone.net.feature_dim(), &dir)?;
-        let center_crop = trained_center_crop(&meta, &dir)?;
+        let crop = trained_crop(&meta, &dir)?;
+        let denoise = trained_denoise(&meta, &dir)?;
         Ok(Classifier {
             meta,
             backbone,
             head: head.detached(),
-            center_crop,
+            crop,
+            denoise,
+            focal_px: None,
         })
     }
 
@@ -294,27 +311,89 @@ impl Classifier {
         &self.backbone
     }
 
-    /// The centre crop (fraction of the shorter side) applied to camera
-    /// frames, as recorded at training; `None`: whole frames.
-    pub fn center_crop(&self) -> Option<f64> {
-        self.center_crop
+    /// The centre crop applied to camera frames, as recorded at training;
+    /// `None`: whole frames.
+    pub fn crop(&self) -> Option<CentreCrop> {
+        self.crop
+    }
+
+    /// Whether the crop is denoised before the backbone, as at training.
+    pub fn denoises(&self) -> bool {
+        self.denoise
+    }
+
+    /// Tells the classifier the focal length, in pixels along the frames'
+    /// shorter side, of the camera whose frames it will be given. A
+    /// checkpoint that crops a fixed angle needs it; the others ignore it.
+    pub fn set_focal_px(&mut self, focal_px: f64) -> Result<()> {
+        if !(focal_px.is_finite() && focal_px > 0.0) {
+            return Err(ModelError::Invalid(format!(
+                "the camera's focal length must be a positive number of pixels, got {focal_px}"
+            )));
+        }
+        self.focal_px = Some(focal_px);
+        Ok(())
+    }
+
+    /// The fraction of the shorter side of `width` x `height` frames that
+    /// the crop takes (`None`: whole frames). A fixed-angle crop without a
+    /// focal length ([`Classifier::set_focal_px`]) is an error; through a
+    /// lens too narrow to hold the angle it is the whole frame, as the
+    /// trainer cuts it down to what it has.
+    pub fn crop_fraction(&self, width: u32, height: u32) -> Result<Option<f64>> {
+        match self.crop {
+            None => Ok(None),
+            Some(CentreCrop::Fraction(f)) => Ok(Some(f)),
+            Some(CentreCrop::AngleDeg(angle)) => {
+                let focal = self.focal_px.ok_or_else(|| {
+                    ModelError::Invalid(format!(
+                        "the checkpoint crops a fixed angle of {angle} degrees: it needs the \
+                         camera's focal length (from the recording's sequence.json, or given \
+                         for a live camera)"
+                    ))
+                })?;
+                match grasp_schema::dataset::angle_crop_fraction(angle, focal, width, height) {
+                    Some(f) => Ok(Some(f.min(1.0))),
+                    None => Err(ModelError::Invalid(format!(
+                        "no crop of {angle} degrees in a {width}x{height} frame at a focal \
+                         length of {focal} px"
+                    ))),
+                }
+            }
+        }
+    }
+
+    /// A whole camera frame as the backbone is fed it: centre-cropped, then
+    /// denoised, as the checkpoint was trained.
+    pub fn prepare(&self, frame: &RgbImage) -> Result<RgbImage> {
+        let cropped = match self.crop_fraction(frame.width(), frame.height())? {
+            Some(fraction) => center_crop(frame, fraction),
+            None => frame.clone(),
+        };
+        Ok(if self.denoise {
+            crate::model::denoise::denoise(&cropped)
+        } else {
+            cropped
+        })
     }
 
     /// Per-frame class probabilities of whole camera frames (softmax by
-    /// log-sum-exp), cropped first as the checkpoint was trained. The FC
-    /// head treats frames independently; an LSTM head reads them as one
-    /// sequence in the given order, from a zero state.
+    /// log-sum-exp), prepared first as the checkpoint was trained
+    /// ([`Classifier::prepare`]). The FC head treats frames independently;
+    /// an LSTM head reads them as one sequence in the given order, from a
+    /// zero state.
     pub fn predict(&self, frames: &[RgbImage]) -> Result<Vec<[f32; Class::COUNT]>> {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        let feats = match self.center_crop {
-            Some(fraction) => {
-                let cropped: Vec<RgbImage> =
-                    frames.iter().map(|f| center_crop(f, fraction)).collect();
-                self.backbone.extract(&cropped)?
-            }
-            None => self.backbone.extract(frames)?,
+        let feats = if self.crop.is_none() && !self.denoise {
+            self.backbone.extract(frames)?
+        } else {
+            let prepared = frames
+                .iter()
+                .map(|f| self.prepare(f))
+                .collect::<Result<Vec<_>>>()?;
+            self.backbone.extract(&prepared)?
         };
         self.predict_features(&feats)
     }
@@ -349,16 +428,54 @@ pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
 }
 
 /// The trainer records its reader options in `train_config.reader`; a crop
-/// outside (0, 1] is a corrupt checkpoint, not a silent whole-frame model.
-fn trained_center_crop(meta: &CheckpointMeta, dir: &Path) -> Result<Option<f64>> {
-    match &meta.train_config["reader"]["center_crop"] {
-        serde_json::Value::Null => Ok(None),
+/// outside (0, 1], an angle outside (0, 180) degrees or both crops at once
+/// is a corrupt checkpoint, not a silent whole-frame model.
+fn trained_crop(meta: &CheckpointMeta, dir: &Path) -> Result<Option<CentreCrop>> {
+    let reader = &meta.train_config["reader"];
+    let corrupt = |field: &str, want: &str, value: &serde_json::Value| {
+        ModelError::Invalid(format!(
+            "{}: train_config.reader.{field} must be {want}, got {value}",
+            dir.join(META_FILE).display()
+        ))
+    };
+    let fraction = match &reader["center_crop"] {
+        serde_json::Value::Null => None,
         value => match value.as_f64() {
-            Some(f) if f > 0.0 && f <= 1.0 => Ok(Some(f)),
-            _ => Err(ModelError::Invalid(format!(
-                "{}: train_config.reader.center_crop must be a fraction in (0, 1], got {value}",
-                dir.join(META_FILE).display()
-            ))),
+            Some(f) if f > 0.0 && f <= 1.0 => Some(CentreCrop::Fraction(f)),
+            _ => return Err(corrupt("center_crop", "a fraction in (0, 1]", value)),
         },
+    };
+    let angle = match &reader["crop_angle_deg"] {
+        serde_json::Value::Null => None,
+        value => match value.as_f64() {
+            Some(a) if a > 0.0 && a < 180.0 => Some(CentreCrop::AngleDeg(a)),
+            _ => {
+                return Err(corrupt(
+                    "crop_angle_deg",
+                    "an angle in (0, 180) degrees",
+                    value,
+                ))
+            }
+        },
+    };
+    match (fraction, angle) {
+        (Some(_), Some(_)) => Err(ModelError::Invalid(format!(
+            "{}: train_config.reader sets both center_crop and crop_angle_deg",
+            dir.join(META_FILE).display()
+        ))),
+        (crop, None) | (None, crop) => Ok(crop),
+    }
+}
+
+/// `train_config.reader.denoise`: absent (checkpoints from before it) is
+/// false; anything but a boolean is a corrupt checkpoint.
+fn trained_denoise(meta: &CheckpointMeta, dir: &Path) -> Result<bool> {
+    match &meta.train_config["reader"]["denoise"] {
+        serde_json::Value::Null => Ok(false),
+        serde_json::Value::Bool(b) => Ok(*b),
+        value => Err(ModelError::Invalid(format!(
+            "{}: train_config.reader.denoise must be true or false, got {value}",
+            dir.join(META_FILE).display()
+        ))),
     }
 }

@@ -106,6 +106,33 @@ pub fn centre_square(width: u32, height: u32, fraction: f64) -> (u32, u32, u32) 
     )
 }
 
+/// The fraction of the shorter side of a `width` x `height` frame that a
+/// centred square spanning `angle_deg` (its full width, in degrees) covers
+/// through a lens of focal length `fx` pixels: 2 fx tan(angle / 2) / shorter
+/// side. A model that crops a fixed angle sees the same part of the world
+/// at every lens, where a fixed fraction sees more of it through a wider
+/// one. None for a non-finite or non-positive angle or focal length, an
+/// angle of 180 degrees or more, or an empty frame; the fraction may exceed
+/// 1 for a lens too narrow to hold the angle.
+pub fn angle_crop_fraction(angle_deg: f64, fx: f64, width: u32, height: u32) -> Option<f64> {
+    let short = f64::from(width.min(height));
+    let valid = angle_deg.is_finite()
+        && angle_deg > 0.0
+        && angle_deg < 180.0
+        && fx.is_finite()
+        && fx > 0.0
+        && short > 0.0;
+    valid.then(|| 2.0 * fx * (angle_deg.to_radians() / 2.0).tan() / short)
+}
+
+/// The full angle, in degrees, that the centred square of `fraction` of the
+/// shorter side spans through a lens of focal length `fx` pixels: the
+/// inverse of [`angle_crop_fraction`].
+pub fn crop_angle_deg(fraction: f64, fx: f64, width: u32, height: u32) -> f64 {
+    let short = f64::from(width.min(height));
+    2.0 * (fraction * short / (2.0 * fx)).atan().to_degrees()
+}
+
 /// Why a model whose centre crop is `crop` (a fraction of the shorter
 /// side; None: the whole frame) cannot look at frames rendered only in
 /// their central `region` (`[render] center_region`): it would see the
@@ -207,6 +234,41 @@ pub struct ManifestEntry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fixed_angle_takes_a_smaller_fraction_through_a_wider_lens() {
+        // The d435 preset at 224 px: fx 291.77 (42 degrees across).
+        let angle = crop_angle_deg(0.42, 291.77, 224, 224);
+        assert!((angle - 18.317).abs() < 1e-3, "{angle}");
+        let at = |fx: f64| angle_crop_fraction(angle, fx, 224, 224).unwrap();
+        assert!((at(291.77) - 0.42).abs() < 1e-12);
+        // tan(half FOV) x 1.5: the same angle is 1/1.5 of the frame.
+        assert!((at(291.77 / 1.5) - 0.28).abs() < 1e-12);
+        // The shorter side counts, as for the fraction crop.
+        let wide = angle_crop_fraction(angle, 291.77, 300, 224).unwrap();
+        assert!((wide - 0.42).abs() < 1e-12);
+        // A lens too narrow to hold the angle asks for more than the frame.
+        assert!(at(291.77 / 0.4) > 1.0);
+    }
+
+    #[test]
+    fn degenerate_angles_and_lenses_have_no_fraction() {
+        for (angle, fx, w, h) in [
+            (0.0, 300.0, 224, 224),
+            (-5.0, 300.0, 224, 224),
+            (180.0, 300.0, 224, 224),
+            (f64::NAN, 300.0, 224, 224),
+            (18.0, 0.0, 224, 224),
+            (18.0, f64::INFINITY, 224, 224),
+            (18.0, 300.0, 0, 224),
+        ] {
+            assert_eq!(
+                angle_crop_fraction(angle, fx, w, h),
+                None,
+                "{angle} {fx} {w}x{h}"
+            );
+        }
+    }
 
     #[test]
     fn padding_grows_instead_of_overflowing() {

@@ -1,6 +1,7 @@
 //! `hannes-run`: the pre-shape classifier driving the Hannes hand.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_model::checkpoint::{CentreCrop, Classifier};
 use grasp_schema::cli::Failure;
 use grasp_schema::taxonomy::{Class, Preshape};
 use runtime::approach::{classify_window, ApproachReport, FramePrediction};
@@ -95,6 +96,11 @@ struct SourceArgs {
     /// Frame rate of a bare PNG folder (default: sequence.json, else 30).
     #[arg(long)]
     fps: Option<f64>,
+    /// The camera's focal length in pixels along the frame's shorter side
+    /// (default: the recording's sequence.json). A checkpoint trained with
+    /// --crop-angle-deg needs it, a live camera's from its calibration.
+    #[arg(long, value_name = "PIXELS")]
+    focal_px: Option<f64>,
 }
 
 #[derive(Args)]
@@ -244,22 +250,53 @@ fn config(policy_args: &PolicyArgs) -> Result<RuntimeConfig> {
     Ok(cfg)
 }
 
-/// Opens the frame source; returns it with whether it is live. A recording
-/// must hold every pixel the model's centre crop `crop` looks at.
+/// Opens the frame source; returns it with whether it is live. The
+/// classifier learns the camera's focal length (`--focal-px`, else the
+/// recording's), and a recording must hold every pixel its crop looks at.
 fn open_source(
     source_args: &SourceArgs,
     pacing: Pacing,
-    crop: Option<f64>,
+    classifier: &mut Classifier,
 ) -> Result<(Box<dyn FrameSource>, bool)> {
     if let Some(rest) = source_args.source.strip_prefix("camera") {
+        set_focal(classifier, source_args.focal_px, &source_args.source)?;
         let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
         return Ok((open_camera(Path::new(device))?, true));
     }
-    let folder = SequenceFolder::open(Path::new(&source_args.source), source_args.fps, pacing)?;
-    folder
-        .info()
-        .check_crop(crop, Path::new(&source_args.source))?;
+    let folder = open_recording(source_args, pacing, classifier)?;
     Ok((Box::new(folder), false))
+}
+
+/// Opens a recording for `classifier`: sets the focal length its crop
+/// needs and checks that the recording holds every pixel the crop sees.
+fn open_recording(
+    source_args: &SourceArgs,
+    pacing: Pacing,
+    classifier: &mut Classifier,
+) -> Result<SequenceFolder> {
+    let dir = Path::new(&source_args.source);
+    let folder = SequenceFolder::open(dir, source_args.fps, pacing)?;
+    let focal = source_args.focal_px.or(folder.info().focal_px);
+    set_focal(classifier, focal, &source_args.source)?;
+    let (width, height) = folder.frame_size()?;
+    let crop = classifier
+        .crop_fraction(width, height)
+        .with_context(|| format!("cannot crop the frames of {}", dir.display()))?;
+    folder.info().check_crop(crop, dir)?;
+    Ok(folder)
+}
+
+/// Gives the classifier the camera's focal length; one that crops a fixed
+/// angle refuses to start without it.
+fn set_focal(classifier: &mut Classifier, focal: Option<f64>, source: &str) -> Result<()> {
+    match (focal, classifier.crop()) {
+        (Some(f), _) => classifier.set_focal_px(f).context("--focal-px"),
+        (None, Some(CentreCrop::AngleDeg(angle))) => anyhow::bail!(
+            "the checkpoint crops a fixed angle of {angle} degrees, so it needs the camera's \
+             focal length: {source} does not record one (no plan.intrinsics); give --focal-px"
+        ),
+        (None, _) => Ok(()),
+    }
 }
 
 #[cfg(feature = "camera")]
@@ -287,7 +324,7 @@ fn run(args: RunArgs) -> Result<()> {
     } else {
         Pacing::RealTime
     };
-    let (source, live) = open_source(&args.source, pacing, classifier.center_crop())?;
+    let (source, live) = open_source(&args.source, pacing, &mut classifier)?;
     let mode = if args.as_fast && !live {
         FeedMode::Lockstep
     } else {
@@ -423,7 +460,7 @@ fn replay(args: ReplayArgs) -> Result<()> {
     } else {
         Pacing::AsFastAsPossible
     };
-    let folder = SequenceFolder::open(Path::new(&args.source.source), args.source.fps, pacing)?;
+    let folder = open_recording(&args.source, pacing, &mut classifier)?;
     let info = folder.info().clone();
     let mode = if args.realtime {
         FeedMode::Latest
@@ -549,6 +586,10 @@ fn print_event(started: Instant, e: &HandEvent) {
 fn bench(args: BenchArgs) -> Result<()> {
     use runtime::bench;
     let mut classifier = runtime::model::load(&args.checkpoint)?;
+    // A fixed-angle crop is timed through the default lens (42 degrees
+    // across the shorter side, the generator's d435 preset).
+    let default_focal = f64::from(args.size) / 2.0 / 21f64.to_radians().tan();
+    set_focal(&mut classifier, Some(default_focal), "the benchmark")?;
     let frames = bench::synthetic_frames(args.frames.max(1), args.size);
     let inference = bench::inference(&mut classifier, &frames, args.warmup)?;
     println!(

@@ -78,6 +78,9 @@ pub struct SequenceInfo {
     /// `render.center_region`: only the centred square of this fraction of
     /// the shorter side was rendered (the rest is black); None: all of it.
     pub center_region: Option<f64>,
+    /// `plan.intrinsics`: the focal length in pixels along the frames'
+    /// shorter side, which a model that crops a fixed angle needs.
+    pub focal_px: Option<f64>,
 }
 
 impl SequenceInfo {
@@ -143,6 +146,14 @@ impl SequenceFolder {
 
     pub fn info(&self) -> &SequenceInfo {
         &self.info
+    }
+
+    /// Width and height of the recording's first frame (read from its
+    /// header only).
+    pub fn frame_size(&self) -> Result<(u32, u32)> {
+        let first = &self.files[0];
+        image::image_dimensions(first)
+            .with_context(|| format!("cannot read the size of frame {}", first.display()))
     }
 
     pub fn fps(&self) -> f64 {
@@ -328,6 +339,9 @@ fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
                 })?,
         ),
     };
+    let focal_px = plan
+        .and_then(|p| p.get("intrinsics"))
+        .and_then(shorter_side_focal);
     Ok((
         files,
         SequenceInfo {
@@ -335,8 +349,17 @@ fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
             preshape,
             labels,
             center_region,
+            focal_px,
         },
     ))
+}
+
+/// The focal length along the shorter image side of `plan.intrinsics`
+/// (`fy` for a landscape frame, `fx` for a portrait one); None when absent.
+fn shorter_side_focal(k: &serde_json::Value) -> Option<f64> {
+    let (w, h) = (k.get("width")?.as_f64()?, k.get("height")?.as_f64()?);
+    let focal = k.get(if h <= w { "fy" } else { "fx" })?.as_f64()?;
+    (focal.is_finite() && focal > 0.0).then_some(focal)
 }
 
 #[cfg(test)]
@@ -384,6 +407,36 @@ mod tests {
         s.begin().unwrap();
         let f = s.next_frame().unwrap().unwrap();
         assert_eq!(f.image.get_pixel(0, 0)[0], 1);
+    }
+
+    #[test]
+    fn the_recordings_focal_length_is_read_along_its_shorter_side() {
+        let dir = tempfile::tempdir().unwrap();
+        write_frames(dir.path(), 1);
+        let record = |intrinsics: serde_json::Value| {
+            let r = serde_json::json!({
+                "plan": {"fps": 10.0, "intrinsics": intrinsics}, "frame_files": ["00000.png"],
+            });
+            std::fs::write(dir.path().join(SEQUENCE_FILE), r.to_string()).unwrap();
+            let s = SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible).unwrap();
+            s.info().focal_px
+        };
+        let lens =
+            |w: u32, h: u32| serde_json::json!({"width": w, "height": h, "fx": 300.0, "fy": 200.0});
+        assert_eq!(record(lens(640, 480)), Some(200.0));
+        assert_eq!(record(lens(480, 640)), Some(300.0));
+        assert_eq!(
+            record(serde_json::json!({"width": 64, "height": 64, "fx": -1.0, "fy": -1.0})),
+            None
+        );
+        assert_eq!(record(serde_json::Value::Null), None);
+        assert_eq!(
+            SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible)
+                .unwrap()
+                .frame_size()
+                .unwrap(),
+            (4, 3)
+        );
     }
 
     #[test]

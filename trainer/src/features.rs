@@ -112,8 +112,8 @@ impl FeatureCache {
 }
 
 /// Hash of the frame files' absolute paths, sizes and modification times,
-/// and of the centre crop, augmented view and sensor probe the backbone
-/// sees.
+/// and of the centre crop, augmented view, sensor probe and denoising the
+/// backbone sees.
 fn sequence_hash(seq: &Sequence) -> Result<String> {
     let mut h = Sha256::new();
     if let Some(c) = seq.center_crop {
@@ -135,6 +135,9 @@ fn sequence_hash(seq: &Sequence) -> Result<String> {
     if let Some(s) = &seq.style {
         h.update(b"style");
         h.update(serde_json::to_vec(s)?);
+    }
+    if seq.denoise {
+        h.update(b"denoise");
     }
     for f in &seq.frames {
         let abs = std::fs::canonicalize(f).unwrap_or_else(|_| f.clone());
@@ -167,9 +170,17 @@ fn compute(
     for (c, chunk) in seq.frames.chunks(batch).enumerate() {
         let mut images = Vec::with_capacity(chunk.len());
         let mut styles = vec![];
-        for i in 0..chunk.len() {
+        // Decoding, cropping and denoising are per frame: on every core.
+        let loaded: Vec<Result<Option<image::RgbImage>>> = {
+            use rayon::prelude::*;
+            (0..chunk.len())
+                .into_par_iter()
+                .map(|i| seq.load_frame(c * batch + i, bad))
+                .collect()
+        };
+        for (i, img) in loaded.into_iter().enumerate() {
             let frame = c * batch + i;
-            let img = seq.load_frame(frame, bad)?;
+            let img = img?;
             valid.push(img.is_some());
             if let (Some(_), Some(style)) = (&img, &seq.style) {
                 styles.push(style.frame_styles(frame + seq.first_frame, &channels)?);

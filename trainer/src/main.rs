@@ -234,8 +234,18 @@ struct TrainArgs {
     camera: Option<String>,
     /// Feed the backbone only the central square of this fraction (0-1] of
     /// each frame's shorter side; evaluation then crops the same way.
-    #[arg(long, value_name = "FRACTION")]
+    #[arg(long, value_name = "FRACTION", conflicts_with = "crop_angle_deg")]
     center_crop: Option<f64>,
+    /// Feed the backbone the central square spanning this angle (degrees,
+    /// full width) of each frame, computed from the focal length in its
+    /// sequence.json: the same view whatever the lens (the main job: 18.3,
+    /// 0.42 of the default lens). Evaluation and hannes-run crop the same way.
+    #[arg(long, value_name = "DEGREES")]
+    crop_angle_deg: Option<f64>,
+    /// Denoise the backbone's input square (non-local means at the noise
+    /// level estimated in it); evaluation and hannes-run do the same.
+    #[arg(long)]
+    denoise: bool,
     /// Frozen mode: add N seeded views of every training sequence (the
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
@@ -425,7 +435,12 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.lstm_start_crop, args.lstm_start_crop);
     set!(cfg.reader.real_fps, args.real_fps);
     set!(cfg.reader.camera, args.camera);
-    cfg.reader.center_crop = args.center_crop.or(cfg.reader.center_crop);
+    if args.center_crop.is_some() || args.crop_angle_deg.is_some() {
+        // A crop on the command line replaces the config file's, of either kind.
+        cfg.reader.center_crop = args.center_crop;
+        cfg.reader.crop_angle_deg = args.crop_angle_deg;
+    }
+    cfg.reader.denoise |= args.denoise;
     set!(cfg.views.count, args.feature_views);
     set!(cfg.views.style, args.view_style);
     set!(cfg.view_damping, args.view_damping);
@@ -472,9 +487,19 @@ fn eval(args: EvalArgs) -> Result<()> {
         trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?
     } else {
         let defaults = trainer::data::ReaderOptions::default();
+        // The checkpoint's crop, unless --center-crop replaces it.
+        let (center_crop, crop_angle_deg) = match args.center_crop {
+            Some(c) => (Some(c), None),
+            None => (
+                trained["center_crop"].as_f64(),
+                trained["crop_angle_deg"].as_f64(),
+            ),
+        };
         let opts = trainer::data::ReaderOptions {
             real_fps: args.real_fps,
-            center_crop: args.center_crop.or(trained["center_crop"].as_f64()),
+            center_crop,
+            crop_angle_deg,
+            denoise: trained["denoise"].as_bool().unwrap_or(false),
             camera: camera.clone(),
             ..defaults
         };

@@ -312,3 +312,123 @@ fn a_sensor_probe_degrades_each_frame_before_the_crop() {
     let expect = probe.apply(&raw, &format!("{}/1", seq.id));
     assert_eq!(probed, trainer::data::images::center_crop(&expect, 0.5));
 }
+
+/// Sets `plan.intrinsics` of one sequence's record to a square lens of
+/// focal length `focal` pixels.
+fn set_focal(json: &std::path::Path, focal: f64) {
+    let mut record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    record["plan"]["intrinsics"]["fx"] = serde_json::json!(focal);
+    record["plan"]["intrinsics"]["fy"] = serde_json::json!(focal);
+    std::fs::write(json, record.to_string()).unwrap();
+}
+
+#[test]
+fn a_fixed_angle_crop_takes_the_fraction_each_lens_needs() {
+    let (dir, _) = generated();
+    let fail = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
+    let k = {
+        let json = data.sequences[0].dir.join("sequence.json");
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        record["plan"]["intrinsics"].clone()
+    };
+    let (w, h) = (
+        k["width"].as_u64().unwrap() as u32,
+        k["height"].as_u64().unwrap() as u32,
+    );
+    let focal = k["fy"].as_f64().unwrap();
+    // The angle that 0.4 of this lens spans; sequence 1 gets a lens twice
+    // as wide, sequence 2 one too narrow for the angle in its rendered 0.5.
+    let angle = grasp_schema::dataset::crop_angle_deg(0.4, focal, w, h);
+    let wide = data.sequences[1].dir.join("sequence.json");
+    let narrow = data.sequences[2].dir.join("sequence.json");
+    set_focal(&wide, focal / 2.0);
+    set_focal(&narrow, focal * 1.5);
+    set_center_region(&narrow, serde_json::json!(0.5));
+    let opts = ReaderOptions {
+        crop_angle_deg: Some(angle),
+        ..ReaderOptions::default()
+    };
+    let read = read_dataset(dir.path(), &opts, &fail).unwrap();
+    let crop_of = |json: &std::path::Path| {
+        read.sequences
+            .iter()
+            .find(|s| s.dir.join("sequence.json") == json)
+            .unwrap()
+            .center_crop
+            .unwrap()
+    };
+    assert!((read.sequences[0].center_crop.unwrap() - 0.4).abs() < 1e-9);
+    assert!((crop_of(&wide) - 0.2).abs() < 1e-9);
+    // 0.6 is needed, 0.5 was rendered: cut down to it, not refused.
+    assert!((crop_of(&narrow) - 0.5).abs() < 1e-9);
+    // Frames seen through the wide lens are the smaller square.
+    let seq = read
+        .sequences
+        .iter()
+        .find(|s| s.dir.join("sequence.json") == wide)
+        .unwrap();
+    let frame = seq.load_frame(0, &fail).unwrap().unwrap();
+    let side = grasp_schema::dataset::centre_square(w, h, 0.2).2;
+    assert_eq!(frame.dimensions(), (side, side));
+}
+
+#[test]
+fn a_fixed_angle_crop_needs_intrinsics_and_excludes_the_fraction_crop() {
+    let fail = BadData::new(OnBadData::Fail);
+    let both = ReaderOptions {
+        center_crop: Some(0.4),
+        crop_angle_deg: Some(18.0),
+        ..ReaderOptions::default()
+    };
+    let (dir, _) = generated();
+    let err = format!("{:#}", read_dataset(dir.path(), &both, &fail).unwrap_err());
+    assert!(err.contains("both"), "{err}");
+    for bad_angle in [0.0, 180.0, f64::NAN] {
+        let opts = ReaderOptions {
+            crop_angle_deg: Some(bad_angle),
+            ..ReaderOptions::default()
+        };
+        let err = format!("{:#}", read_dataset(dir.path(), &opts, &fail).unwrap_err());
+        assert!(err.contains("crop_angle_deg"), "{err}");
+    }
+    // The authors' layout records no lens: refused, naming the folder.
+    let real = tempfile::tempdir().unwrap();
+    write_synthetic(real.path(), &SyntheticSpec::small(Layout::Authors)).unwrap();
+    let opts = ReaderOptions {
+        crop_angle_deg: Some(18.0),
+        ..ReaderOptions::default()
+    };
+    let err = format!("{:#}", read_dataset(real.path(), &opts, &fail).unwrap_err());
+    assert!(err.contains("focal length") && err.contains("rgb"), "{err}");
+}
+
+#[test]
+fn denoising_filters_the_crop_the_backbone_sees() {
+    let (dir, _) = generated();
+    let bad = BadData::new(OnBadData::Fail);
+    let opts = |denoise| ReaderOptions {
+        center_crop: Some(0.5),
+        denoise,
+        ..ReaderOptions::default()
+    };
+    let plain = read_dataset(dir.path(), &opts(false), &bad).unwrap();
+    let denoised = read_dataset(dir.path(), &opts(true), &bad).unwrap();
+    assert!(denoised.sequences.iter().all(|s| s.denoise));
+    let mut seq = plain.sequences[0].clone();
+    // A noisy camera (the sensor probe), then the crop, then the filter.
+    seq.probe = trainer::data::probe::SensorProbe::new(Some(0.04), None).unwrap();
+    let noisy = seq.load_frame(1, &bad).unwrap().unwrap();
+    seq.denoise = true;
+    let filtered = seq.load_frame(1, &bad).unwrap().unwrap();
+    assert_eq!(filtered, grasp_model::model::denoise::denoise(&noisy));
+    let noise = grasp_model::model::denoise::noise_sigma;
+    assert!(
+        noise(&filtered) < 0.75 * noise(&noisy),
+        "{} -> {}",
+        noise(&noisy),
+        noise(&filtered)
+    );
+}

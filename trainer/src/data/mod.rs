@@ -66,6 +66,10 @@ pub struct Sequence {
     /// views stay inside it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rendered_region: Option<f64>,
+    /// The backbone's input square is denoised first
+    /// (`ReaderOptions::denoise`, `grasp_model::model::denoise`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub denoise: bool,
     /// The plan's stream seed (generated data): shared by a sequence and
     /// its look twins (`[dataset] look_seed`), another for any other reach.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -104,12 +108,19 @@ impl Sequence {
         if let Some(p) = &self.probe {
             img = p.apply(&img, &format!("{}/{}", self.id, i + self.first_frame));
         }
-        Ok(Some(match &self.view {
+        let input = match &self.view {
             None => match self.center_crop {
                 Some(f) => images::center_crop(&img, f),
                 None => img,
             },
             Some(v) => v.apply(&img, self.center_crop, self.rendered_region),
+        };
+        // After the probe, which stands for the camera, and the crop, so
+        // that only what the backbone sees is filtered.
+        Ok(Some(if self.denoise {
+            grasp_model::model::denoise::denoise(&input)
+        } else {
+            input
         }))
     }
 

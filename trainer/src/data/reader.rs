@@ -27,6 +27,15 @@ pub struct ReaderOptions {
     /// Feed the backbone only the central square of this fraction of each
     /// frame's shorter side (0 < f <= 1); absent: whole frames.
     pub center_crop: Option<f64>,
+    /// Feed the backbone the central square spanning this angle (degrees,
+    /// its full width) of each frame, through the lens its `sequence.json`
+    /// records: the same part of the world whatever the lens, where a fixed
+    /// fraction sees more of it through a wider one. Not with
+    /// `center_crop`; frames without intrinsics are refused.
+    pub crop_angle_deg: Option<f64>,
+    /// Remove the sensor noise of the backbone's input square (non-local
+    /// means at the level estimated in it) before the backbone.
+    pub denoise: bool,
 }
 
 impl Default for ReaderOptions {
@@ -36,6 +45,8 @@ impl Default for ReaderOptions {
             real_fps: 30.0,
             no_grasp_tail_s: 0.5,
             center_crop: None,
+            crop_angle_deg: None,
+            denoise: false,
         }
     }
 }
@@ -43,10 +54,9 @@ impl Default for ReaderOptions {
 /// Reads every sequence under `root`. Problems (unparseable or missing labels,
 /// missing frames) go through `bad`; a root that cannot be listed is an error.
 pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<Dataset> {
-    if let Some(f) = opts.center_crop.filter(|f| !(*f > 0.0 && *f <= 1.0)) {
-        anyhow::bail!("center_crop must be in (0, 1], got {f}");
-    }
+    opts.validate()?;
     let generated = root.join(MANIFEST_FILE).is_file();
+    let narrow_lens = std::cell::Cell::new(0);
     let mut sequences = Vec::new();
     for category in subdirs(root)? {
         for object in subdirs(&category)? {
@@ -68,6 +78,7 @@ pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<
                 }
                 let ctx = FolderContext {
                     root,
+                    narrow_lens: &narrow_lens,
                     category: file_name(&category),
                     object: file_name(&object),
                     preshape,
@@ -84,14 +95,72 @@ pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<
             }
         }
     }
+    if narrow_lens.get() > 0 {
+        tracing::warn!(
+            "{}: {} sequence(s) were rendered through a lens too narrow (or a centre too small) \
+             for the crop of {} degrees; they are cropped to all that was rendered, so the head \
+             sees their parts larger than in training",
+            root.display(),
+            narrow_lens.get(),
+            opts.crop_angle_deg.unwrap_or_default()
+        );
+    }
     Ok(Dataset {
         root: root.to_path_buf(),
         sequences,
     })
 }
 
+impl ReaderOptions {
+    /// Refuses a crop outside (0, 1], an angle outside (0, 180) degrees, and
+    /// both crops at once.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(f) = self.center_crop.filter(|f| !(*f > 0.0 && *f <= 1.0)) {
+            anyhow::bail!("center_crop must be in (0, 1], got {f}");
+        }
+        if let Some(a) = self.crop_angle_deg.filter(|a| !(*a > 0.0 && *a < 180.0)) {
+            anyhow::bail!("crop_angle_deg must be in (0, 180) degrees, got {a}");
+        }
+        if let (Some(f), Some(a)) = (self.center_crop, self.crop_angle_deg) {
+            anyhow::bail!(
+                "center_crop ({f}) and crop_angle_deg ({a}) both set: a model crops a fixed \
+                 fraction of the frame or a fixed angle, not both"
+            );
+        }
+        Ok(())
+    }
+
+    /// The centre crop of a frame of `record`'s camera, rendered in its
+    /// central `region`: the fixed fraction, or the fraction that
+    /// `crop_angle_deg` takes through its lens, and whether a lens too
+    /// narrow for the angle had it cut down to what was rendered (the head
+    /// then sees the part a little larger than in training, instead of the
+    /// black surround).
+    fn crop_for(
+        &self,
+        record: &SequenceRecord,
+        region: f64,
+    ) -> Result<(Option<f64>, bool), String> {
+        let Some(angle) = self.crop_angle_deg else {
+            return Ok((self.center_crop, false));
+        };
+        let k = &record.plan.intrinsics;
+        // The square's side runs along the shorter side, at its focal length.
+        let focal = if k.height <= k.width { k.fy } else { k.fx };
+        match grasp_schema::dataset::angle_crop_fraction(angle, focal, k.width, k.height) {
+            Some(f) => Ok((Some(f.min(region)), f > region + 1e-9)),
+            None => Err(format!(
+                "plan.intrinsics ({}x{}, focal length {focal}) give no crop of {angle} degrees",
+                k.width, k.height
+            )),
+        }
+    }
+}
+
 struct FolderContext<'a> {
     root: &'a Path,
+    /// Sequences whose lens was too narrow for the crop angle (cut down).
+    narrow_lens: &'a std::cell::Cell<usize>,
     category: String,
     object: String,
     preshape: Preshape,
@@ -109,8 +178,14 @@ fn read_sequence(
         match read_record(&json) {
             Ok(record) => match record.center_region() {
                 Some(region) => {
-                    check_center_region(&json, region, opts)?;
-                    from_record(dir, ctx, &record, region, opts)
+                    let (crop, cut) = opts
+                        .crop_for(&record, region)
+                        .map_err(|why| anyhow::anyhow!("{}: {why}", json.display()))?;
+                    if cut {
+                        ctx.narrow_lens.set(ctx.narrow_lens.get() + 1);
+                    }
+                    check_center_region(&json, region, crop)?;
+                    from_record(dir, ctx, &record, region, crop, opts)
                 }
                 None => {
                     bad.report(&json, "render.center_region must be a fraction in (0, 1]")?;
@@ -136,8 +211,8 @@ fn read_sequence(
 
 /// Frames rendered only in their centre (`[render] center_region`) are
 /// black outside it, so a model must not look further out than that.
-fn check_center_region(json: &Path, region: f64, opts: &ReaderOptions) -> Result<()> {
-    match grasp_schema::dataset::crop_outside_region(region, opts.center_crop) {
+fn check_center_region(json: &Path, region: f64, crop: Option<f64>) -> Result<()> {
+    match grasp_schema::dataset::crop_outside_region(region, crop) {
         Some(why) => anyhow::bail!("{}: {why}", json.display()),
         None => Ok(()),
     }
@@ -161,6 +236,7 @@ fn from_record(
     ctx: &FolderContext,
     record: &SequenceRecord,
     region: f64,
+    crop: Option<f64>,
     opts: &ReaderOptions,
 ) -> Sequence {
     let plan = &record.plan;
@@ -176,10 +252,11 @@ fn from_record(
         frames: record.frame_files.iter().map(|f| dir.join(f)).collect(),
         labels: plan.labels(),
         label_source: LabelSource::SequenceJson,
-        center_crop: opts.center_crop,
+        center_crop: crop,
         lead_in: plan.lead_in_frames(),
         first_frame: 0,
         rendered_region: (region < 1.0).then_some(region),
+        denoise: opts.denoise,
         reach_seed: Some(plan.stream_seed),
         view: None,
         probe: None,
@@ -188,6 +265,14 @@ fn from_record(
 }
 
 fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<Sequence> {
+    if let Some(angle) = opts.crop_angle_deg {
+        anyhow::bail!(
+            "{}: a crop of {angle} degrees (crop_angle_deg) needs the camera's focal length, \
+             which only a sequence.json records; crop these frames by a fraction \
+             (center_crop) instead",
+            dir.display()
+        );
+    }
     let mut frames: Vec<PathBuf> = fs::read_dir(dir)
         .with_context(|| format!("cannot list {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -210,6 +295,7 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         lead_in: 0,
         first_frame: 0,
         rendered_region: None,
+        denoise: opts.denoise,
         reach_seed: None,
         view: None,
         probe: None,

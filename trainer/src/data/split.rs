@@ -158,6 +158,7 @@ mod tests {
                     lead_in: 0,
                     first_frame: 0,
                     rendered_region: None,
+                    denoise: false,
                     reach_seed: None,
                     view: None,
                     probe: None,

@@ -392,6 +392,7 @@ mod tests {
             lead_in: 0,
             first_frame: 0,
             rendered_region: None,
+            denoise: false,
             reach_seed: Some(7),
             view: None,
             probe: None,
