@@ -41,6 +41,10 @@
 #             views and damping, trains on it, as on the default look's;
 #             scored on the draws stage's pooled draws (that stage first).
 #             EXPERIMENTS.md section 19.
+#   camera    the camera's view normalised: the main job's frozen FC recipe
+#             with a fixed-fraction or a fixed-angle crop, denoised or not,
+#             scored on the draws stage's pooled draws (that stage first).
+#             EXPERIMENTS.md section 21.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -211,13 +215,15 @@ stage_main() {
 }
 
 # Frozen FC heads (SEEDS of them) trained on DATA/train and DATA/val with
-# the main job's feature cache, unless RUNS is done.
+# the main job's feature cache, unless RUNS is done. They crop the fraction
+# CROP unless the flags give --crop-angle-deg.
 frozen_fc() { # runs data train-flags...
-  local runs=$1 data=$2
+  local runs=$1 data=$2 crop=(--center-crop "$CROP")
   shift 2
+  [[ " $* " != *" --crop-angle-deg "* ]] || crop=()
   [ -f "$runs/.done" ] || {
     run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --head fc \
-      --seeds "$SEEDS" --mode frozen-pretrained --center-crop "$CROP" --out "$runs" \
+      --seeds "$SEEDS" --mode frozen-pretrained "${crop[@]}" --out "$runs" \
       --cache-dir "$OUT/main/features" "$@"
     touch "$runs/.done"
   }
@@ -320,13 +326,38 @@ inlook_heads() { # dir data
     # shellcheck disable=SC2086 # the recipe's flags are words
     frozen_fc "$dir/fc-$recipe" "$data" --input-size "$INPUT_SIZE" --pooled-blocks 7,10,14,15 \
       ${recipes[$recipe]}
-    checkpoints_of "$dir/fc-$recipe"
-    for c in $DRAW_CONDITIONS; do
-      pooled_roots "$c"
-      [ -f "$dir/fc-$recipe/draws-$c/report.json" ] ||
-        run "$BIN/grasp-train" eval "${CKPTS[@]}" "${POOLED_ROOTS[@]}" --out "$dir/fc-$recipe/draws-$c" \
-          --cache-dir "$OUT/main/features"
-    done
+    score_draws "$dir/fc-$recipe"
+  done
+}
+
+# RUNS' seeds scored on the pooled draws of every condition of the draws
+# stage (RUNS/draws-CONDITION).
+score_draws() { # runs
+  local c
+  checkpoints_of "$1"
+  for c in $DRAW_CONDITIONS; do
+    pooled_roots "$c"
+    [ -f "$1/draws-$c/report.json" ] ||
+      run "$BIN/grasp-train" eval "${CKPTS[@]}" "${POOLED_ROOTS[@]}" --out "$1/draws-$c" \
+        --cache-dir "$OUT/main/features"
+  done
+}
+
+# The camera's view normalised: the main job's frozen FC recipe (style
+# views, damping) with its crop a fixed fraction (0.42) or a fixed angle
+# (18.3 degrees, 0.42 of the default lens), denoised or not, on the main
+# job's data, scored on the pooled draws (the draws stage first).
+# EXPERIMENTS.md section 21.
+stage_camera() {
+  local variant
+  local -A variants=([fraction]="" [fraction-denoised]="--denoise"
+    [angle]="--crop-angle-deg 18.3" [angle-denoised]="--crop-angle-deg 18.3 --denoise")
+  for variant in fraction fraction-denoised angle angle-denoised; do
+    # shellcheck disable=SC2086 # the variant's flags are words
+    frozen_fc "$OUT/camera/$variant" "$OUT/main/data" --input-size "$INPUT_SIZE" \
+      --pooled-blocks 7,10,14,15 -c configs/train-style-views.toml --view-damping 1 \
+      ${variants[$variant]}
+    score_draws "$OUT/camera/$variant"
   done
 }
 
@@ -379,7 +410,7 @@ stage_summary() {
 }
 
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws inlook summary)
+[ ${#stages[@]} -gt 0 ] || stages=(fixed study ablation parts egocentric main large size input draws inlook camera summary)
 for stage in "${stages[@]}"; do
   echo "== $stage"
   "stage_$stage"

@@ -19,8 +19,10 @@
 #                   less), 24 training sequences per pair, 2 test sequences
 #                   per pair and condition (62 videos each). The backbone is
 #                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
-#                   pip-installs; the heads see the central 42 % of each
-#                   frame (--center-crop) at 128 x 128 (--input-size);
+#                   pip-installs; the heads see the centre of each frame
+#                   that spans 18.3 degrees (--crop-angle-deg: 42 % of it
+#                   through the default lens, less through a wider one),
+#                   denoised (--denoise), at 128 x 128 (--input-size);
 #                   the frozen heads read the pooled outputs of blocks 7,
 #                   10, 14 and 15 after the head's (--pooled-blocks), and
 #                   the LSTM trains on sequences started anywhere in their
@@ -48,8 +50,10 @@
 # Re-running resumes: finished sequences, trainings and evaluations are kept.
 # Environment: SKIP_SETUP=1 skips scripts/setup.sh, BIN (target/release),
 # CONFIG overrides the config, TRAIN_SEQ / TEST_SEQ the sequences per pair,
-# SEEDS (3), CROP (0.42; "none" for whole frames, which needs a CONFIG
-# with center_region = 1), INPUT_SIZE (128, the backbone's input side),
+# SEEDS (3), CROP_ANGLE (18.3 degrees; "none" crops the fixed fraction
+# CROP instead), CROP (0.42, with CROP_ANGLE=none; "none" for whole frames,
+# which needs a CONFIG with center_region = 1), DENOISE (1; 0 feeds the
+# crop as rendered), INPUT_SIZE (128, the backbone's input side),
 # POOLED (7,10,14,15, the frozen heads' pooled blocks; "none" for the
 # head's features alone), LSTM_START_CROP (0.5; 0 trains the LSTM on whole
 # sequences), STYLE (configs/train-style-views.toml, the frozen FC head's
@@ -75,7 +79,8 @@ done
 [ "$SCRATCH" = 0 ] || [ -z "$WEIGHTS" ] || { echo "--from-scratch takes no --weights" >&2; exit 2; }
 
 SEEDS=${SEEDS:-3} POOLED_FLAGS=()
-CROP=${CROP:-0.42} INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
+CROP=${CROP:-0.42} CROP_ANGLE=${CROP_ANGLE:-18.3} DENOISE=${DENOISE:-1}
+INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
 LSTM_START_CROP=${LSTM_START_CROP:-0.5}
 STYLE=${STYLE:-configs/train-style-views.toml} STYLE_FLAGS=() DAMPING=${DAMPING:-1}
 if [ "$PAPER" = 1 ]; then
@@ -99,7 +104,14 @@ else
   [ -n "$WEIGHTS" ] || MODELS+=(fc-tuned)
   TRAIN_FLAGS=(--cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
   [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
-  [ "$CROP" = none ] || TRAIN_FLAGS+=(--center-crop "$CROP")
+  # The camera's view normalised (EXPERIMENTS.md, section 21): the crop
+  # spans a fixed angle whatever the lens, and is denoised first.
+  if [ "$CROP_ANGLE" != none ]; then
+    TRAIN_FLAGS+=(--crop-angle-deg "$CROP_ANGLE")
+  elif [ "$CROP" != none ]; then
+    TRAIN_FLAGS+=(--center-crop "$CROP")
+  fi
+  [ "$DENOISE" = 0 ] || TRAIN_FLAGS+=(--denoise)
   # Lite0's blocks only (--weights may be MobileNetV2)
   [ -n "$WEIGHTS" ] || [ "$POOLED" = none ] || POOLED_FLAGS=(--pooled-blocks "$POOLED")
   # style views restyle Lite0's blocks (--weights may be MobileNetV2)
@@ -150,6 +162,22 @@ derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
 }
+# A fixed-angle crop takes more of the frame through a lens narrower than
+# the default (look B's): render that much of it, 2 % to spare (at most the
+# whole frame), where the config's center_region is smaller.
+fit_region() { # config
+  [ "$CROP_ANGLE" != none ] || return 0
+  local need
+  need=$(awk -v a="$CROP_ANGLE" '
+    /^\[/ { look = ($0 == "[appearance.unseen_look]") }
+    look && /^fov_scale/ { gsub(/[][,=]/, " "); lo = $2 }
+    /^center_region/ { region = $3 }
+    END { t = sin(a * 3.14159265 / 360) / cos(a * 3.14159265 / 360)
+          need = t / (sin(21 * 3.14159265 / 180) / cos(21 * 3.14159265 / 180)) / (lo ? lo : 1) + 0.02
+          if (need > 1) need = 1
+          if (need > region) printf "%.2f", need }' "$1")
+  [ -z "$need" ] || sed -i "s/^center_region = .*/center_region = $need/" "$1"
+}
 render() { # name
   $BIN/grasp-gen render --config "$OUT/$1.toml" --out "$OUT/data/$1" --resume
 }
@@ -167,6 +195,7 @@ for look in "${LOOKS[@]}"; do
   derived_config 3 "$TEST_SEQ" '"unseen_look"' "test-$look"
   awk '/^\[/ { skip = ($0 == "[appearance.unseen_look]") } !skip' "$OUT/test-$look.toml" >"$OUT/test-$look.tmp"
   sed -n '/^\[appearance.unseen_look\]/,$p' "configs/test-${look/_/-}.toml" >>"$OUT/test-$look.tmp"
+  fit_region "$OUT/test-$look.tmp"
   mv "$OUT/test-$look.tmp" "$OUT/test-$look.toml"
   render "test-$look"
 done
