@@ -329,22 +329,6 @@ mod tests {
         assert_eq!(nl_means(&empty, 0.02, 0.016).dimensions(), (0, 0));
     }
 
-    /// Not a benchmark (tests assert no time): prints the cost of one
-    /// backbone-sized crop, for a quick look (`--ignored --nocapture`).
-    #[test]
-    #[ignore]
-    fn print_the_cost_of_one_crop() {
-        let img = noisy(&scene(94, 94), 0.04, 5);
-        let t = std::time::Instant::now();
-        for _ in 0..20 {
-            std::hint::black_box(denoise(&img));
-        }
-        println!(
-            "denoise 94x94: {:.2} ms",
-            t.elapsed().as_secs_f64() * 1e3 / 20.0
-        );
-    }
-
     #[test]
     fn mirroring_folds_back_into_the_image() {
         assert_eq!(
