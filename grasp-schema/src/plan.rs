@@ -197,6 +197,17 @@ pub struct CameraIntrinsics {
 }
 
 impl CameraIntrinsics {
+    /// The focal length in pixels along the image's shorter side (`fy` for
+    /// a landscape image, `fx` for a portrait one): the one a centred
+    /// square crop's angle follows.
+    pub fn shorter_side_focal(&self) -> f64 {
+        if self.height <= self.width {
+            self.fy
+        } else {
+            self.fx
+        }
+    }
+
     /// Whether a point in the camera's frame (Blender's: looking along -Z,
     /// +Y up in the image) projects inside the image, in front of the lens.
     pub fn sees(&self, p: [f64; 3]) -> bool {

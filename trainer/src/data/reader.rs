@@ -145,8 +145,7 @@ impl ReaderOptions {
             return Ok((self.center_crop, false));
         };
         let k = &record.plan.intrinsics;
-        // The square's side runs along the shorter side, at its focal length.
-        let focal = if k.height <= k.width { k.fy } else { k.fx };
+        let focal = k.shorter_side_focal();
         match grasp_schema::dataset::angle_crop_fraction(angle, focal, k.width, k.height) {
             Some(f) => Ok((Some(f.min(region)), f > region + 1e-9)),
             None => Err(format!(
