@@ -70,6 +70,10 @@ pub enum ModelError {
     /// A tensor operation failed.
     #[error(transparent)]
     Candle(#[from] candle_core::Error),
+    /// A frame cannot become the backbone's input (no lens for a
+    /// fixed-angle crop, an implausible lens, a crop too small).
+    #[error(transparent)]
+    Input(#[from] crate::input::InputError),
 }
 
 impl ModelError {

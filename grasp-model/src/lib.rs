@@ -14,6 +14,7 @@ pub mod error;
 pub mod extractor;
 pub mod hashing;
 pub mod heads;
+pub mod input;
 pub mod model;
 pub mod softmax;
 

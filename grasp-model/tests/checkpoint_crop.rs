@@ -1,22 +1,31 @@
 //! A checkpoint trained on centre crops (`grasp-train --center-crop`, or
 //! `--crop-angle-deg`, with or without `--denoise`) is given whole camera
 //! frames by `hannes-run`: `Classifier::predict` crops and denoises them as
-//! recorded, so the runtime sees what the head was trained on.
+//! its input record says, so the runtime sees what the head was trained on.
+//! Checkpoints of format 2, whose crop lived in the trainer's options, load
+//! with those mapped onto the record, or are refused by field name.
 
 use candle_core::{Device, Tensor};
 use grasp_model::backbone::{Architecture, BackboneInfo};
-use grasp_model::checkpoint::{
-    save, CentreCrop, CheckpointMeta, Classifier, TrainMode, FORMAT_VERSION,
-};
+use grasp_model::checkpoint::{save, CheckpointMeta, Classifier, TrainMode, FORMAT_VERSION};
 use grasp_model::heads::{HeadConfig, HeadKind};
+use grasp_model::input::{Crop, InputSpec, Lens};
 use grasp_model::model::preprocess::center_crop;
 use grasp_schema::taxonomy::Class;
 use image::{Rgb, RgbImage};
 use std::path::{Path, PathBuf};
 
+fn spec(crop: Crop, denoise: bool) -> InputSpec {
+    InputSpec {
+        crop,
+        denoise,
+        preprocess: Architecture::MobileNetV2.preprocess(32),
+    }
+}
+
 /// A frozen-pretrained checkpoint on the width-0.1 MobileNetV2 fixture with
-/// a fixed FC head whose outputs depend on the image, trained with `reader`.
-fn checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
+/// a fixed FC head whose outputs depend on the image, with `input`.
+fn checkpoint(dir: &Path, name: &str, input: InputSpec) -> PathBuf {
     let fixture =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mnv2_w010.safetensors");
     let backbone = dir.join("backbone.safetensors");
@@ -35,14 +44,14 @@ fn checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
             classes: Class::COUNT,
             lstm_hidden: 256,
         },
-        preprocessing: Architecture::MobileNetV2.preprocess(32),
+        input,
         backbone: info,
         seed: 0,
         epoch: 0,
         val_loss: 0.0,
         val_accuracy: 0.0,
         train_sequences: None,
-        train_config: serde_json::json!({ "reader": reader }),
+        train_config: serde_json::json!({}),
     };
     let dev = Device::Cpu;
     // Small, fixed weights: the softmax stays far from saturation, so a
@@ -65,10 +74,25 @@ fn checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
     ckpt
 }
 
+/// The same checkpoint rewritten as format 2: `preprocessing`, and the
+/// crop and denoising in `train_config.reader`.
+fn legacy_checkpoint(dir: &Path, name: &str, reader: serde_json::Value) -> PathBuf {
+    let ckpt = checkpoint(dir, name, spec(Crop::Whole, false));
+    let path = ckpt.join(grasp_model::checkpoint::META_FILE);
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let input = meta.as_object_mut().unwrap().remove("input").unwrap();
+    meta["format_version"] = 2.into();
+    meta["preprocessing"] = input["preprocess"].clone();
+    meta["train_config"] = serde_json::json!({ "reader": reader });
+    std::fs::write(&path, serde_json::to_vec(&meta).unwrap()).unwrap();
+    ckpt
+}
+
 /// A frame whose centre (a red square) differs from its border (stripes).
 fn frame() -> RgbImage {
-    RgbImage::from_fn(64, 48, |x, y| {
-        if (22..42).contains(&x) && (14..34).contains(&y) {
+    RgbImage::from_fn(128, 96, |x, y| {
+        if (44..84).contains(&x) && (28..68).contains(&y) {
             Rgb([220, 30, 30])
         } else {
             Rgb([((x * 37) % 256) as u8, ((y * 53) % 256) as u8, 90])
@@ -83,24 +107,22 @@ fn max_diff(a: &[f32; Class::COUNT], b: &[f32; Class::COUNT]) -> f32 {
         .fold(0.0, f32::max)
 }
 
+fn lens(focal_px: f64) -> Lens {
+    Lens::Focal {
+        focal_px,
+        width: 128,
+        height: 96,
+    }
+}
+
 #[test]
 fn predict_crops_camera_frames_as_the_checkpoint_was_trained() {
     let dir = tempfile::tempdir().unwrap();
-    let cropped_ckpt = checkpoint(
-        dir.path(),
-        "crop",
-        serde_json::json!({ "center_crop": 0.5 }),
-    );
-    let cropped = Classifier::load(&cropped_ckpt, &Device::Cpu).unwrap();
-    assert_eq!(cropped.crop(), Some(CentreCrop::Fraction(0.5)));
-    // The same weights read without the crop record.
-    let meta_path = cropped_ckpt.join(grasp_model::checkpoint::META_FILE);
-    let mut meta: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&meta_path).unwrap()).unwrap();
-    meta["train_config"]["reader"]["center_crop"] = serde_json::Value::Null;
-    std::fs::write(&meta_path, serde_json::to_vec(&meta).unwrap()).unwrap();
-    let whole = Classifier::load(&cropped_ckpt, &Device::Cpu).unwrap();
-    assert_eq!(whole.crop(), None);
+    let cropped = checkpoint(dir.path(), "crop", spec(Crop::Fraction(0.5), false));
+    let cropped = Classifier::load(&cropped, &Device::Cpu).unwrap();
+    assert_eq!(cropped.input().crop, Crop::Fraction(0.5));
+    let whole = checkpoint(dir.path(), "whole", spec(Crop::Whole, false));
+    let whole = Classifier::load(&whole, &Device::Cpu).unwrap();
 
     let frame = frame();
     let via_crop = cropped.predict(std::slice::from_ref(&frame)).unwrap()[0];
@@ -119,54 +141,45 @@ fn predict_crops_camera_frames_as_the_checkpoint_was_trained() {
 #[test]
 fn a_crop_outside_zero_to_one_is_a_corrupt_checkpoint() {
     let dir = tempfile::tempdir().unwrap();
-    for bad in [
-        serde_json::json!(1.5),
-        serde_json::json!(0.0),
-        serde_json::json!("half"),
-    ] {
-        let ckpt = checkpoint(dir.path(), "bad", serde_json::json!({ "center_crop": bad }));
+    for bad in [1.5, 0.0, f64::NAN] {
+        let ckpt = checkpoint(dir.path(), "bad", spec(Crop::Whole, false));
+        let path = ckpt.join(grasp_model::checkpoint::META_FILE);
+        let mut meta: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        meta["input"]["crop"] = serde_json::json!({ "fraction": bad });
+        std::fs::write(&path, serde_json::to_vec(&meta).unwrap()).unwrap();
         let err = Classifier::load(&ckpt, &Device::Cpu)
             .err()
             .expect("loaded a bad crop");
-        assert!(err.to_string().contains("center_crop"), "{err}");
+        assert!(err.to_string().contains("input.crop"), "{err}");
     }
 }
 
 #[test]
 fn a_fixed_angle_crop_follows_the_cameras_focal_length() {
     let dir = tempfile::tempdir().unwrap();
-    // 0.5 of a 48 px side at a focal length of 40 px spans 2 atan(0.3).
-    let angle = grasp_schema::dataset::crop_angle_deg(0.5, 40.0, 64, 48);
-    let angled = checkpoint(
-        dir.path(),
-        "angle",
-        serde_json::json!({ "crop_angle_deg": angle }),
-    );
-    let fraction = checkpoint(
-        dir.path(),
-        "fraction",
-        serde_json::json!({ "center_crop": 0.5 }),
-    );
+    // 0.5 of a 96 px side at a focal length of 80 px spans 2 atan(0.3).
+    let angle = grasp_schema::dataset::crop_angle_deg(0.5, 80.0, 128, 96);
+    let angled = checkpoint(dir.path(), "angle", spec(Crop::AngleDeg(angle), false));
+    let fraction = checkpoint(dir.path(), "fraction", spec(Crop::Fraction(0.5), false));
     let mut angled = Classifier::load(&angled, &Device::Cpu).unwrap();
     let fraction = Classifier::load(&fraction, &Device::Cpu).unwrap();
-    assert_eq!(angled.crop(), Some(CentreCrop::AngleDeg(angle)));
+    assert_eq!(angled.input().crop, Crop::AngleDeg(angle));
     let frame = frame();
-    // Without the camera's focal length there is no crop to take.
+    // Without the camera's lens there is no crop to take.
     let err = angled.predict(std::slice::from_ref(&frame)).unwrap_err();
     assert!(err.to_string().contains("focal length"), "{err}");
-    assert!(angled.set_focal_px(0.0).is_err());
-    assert!(angled.set_focal_px(f64::NAN).is_err());
     // At that focal length the angle is the same 0.5 of the frame...
-    angled.set_focal_px(40.0).unwrap();
-    assert!((angled.crop_fraction(64, 48).unwrap().unwrap() - 0.5).abs() < 1e-12);
+    angled.set_lens(lens(80.0));
+    assert!((angled.crop_fraction(128, 96).unwrap().unwrap() - 0.5).abs() < 1e-12);
     let a = angled.predict(std::slice::from_ref(&frame)).unwrap()[0];
     let f = fraction.predict(std::slice::from_ref(&frame)).unwrap()[0];
     assert!(max_diff(&a, &f) < 1e-6, "{a:?} vs {f:?}");
     // ...through a lens twice as wide, half of it.
-    angled.set_focal_px(20.0).unwrap();
-    assert!((angled.crop_fraction(64, 48).unwrap().unwrap() - 0.25).abs() < 1e-12);
+    angled.set_lens(lens(40.0));
+    assert!((angled.crop_fraction(128, 96).unwrap().unwrap() - 0.25).abs() < 1e-12);
     let wide = angled.predict(std::slice::from_ref(&frame)).unwrap()[0];
-    let whole = checkpoint(dir.path(), "whole", serde_json::json!({}));
+    let whole = checkpoint(dir.path(), "whole", spec(Crop::Whole, false));
     let whole = Classifier::load(&whole, &Device::Cpu).unwrap();
     let by_hand = whole.predict(&[center_crop(&frame, 0.25)]).unwrap()[0];
     assert!(max_diff(&wide, &by_hand) < 1e-6, "{wide:?} vs {by_hand:?}");
@@ -175,27 +188,66 @@ fn a_fixed_angle_crop_follows_the_cameras_focal_length() {
         "the lens changed nothing: {wide:?}"
     );
     // Through a lens too narrow to hold the angle it is the whole frame.
-    angled.set_focal_px(100.0).unwrap();
-    assert_eq!(angled.crop_fraction(64, 48).unwrap(), Some(1.0));
-    assert_eq!(angled.crop_fraction(0, 48).ok(), None);
+    angled.set_lens(lens(200.0));
+    assert_eq!(angled.crop_fraction(128, 96).unwrap(), Some(1.0));
+    assert!(angled.crop_fraction(0, 96).is_err());
+}
+
+/// Frames of another size than the lens was measured at: the focal length
+/// scales with them, so half-size frames are cut at the same angle (a
+/// 112 px recording of a 224 px render once got the 224 px focal length,
+/// a wrong crop and a wrong pre-shape).
+#[test]
+fn the_lens_scales_with_the_frames_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let angle = grasp_schema::dataset::crop_angle_deg(0.5, 80.0, 128, 96);
+    let angled = checkpoint(dir.path(), "angle", spec(Crop::AngleDeg(angle), false));
+    let mut angled = Classifier::load(&angled, &Device::Cpu).unwrap();
+    angled.set_lens(lens(80.0));
+    for (w, h) in [(128, 96), (256, 192), (64, 48)] {
+        let f = angled.crop_fraction(w, h).unwrap().unwrap();
+        assert!((f - 0.5).abs() < 1e-12, "{w}x{h}: {f}");
+    }
+    // Another shape is a crop of the sensor, whose focal length is unknown.
+    let err = angled.crop_fraction(96, 96).unwrap_err().to_string();
+    assert!(
+        err.contains("96x96") && err.contains("another shape"),
+        "{err}"
+    );
+}
+
+/// A focal length in millimetres (1.93 for the D435) instead of pixels is
+/// refused by name instead of cropping under a pixel; so is a crop too
+/// small for the backbone, and an empty frame.
+#[test]
+fn implausible_lenses_and_tiny_crops_are_refused() {
+    for bad in [1.93, 0.0, -5.0, f64::NAN, 1e6] {
+        let err = Lens::focal(bad, 224, 224).unwrap_err().to_string();
+        assert!(
+            err.contains("focal_px") && err.contains("field of view"),
+            "{bad}: {err}"
+        );
+    }
+    for bad in [5.0, 175.0, f64::INFINITY] {
+        let err = Lens::horizontal_fov(bad).unwrap_err().to_string();
+        assert!(err.contains("hfov_deg"), "{bad}: {err}");
+    }
+    assert!(Lens::focal(291.8, 224, 224).is_ok());
+    let small = Crop::Fraction(0.1).fraction(None, 100, 100).unwrap_err();
+    assert!(small.to_string().contains("10 px"), "{small}");
+    let one = Crop::Whole.fraction(None, 1, 1).unwrap_err();
+    assert!(one.to_string().contains("1x1"), "{one}");
+    assert!(Crop::Whole.fraction(None, 0, 5).is_err());
 }
 
 #[test]
 fn a_denoising_checkpoint_denoises_the_crop_it_reads() {
     let dir = tempfile::tempdir().unwrap();
-    let clean = checkpoint(
-        dir.path(),
-        "clean",
-        serde_json::json!({ "center_crop": 0.5 }),
-    );
-    let denoising = checkpoint(
-        dir.path(),
-        "denoise",
-        serde_json::json!({ "center_crop": 0.5, "denoise": true }),
-    );
+    let clean = checkpoint(dir.path(), "clean", spec(Crop::Fraction(0.5), false));
+    let denoising = checkpoint(dir.path(), "denoise", spec(Crop::Fraction(0.5), true));
     let clean = Classifier::load(&clean, &Device::Cpu).unwrap();
     let denoising = Classifier::load(&denoising, &Device::Cpu).unwrap();
-    assert!(denoising.denoises() && !clean.denoises());
+    assert!(denoising.input().denoise && !clean.input().denoise);
     // A frame with sensor noise: the denoising checkpoint reads the crop
     // denoised, exactly as the trainer fed it.
     let mut noisy = frame();
@@ -207,7 +259,7 @@ fn a_denoising_checkpoint_denoises_the_crop_it_reads() {
     let expected = grasp_model::model::denoise::denoise(&center_crop(&noisy, 0.5));
     assert_eq!(prepared, expected);
     assert_ne!(prepared, center_crop(&noisy, 0.5));
-    let whole = checkpoint(dir.path(), "whole", serde_json::json!({}));
+    let whole = checkpoint(dir.path(), "whole", spec(Crop::Whole, false));
     let whole = Classifier::load(&whole, &Device::Cpu).unwrap();
     let via = denoising.predict(std::slice::from_ref(&noisy)).unwrap()[0];
     let by_hand = whole.predict(&[expected]).unwrap()[0];
@@ -216,17 +268,41 @@ fn a_denoising_checkpoint_denoises_the_crop_it_reads() {
     assert!(max_diff(&via, &plain) > 1e-4, "denoising changed nothing");
 }
 
+/// Format 2 checkpoints load with their reader options mapped onto the
+/// input record.
 #[test]
-fn bad_angle_or_denoise_records_are_corrupt_checkpoints() {
+fn format_2_checkpoints_load_with_their_crop_mapped() {
+    let dir = tempfile::tempdir().unwrap();
+    for (reader, input) in [
+        (serde_json::json!({}), spec(Crop::Whole, false)),
+        (
+            serde_json::json!({ "center_crop": 0.5, "camera": "Wrist_d435" }),
+            spec(Crop::Fraction(0.5), false),
+        ),
+        (
+            serde_json::json!({ "crop_angle_deg": 18.3, "denoise": true, "center_crop": null }),
+            spec(Crop::AngleDeg(18.3), true),
+        ),
+    ] {
+        let ckpt = legacy_checkpoint(dir.path(), "old", reader.clone());
+        let clf = Classifier::load(&ckpt, &Device::Cpu).unwrap();
+        assert_eq!(clf.input(), &input, "{reader}");
+    }
+}
+
+#[test]
+fn bad_format_2_crop_or_denoise_records_are_corrupt_checkpoints() {
     let dir = tempfile::tempdir().unwrap();
     for (reader, field) in [
+        (serde_json::json!({ "center_crop": 1.5 }), "crop.fraction"),
+        (serde_json::json!({ "center_crop": "half" }), "center_crop"),
         (
             serde_json::json!({ "crop_angle_deg": 0.0 }),
-            "crop_angle_deg",
+            "crop.angle_deg",
         ),
         (
             serde_json::json!({ "crop_angle_deg": 200.0 }),
-            "crop_angle_deg",
+            "crop.angle_deg",
         ),
         (
             serde_json::json!({ "crop_angle_deg": "wide" }),
@@ -238,10 +314,14 @@ fn bad_angle_or_denoise_records_are_corrupt_checkpoints() {
         ),
         (serde_json::json!({ "denoise": "yes" }), "denoise"),
     ] {
-        let ckpt = checkpoint(dir.path(), "bad", reader.clone());
+        let ckpt = legacy_checkpoint(dir.path(), "bad", reader.clone());
         let err = Classifier::load(&ckpt, &Device::Cpu)
             .err()
             .unwrap_or_else(|| panic!("loaded {reader}"));
-        assert!(err.to_string().contains(field), "{reader}: {err}");
+        let err = err.to_string();
+        assert!(
+            err.contains(field) && err.contains("best.json"),
+            "{reader}: {err}"
+        );
     }
 }

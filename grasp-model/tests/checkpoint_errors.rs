@@ -36,7 +36,11 @@ fn checkpoint(dir: &Path) -> PathBuf {
         classes: Class::ALL.to_vec(),
         mode: TrainMode::FrozenPretrained,
         head,
-        preprocessing: Architecture::MobileNetV2.preprocess(32),
+        input: grasp_model::input::InputSpec {
+            crop: grasp_model::input::Crop::Whole,
+            denoise: false,
+            preprocess: Architecture::MobileNetV2.preprocess(32),
+        },
         backbone: info,
         seed: 0,
         epoch: 0,
@@ -136,4 +140,38 @@ fn a_newer_format_is_neither_missing_nor_corrupt() {
         matches!(err, ModelError::UnsupportedVersion { found, .. } if found == FORMAT_VERSION + 1),
         "{err:?}"
     );
+}
+
+/// Head weights with a NaN (a diverged training) would make every output
+/// NaN: refused at load, naming the file and the tensor, instead of a
+/// normal-looking 25 % report or a hand driven by garbage.
+#[test]
+fn non_finite_weights_are_a_corrupt_checkpoint() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = checkpoint(dir.path());
+    for bad in [f32::NAN, f32::INFINITY] {
+        let dev = Device::Cpu;
+        let mut w = vec![0f32; Class::COUNT * 1280];
+        w[7] = bad;
+        let tensors: std::collections::HashMap<String, Tensor> = [
+            (
+                "head.fc.weight".to_string(),
+                Tensor::from_vec(w, (Class::COUNT, 1280), &dev).unwrap(),
+            ),
+            (
+                "head.fc.bias".to_string(),
+                Tensor::zeros(Class::COUNT, DType::F32, &dev).unwrap(),
+            ),
+        ]
+        .into_iter()
+        .collect();
+        candle_core::safetensors::save(&tensors, ckpt.join(WEIGHTS_FILE)).unwrap();
+        let err = load(&ckpt).err().expect("loaded NaN weights");
+        assert!(err.is_corrupt(), "{err}");
+        let msg = err.to_string();
+        assert!(
+            msg.contains(WEIGHTS_FILE) && msg.contains("head.fc.weight"),
+            "{msg}"
+        );
+    }
 }

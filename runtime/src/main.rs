@@ -1,7 +1,8 @@
 //! `hannes-run`: the pre-shape classifier driving the Hannes hand.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use grasp_model::checkpoint::{CentreCrop, Classifier};
+use grasp_model::checkpoint::Classifier;
+use grasp_model::input::{Crop, Lens};
 use grasp_schema::cli::Failure;
 use grasp_schema::taxonomy::{Class, Preshape};
 use runtime::approach::{classify_window, ApproachReport, FramePrediction};
@@ -96,11 +97,40 @@ struct SourceArgs {
     /// Frame rate of a bare PNG folder (default: sequence.json, else 30).
     #[arg(long)]
     fps: Option<f64>,
-    /// The camera's focal length in pixels along the frame's shorter side
-    /// (default: the recording's sequence.json). A checkpoint trained with
-    /// --crop-angle-deg needs it, a live camera's from its calibration.
-    #[arg(long, value_name = "PIXELS")]
+    #[command(flatten)]
+    lens: LensArgs,
+}
+
+/// The camera's lens (default: the recording's sequence.json). A
+/// checkpoint trained with --crop-angle-deg needs it; a live camera's comes
+/// from its calibration.
+#[derive(Args, Clone)]
+struct LensArgs {
+    /// The camera's focal length in pixels, measured at --lens-size
+    /// (scaled when frames are another size).
+    #[arg(long, value_name = "PIXELS", requires = "lens_size")]
     focal_px: Option<f64>,
+    /// The resolution --focal-px was measured at.
+    #[arg(long, value_name = "WxH", value_parser = grasp_model::input::parse_size)]
+    lens_size: Option<(u32, u32)>,
+    /// The angle the frames' width spans, in degrees.
+    #[arg(long, value_name = "DEGREES", conflicts_with_all = ["focal_px", "lens_file"])]
+    hfov_deg: Option<f64>,
+    /// A lens file kept with the prosthesis (TOML: focal_px, width and
+    /// height; or hfov_deg).
+    #[arg(long, value_name = "FILE", conflicts_with = "focal_px")]
+    lens_file: Option<PathBuf>,
+}
+
+impl LensArgs {
+    fn lens(&self) -> Result<Option<Lens>> {
+        Ok(Lens::from_options(
+            self.focal_px,
+            self.lens_size,
+            self.hfov_deg,
+            self.lens_file.as_deref(),
+        )?)
+    }
 }
 
 #[derive(Args)]
@@ -251,15 +281,15 @@ fn config(policy_args: &PolicyArgs) -> Result<RuntimeConfig> {
 }
 
 /// Opens the frame source; returns it with whether it is live. The
-/// classifier learns the camera's focal length (`--focal-px`, else the
-/// recording's), and a recording must hold every pixel its crop looks at.
+/// classifier learns the camera's lens (the flags', else the recording's),
+/// and a recording must hold every pixel its crop looks at.
 fn open_source(
     source_args: &SourceArgs,
     pacing: Pacing,
     classifier: &mut Classifier,
 ) -> Result<(Box<dyn FrameSource>, bool)> {
     if let Some(rest) = source_args.source.strip_prefix("camera") {
-        set_focal(classifier, source_args.focal_px, &source_args.source)?;
+        set_lens(classifier, source_args.lens.lens()?, &source_args.source)?;
         let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
         return Ok((open_camera(Path::new(device))?, true));
     }
@@ -267,8 +297,9 @@ fn open_source(
     Ok((Box::new(folder), false))
 }
 
-/// Opens a recording for `classifier`: sets the focal length its crop
-/// needs and checks that the recording holds every pixel the crop sees.
+/// Opens a recording for `classifier`: sets the lens its crop needs and
+/// checks, at the frames' own size, that the recording holds every pixel
+/// the crop sees.
 fn open_recording(
     source_args: &SourceArgs,
     pacing: Pacing,
@@ -276,27 +307,35 @@ fn open_recording(
 ) -> Result<SequenceFolder> {
     let dir = Path::new(&source_args.source);
     let folder = SequenceFolder::open(dir, source_args.fps, pacing)?;
-    let focal = source_args.focal_px.or(folder.info().focal_px);
-    set_focal(classifier, focal, &source_args.source)?;
+    let lens = match source_args.lens.lens()? {
+        Some(lens) => Some(lens),
+        None => folder.info().lens()?,
+    };
+    set_lens(classifier, lens, &source_args.source)?;
     let (width, height) = folder.frame_size()?;
-    let crop = classifier
-        .crop_fraction(width, height)
-        .with_context(|| format!("cannot crop the frames of {}", dir.display()))?;
+    let crop = classifier.crop_fraction(width, height).with_context(|| {
+        format!(
+            "cannot crop the {width}x{height} frames of {}",
+            dir.display()
+        )
+    })?;
     folder.info().check_crop(crop, dir)?;
     Ok(folder)
 }
 
-/// Gives the classifier the camera's focal length; one that crops a fixed
-/// angle refuses to start without it.
-fn set_focal(classifier: &mut Classifier, focal: Option<f64>, source: &str) -> Result<()> {
-    match (focal, classifier.crop()) {
-        (Some(f), _) => classifier.set_focal_px(f).context("--focal-px"),
-        (None, Some(CentreCrop::AngleDeg(angle))) => anyhow::bail!(
+/// Gives the classifier the camera's lens; one that crops a fixed angle
+/// refuses to start without it.
+fn set_lens(classifier: &mut Classifier, lens: Option<Lens>, source: &str) -> Result<()> {
+    match (lens, classifier.input().crop) {
+        (Some(lens), _) => classifier.set_lens(lens),
+        (None, Crop::AngleDeg(angle)) => anyhow::bail!(
             "the checkpoint crops a fixed angle of {angle} degrees, so it needs the camera's \
-             focal length: {source} does not record one (no plan.intrinsics); give --focal-px"
+             lens: {source} does not record one (no sequence.json with plan.intrinsics); give \
+             --focal-px with --lens-size, --hfov-deg or --lens-file"
         ),
-        (None, _) => Ok(()),
+        (None, _) => {}
     }
+    Ok(())
 }
 
 #[cfg(feature = "camera")]
@@ -348,6 +387,7 @@ fn run(args: RunArgs) -> Result<()> {
         }
     };
     let approaches = args.approaches.unwrap_or(if live { usize::MAX } else { 1 });
+    let model = runtime::model::ModelRecord::of(&classifier, &args.source.checkpoint);
     let mut session = Session {
         hand: &hand,
         classifier: &mut classifier,
@@ -357,6 +397,7 @@ fn run(args: RunArgs) -> Result<()> {
     };
     let mut printer = RunPrinter {
         report: args.report.as_deref(),
+        model,
     };
     let closure = closure.as_mut().map(|c| c.as_mut() as &mut dyn Trigger);
     let (_, summary) = session.run(source, approaches, trigger.as_mut(), closure, &mut printer)?;
@@ -381,6 +422,7 @@ fn run(args: RunArgs) -> Result<()> {
 struct ReportLine<'a> {
     approach: usize,
     result: ApproachResult,
+    model: &'a runtime::model::ModelRecord,
     #[serde(flatten)]
     report: &'a ApproachReport,
 }
@@ -388,6 +430,7 @@ struct ReportLine<'a> {
 /// Prints each approach and appends it to the report file.
 struct RunPrinter<'a> {
     report: Option<&'a Path>,
+    model: runtime::model::ModelRecord,
 }
 
 impl SessionObserver for RunPrinter<'_> {
@@ -426,6 +469,7 @@ impl SessionObserver for RunPrinter<'_> {
             let line = ReportLine {
                 approach: n,
                 result: ApproachResult::of(report),
+                model: &self.model,
                 report,
             };
             append_json_line(path, &line)?;
@@ -486,7 +530,17 @@ fn replay(args: ReplayArgs) -> Result<()> {
         &mut print,
     )?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&window)?);
+        #[derive(serde::Serialize)]
+        struct ReplayJson<'a, W: serde::Serialize> {
+            model: runtime::model::ModelRecord,
+            #[serde(flatten)]
+            window: &'a W,
+        }
+        let out = ReplayJson {
+            model: runtime::model::ModelRecord::of(&classifier, &args.source.checkpoint),
+            window: &window,
+        };
+        println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
     let d = &window.decision;
@@ -587,9 +641,12 @@ fn bench(args: BenchArgs) -> Result<()> {
     use runtime::bench;
     let mut classifier = runtime::model::load(&args.checkpoint)?;
     // A fixed-angle crop is timed through the default lens (42 degrees
-    // across the shorter side, the generator's d435 preset).
-    let default_focal = f64::from(args.size) / 2.0 / 21f64.to_radians().tan();
-    set_focal(&mut classifier, Some(default_focal), "the benchmark")?;
+    // across the square frame, the generator's d435 preset).
+    set_lens(
+        &mut classifier,
+        Some(Lens::horizontal_fov(42.0)?),
+        "the benchmark",
+    )?;
     let frames = bench::synthetic_frames(args.frames.max(1), args.size);
     let inference = bench::inference(&mut classifier, &frames, args.warmup)?;
     println!(

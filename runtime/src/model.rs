@@ -5,9 +5,31 @@ use crate::classifier::FrameClassifier;
 use anyhow::Result;
 use grasp_model::checkpoint::Classifier;
 use grasp_model::heads::HeadKind;
+use grasp_model::input::{InputSpec, Lens};
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
-use std::path::Path;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// What every report of `run` and `replay` says about the model: the
+/// checkpoint, its input record, and the lens its crop was cut through.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelRecord {
+    pub checkpoint: PathBuf,
+    pub input: InputSpec,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens: Option<Lens>,
+}
+
+impl ModelRecord {
+    pub fn of(classifier: &Classifier, checkpoint: &Path) -> ModelRecord {
+        ModelRecord {
+            checkpoint: checkpoint.to_path_buf(),
+            input: classifier.input().clone(),
+            lens: classifier.lens().copied(),
+        }
+    }
+}
 
 /// Loads a checkpoint directory (or its `best.json`) for per-frame use.
 ///

@@ -4,9 +4,11 @@
 //! camera is in `camera.rs` (feature `camera`).
 
 use anyhow::{bail, Context, Result};
+use grasp_model::input::Lens;
 use grasp_schema::dataset::SEQUENCE_FILE;
 use grasp_schema::taxonomy::{Class, Preshape};
 use image::RgbImage;
+use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -78,12 +80,33 @@ pub struct SequenceInfo {
     /// `render.center_region`: only the centred square of this fraction of
     /// the shorter side was rendered (the rest is black); None: all of it.
     pub center_region: Option<f64>,
-    /// `plan.intrinsics`: the focal length in pixels along the frames'
-    /// shorter side, which a model that crops a fixed angle needs.
-    pub focal_px: Option<f64>,
+    /// `plan.intrinsics`, the lens a model that crops a fixed angle needs:
+    /// None when absent, an error when present but unusable.
+    pub intrinsics: Option<Result<Pinhole, String>>,
+    /// The `sequence.json` these come from.
+    pub path: Option<PathBuf>,
 }
 
 impl SequenceInfo {
+    /// The recording's lens, from `plan.intrinsics` (None without one); an
+    /// unusable one is an error naming its field.
+    pub fn lens(&self) -> Result<Option<Lens>> {
+        match &self.intrinsics {
+            None => Ok(None),
+            Some(Err(why)) => bail!("{why}"),
+            Some(Ok(k)) => Ok(Some(
+                Lens::from_pinhole(k.fx, k.fy, k.width, k.height)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", self.record()))?,
+            )),
+        }
+    }
+
+    fn record(&self) -> String {
+        self.path
+            .as_ref()
+            .map_or_else(|| SEQUENCE_FILE.to_string(), |p| p.display().to_string())
+    }
+
     /// Refuses a model that looks further out than the recording was
     /// rendered: it would see the black surround. `crop` is the model's
     /// centre crop (None: whole frames).
@@ -96,6 +119,15 @@ impl SequenceInfo {
             None => Ok(()),
         }
     }
+}
+
+/// The part of `plan.intrinsics` a lens needs.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+pub struct Pinhole {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
 }
 
 /// A folder of PNG frames replayed from disk, decoded one at a time.
@@ -339,9 +371,12 @@ fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
                 })?,
         ),
     };
-    let focal_px = plan
+    let intrinsics = plan
         .and_then(|p| p.get("intrinsics"))
-        .and_then(shorter_side_focal);
+        .filter(|k| !k.is_null())
+        .map(|k| {
+            Pinhole::deserialize(k).map_err(|e| format!("{}: plan.intrinsics: {e}", path.display()))
+        });
     Ok((
         files,
         SequenceInfo {
@@ -349,17 +384,10 @@ fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
             preshape,
             labels,
             center_region,
-            focal_px,
+            intrinsics,
+            path: Some(path.to_path_buf()),
         },
     ))
-}
-
-/// The focal length along the shorter image side of `plan.intrinsics`
-/// (`fy` for a landscape frame, `fx` for a portrait one); None when absent.
-fn shorter_side_focal(k: &serde_json::Value) -> Option<f64> {
-    let (w, h) = (k.get("width")?.as_f64()?, k.get("height")?.as_f64()?);
-    let focal = k.get(if h <= w { "fy" } else { "fx" })?.as_f64()?;
-    (focal.is_finite() && focal > 0.0).then_some(focal)
 }
 
 #[cfg(test)]
@@ -419,17 +447,31 @@ mod tests {
             });
             std::fs::write(dir.path().join(SEQUENCE_FILE), r.to_string()).unwrap();
             let s = SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible).unwrap();
-            s.info().focal_px
+            s.info().lens().map_err(|e| e.to_string())
         };
         let lens =
             |w: u32, h: u32| serde_json::json!({"width": w, "height": h, "fx": 300.0, "fy": 200.0});
-        assert_eq!(record(lens(640, 480)), Some(200.0));
-        assert_eq!(record(lens(480, 640)), Some(300.0));
-        assert_eq!(
-            record(serde_json::json!({"width": 64, "height": 64, "fx": -1.0, "fy": -1.0})),
-            None
+        let focal = |f: f64, width: u32, height: u32| {
+            Ok(Some(Lens::Focal {
+                focal_px: f,
+                width,
+                height,
+            }))
+        };
+        assert_eq!(record(lens(640, 480)), focal(200.0, 640, 480));
+        assert_eq!(record(lens(480, 640)), focal(300.0, 480, 640));
+        // A focal length of 0 (or negative) names its field, instead of
+        // reading as "no plan.intrinsics".
+        for bad in [0.0, -1.0] {
+            let err = record(serde_json::json!({"width": 64, "height": 64, "fx": bad, "fy": bad}))
+                .unwrap_err();
+            assert!(err.contains("plan.intrinsics.fy"), "{err}");
+        }
+        let err = record(serde_json::json!({"width": 64, "height": 64})).unwrap_err();
+        assert!(
+            err.contains("plan.intrinsics") && err.contains("fx"),
+            "{err}"
         );
-        assert_eq!(record(serde_json::Value::Null), None);
         assert_eq!(
             SequenceFolder::open(dir.path(), None, Pacing::AsFastAsPossible)
                 .unwrap()

@@ -34,8 +34,8 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
 
     let mut clf = runtime::model::load(ckpt).unwrap();
     assert_eq!(clf.meta.backbone.arch, Architecture::EfficientNetLite0);
-    assert_eq!(clf.meta.preprocessing.resize, ResizeFilter::Bicubic);
-    assert_eq!(clf.meta.preprocessing.size, 40);
+    assert_eq!(clf.meta.input.preprocess.resize, ResizeFilter::Bicubic);
+    assert_eq!(clf.meta.input.preprocess.size, 40);
     // frames of another size are resized as recorded
     let frame = image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8, y as u8, 90]));
     let p = clf.classify(&frame).unwrap();
@@ -44,4 +44,23 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
         (sum - 1.0).abs() < 1e-4 && p.iter().all(|v| v.is_finite()),
         "{p:?}"
     );
+
+    // A pooled block the network lacks, hand-edited into best.json: a
+    // corrupt checkpoint naming its file, with no backtrace in the message
+    // even under RUST_BACKTRACE=1 (a user's error, not a bug).
+    std::env::set_var("RUST_BACKTRACE", "1");
+    let json = ckpt.join(grasp_model::checkpoint::META_FILE);
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    meta["backbone"]["pooled_blocks"] = serde_json::json!([99]);
+    std::fs::write(&json, serde_json::to_vec(&meta).unwrap()).unwrap();
+    let err = format!(
+        "{:#}",
+        runtime::model::load(ckpt).err().expect("loaded block 99")
+    );
+    assert!(
+        err.contains(&json.display().to_string()) && err.contains("pooled block 99"),
+        "{err}"
+    );
+    assert!(!err.contains("backtrace") && !err.contains("\n"), "{err}");
 }

@@ -116,9 +116,18 @@ impl FeatureCache {
 /// backbone sees.
 fn sequence_hash(seq: &Sequence) -> Result<String> {
     let mut h = Sha256::new();
-    if let Some(c) = seq.center_crop {
-        h.update(b"center_crop");
-        h.update(c.to_le_bytes());
+    if seq.crop != grasp_model::input::Crop::Whole {
+        h.update(b"crop");
+        h.update(serde_json::to_vec(&seq.crop)?);
+        if let Some(lens) = &seq.lens {
+            h.update(b"lens");
+            h.update(serde_json::to_vec(lens)?);
+        }
+        // A crop is cut to the rendered region.
+        if let (Some(r), None) = (seq.rendered_region, &seq.view) {
+            h.update(b"crop_region");
+            h.update(r.to_le_bytes());
+        }
     }
     if let Some(v) = &seq.view {
         h.update(b"view");

@@ -246,6 +246,8 @@ struct TrainArgs {
     /// level estimated in it); evaluation and hannes-run do the same.
     #[arg(long)]
     denoise: bool,
+    #[command(flatten)]
+    lens: LensArgs,
     /// Frozen mode: add N seeded views of every training sequence (the
     /// centre crop scaled, shifted and colour-jittered), cached like frames.
     #[arg(long, value_name = "N")]
@@ -293,6 +295,36 @@ struct TrainArgs {
     /// default: such a classifier can never predict it).
     #[arg(long)]
     allow_missing_classes: bool,
+}
+
+/// The camera's lens, for frames without a sequence.json (the authors'
+/// layout, a user's own recordings): a fixed-angle crop needs it.
+#[derive(Args, Clone, Default)]
+struct LensArgs {
+    /// The camera's focal length in pixels, measured at --lens-size
+    /// (scaled when frames are another size).
+    #[arg(long, value_name = "PIXELS", requires = "lens_size")]
+    focal_px: Option<f64>,
+    /// The resolution --focal-px was measured at.
+    #[arg(long, value_name = "WxH", value_parser = grasp_model::input::parse_size)]
+    lens_size: Option<(u32, u32)>,
+    /// The angle the frames' width spans, in degrees.
+    #[arg(long, value_name = "DEGREES", conflicts_with_all = ["focal_px", "lens_file"])]
+    hfov_deg: Option<f64>,
+    /// A lens file (TOML: focal_px, width and height; or hfov_deg).
+    #[arg(long, value_name = "FILE", conflicts_with = "focal_px")]
+    lens_file: Option<PathBuf>,
+}
+
+impl LensArgs {
+    fn lens(&self) -> Result<Option<grasp_model::input::Lens>> {
+        Ok(grasp_model::input::Lens::from_options(
+            self.focal_px,
+            self.lens_size,
+            self.hfov_deg,
+            self.lens_file.as_deref(),
+        )?)
+    }
 }
 
 #[derive(Args)]
@@ -351,9 +383,11 @@ struct EvalArgs {
     #[arg(long, value_name = "SECONDS")]
     before_tail_s: Option<f64>,
     /// Centre crop of the backbone input, a fraction (0-1] of the shorter
-    /// side (default: the checkpoint's training setting).
+    /// side, replacing the checkpoint's crop (the report says so).
     #[arg(long, value_name = "FRACTION")]
     center_crop: Option<f64>,
+    #[command(flatten)]
+    lens: LensArgs,
     /// Camera folder to evaluate (default: the camera the checkpoint was
     /// trained on, e.g. Head_d435 for an egocentric model).
     #[arg(long)]
@@ -437,10 +471,11 @@ fn train(args: TrainArgs) -> Result<()> {
     set!(cfg.reader.camera, args.camera);
     if args.center_crop.is_some() || args.crop_angle_deg.is_some() {
         // A crop on the command line replaces the config file's, of either kind.
-        cfg.reader.center_crop = args.center_crop;
-        cfg.reader.crop_angle_deg = args.crop_angle_deg;
+        cfg.reader.crop =
+            grasp_model::input::Crop::from_options(args.center_crop, args.crop_angle_deg)?;
     }
     cfg.reader.denoise |= args.denoise;
+    cfg.reader.lens = args.lens.lens()?.or(cfg.reader.lens);
     set!(cfg.views.count, args.feature_views);
     set!(cfg.views.style, args.view_style);
     set!(cfg.view_damping, args.view_damping);
@@ -478,51 +513,33 @@ fn eval(args: EvalArgs) -> Result<()> {
         before_tail_s: args.before_tail_s,
     };
     window.validate()?;
-    let trained = trained_reader(&args.checkpoints[0])?;
-    let camera = args.camera.clone().unwrap_or_else(|| {
-        let default = trainer::data::ReaderOptions::default().camera;
-        trained["camera"].as_str().map_or(default, str::to_string)
-    });
+    let input = EvalInput::of(&args)?;
     let mut data = if args.data.is_empty() {
         trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?
     } else {
-        let defaults = trainer::data::ReaderOptions::default();
-        // The checkpoint's crop, unless --center-crop replaces it.
-        let (center_crop, crop_angle_deg) = match args.center_crop {
-            Some(c) => (Some(c), None),
-            None => (
-                trained["center_crop"].as_f64(),
-                trained["crop_angle_deg"].as_f64(),
-            ),
-        };
         let opts = trainer::data::ReaderOptions {
             real_fps: args.real_fps,
-            center_crop,
-            crop_angle_deg,
-            denoise: trained["denoise"].as_bool().unwrap_or(false),
-            camera: camera.clone(),
-            ..defaults
+            crop: input.spec.crop,
+            denoise: input.spec.denoise,
+            lens: input.lens,
+            camera: input.camera_folder.clone(),
+            ..Default::default()
         };
         let mut draws = Vec::new();
         for root in &args.data {
             let draw = trainer::data::read_dataset(root, &opts, &bad)?;
             anyhow::ensure!(
                 !draw.sequences.is_empty(),
-                "no sequences to evaluate in {} (camera folder {camera})",
-                root.display()
+                "no sequences to evaluate in {} (camera folder {})",
+                root.display(),
+                input.camera_folder
             );
             draws.push(draw);
         }
         trainer::data::Dataset::pool(draws)
     };
-    if let Some(c) = args.center_crop {
-        anyhow::ensure!(
-            c > 0.0 && c <= 1.0,
-            "--center-crop must be in (0, 1], got {c}"
-        );
-        for s in &mut data.sequences {
-            s.center_crop = Some(c);
-        }
+    for s in &mut data.sequences {
+        s.crop = input.spec.crop;
     }
     anyhow::ensure!(!data.sequences.is_empty(), "no sequences to evaluate");
     let probe = trainer::data::probe::SensorProbe::new(args.probe_noise, args.probe_blur)?;
@@ -537,6 +554,7 @@ fn eval(args: EvalArgs) -> Result<()> {
         trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
             .context("evaluation failed")?;
     report.lead_in_trimmed = trimmed;
+    report.input = Some(input.record());
     report.sensor_probe = probe;
     report.pooled_with = args.data.iter().skip(1).cloned().collect();
     // What was skipped is part of the result: listed next to the report.
@@ -548,11 +566,62 @@ fn eval(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The reader options a checkpoint was trained with (camera, centre crop):
-/// evaluation reads test frames the same way.
-fn trained_reader(checkpoint: &std::path::Path) -> Result<serde_json::Value> {
-    let (meta, _) = grasp_model::checkpoint::CheckpointMeta::load(checkpoint)?;
-    Ok(meta.train_config["reader"].clone())
+/// How `eval` reads frames: the checkpoints' own input record (they must
+/// share one), unless a flag replaces its crop, and the lens given for data
+/// without sequence.json.
+struct EvalInput {
+    spec: grasp_model::input::InputSpec,
+    lens: Option<grasp_model::input::Lens>,
+    camera_folder: String,
+    overrides: Vec<String>,
+}
+
+impl EvalInput {
+    fn of(args: &EvalArgs) -> Result<EvalInput> {
+        use grasp_model::checkpoint::CheckpointMeta;
+        let (first, _) = CheckpointMeta::load(&args.checkpoints[0])?;
+        for other in &args.checkpoints[1..] {
+            let (meta, _) = CheckpointMeta::load(other)?;
+            anyhow::ensure!(
+                meta.input == first.input,
+                "{} and {} were trained on different inputs ({} against {}): evaluate them \
+                 separately",
+                args.checkpoints[0].display(),
+                other.display(),
+                first.input.describe(),
+                meta.input.describe()
+            );
+        }
+        let mut spec = first.input.clone();
+        let mut overrides = Vec::new();
+        if let Some(c) = args.center_crop {
+            let crop =
+                grasp_model::input::Crop::from_options(Some(c), None).context("--center-crop")?;
+            overrides.push(format!(
+                "--center-crop {c} replaced the checkpoint's crop ({})",
+                spec.crop.describe()
+            ));
+            spec.crop = crop;
+        }
+        let camera_folder = match &args.camera {
+            Some(c) => c.clone(),
+            None => trainer::config::trained_camera_folder(&first),
+        };
+        Ok(EvalInput {
+            spec,
+            lens: args.lens.lens()?,
+            camera_folder,
+            overrides,
+        })
+    }
+
+    fn record(&self) -> trainer::eval::report::InputRecord {
+        trainer::eval::report::InputRecord {
+            spec: self.spec.clone(),
+            lens: self.lens,
+            overrides: self.overrides.clone(),
+        }
+    }
 }
 
 fn summarize(args: SummarizeArgs) -> Result<()> {

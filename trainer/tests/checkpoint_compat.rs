@@ -52,11 +52,13 @@ fn format_1_checkpoints_load_as_mobilenet_v2() {
     // what a format-1 build wrote
     meta["format_version"] = 1.into();
     meta["backbone"].as_object_mut().unwrap().remove("arch");
-    assert!(meta["preprocessing"].get("resize").is_none());
+    let input = meta.as_object_mut().unwrap().remove("input").unwrap();
+    assert!(input["preprocess"].get("resize").is_none());
+    meta["preprocessing"] = input["preprocess"].clone();
     std::fs::write(&json_path, serde_json::to_string_pretty(&meta).unwrap()).unwrap();
     let old = Classifier::load(&ckpt, &candle_core::Device::Cpu).unwrap();
     assert_eq!(old.meta.backbone.arch, Architecture::MobileNetV2);
-    assert_eq!(old.meta.preprocessing.resize, ResizeFilter::Bilinear);
+    assert_eq!(old.meta.input.preprocess.resize, ResizeFilter::Bilinear);
     assert_eq!(old.predict(&frames).unwrap(), expected);
 
     // a future format is refused with the versions this build reads

@@ -1,5 +1,6 @@
 //! The dataset reader on both layouts, bad-data handling and splits.
 
+use grasp_model::input::{Crop, Lens};
 use grasp_schema::taxonomy::{Class, Preshape};
 use std::collections::HashSet;
 use trainer::data::split::{select, stratified_split, SplitConfig};
@@ -11,10 +12,22 @@ mod lead_in;
 use lead_in::{look_away_first, sequence_json};
 
 fn generated() -> (tempfile::TempDir, SyntheticSpec) {
+    generated_at(SyntheticSpec::small(Layout::Generated).size)
+}
+
+/// A generated dataset of `size` x `size` frames.
+fn generated_at(size: u32) -> (tempfile::TempDir, SyntheticSpec) {
     let dir = tempfile::tempdir().unwrap();
-    let spec = SyntheticSpec::small(Layout::Generated);
+    let spec = SyntheticSpec {
+        size,
+        ..SyntheticSpec::small(Layout::Generated)
+    };
     write_synthetic(dir.path(), &spec).unwrap();
     (dir, spec)
+}
+
+fn fraction(f: f64) -> Crop {
+    Crop::Fraction(f)
 }
 
 #[test]
@@ -261,7 +274,7 @@ fn a_crop_wider_than_the_rendered_centre_is_refused_naming_the_file() {
     let json = data.sequences[1].dir.join("sequence.json");
     set_center_region(&json, serde_json::json!(0.5));
     let crop = |c: Option<f64>| ReaderOptions {
-        center_crop: c,
+        crop: c.map_or(Crop::Whole, fraction),
         ..ReaderOptions::default()
     };
     // Inside the rendered centre: read as before.
@@ -294,7 +307,7 @@ fn a_sensor_probe_degrades_each_frame_before_the_crop() {
     use trainer::data::probe::SensorProbe;
     let (dir, _) = generated();
     let opts = ReaderOptions {
-        center_crop: Some(0.5),
+        crop: fraction(0.5),
         ..ReaderOptions::default()
     };
     let bad = BadData::new(OnBadData::Fail);
@@ -325,7 +338,9 @@ fn set_focal(json: &std::path::Path, focal: f64) {
 
 #[test]
 fn a_fixed_angle_crop_takes_the_fraction_each_lens_needs() {
-    let (dir, _) = generated();
+    // Large enough frames that the widest lens's square (0.2) is no
+    // smaller than the backbone's minimum.
+    let (dir, _) = generated_at(100);
     let fail = BadData::new(OnBadData::Fail);
     let data = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
     let k = {
@@ -348,7 +363,7 @@ fn a_fixed_angle_crop_takes_the_fraction_each_lens_needs() {
     set_focal(&narrow, focal * 1.5);
     set_center_region(&narrow, serde_json::json!(0.5));
     let opts = ReaderOptions {
-        crop_angle_deg: Some(angle),
+        crop: Crop::AngleDeg(angle),
         ..ReaderOptions::default()
     };
     let read = read_dataset(dir.path(), &opts, &fail).unwrap();
@@ -357,10 +372,12 @@ fn a_fixed_angle_crop_takes_the_fraction_each_lens_needs() {
             .iter()
             .find(|s| s.dir.join("sequence.json") == json)
             .unwrap()
-            .center_crop
+            .crop_fraction(w, h)
+            .unwrap()
             .unwrap()
     };
-    assert!((read.sequences[0].center_crop.unwrap() - 0.4).abs() < 1e-9);
+    let first = read.sequences[0].dir.join("sequence.json");
+    assert!((crop_of(&first) - 0.4).abs() < 1e-9);
     assert!((crop_of(&wide) - 0.2).abs() < 1e-9);
     // 0.6 is needed, 0.5 was rendered: cut down to it, not refused.
     assert!((crop_of(&narrow) - 0.5).abs() < 1e-9);
@@ -378,31 +395,45 @@ fn a_fixed_angle_crop_takes_the_fraction_each_lens_needs() {
 #[test]
 fn a_fixed_angle_crop_needs_intrinsics_and_excludes_the_fraction_crop() {
     let fail = BadData::new(OnBadData::Fail);
-    let both = ReaderOptions {
-        center_crop: Some(0.4),
-        crop_angle_deg: Some(18.0),
-        ..ReaderOptions::default()
-    };
+    let both = Crop::from_options(Some(0.4), Some(18.0)).unwrap_err();
+    assert!(both.to_string().contains("both"), "{both}");
     let (dir, _) = generated();
-    let err = format!("{:#}", read_dataset(dir.path(), &both, &fail).unwrap_err());
-    assert!(err.contains("both"), "{err}");
     for bad_angle in [0.0, 180.0, f64::NAN] {
         let opts = ReaderOptions {
-            crop_angle_deg: Some(bad_angle),
+            crop: Crop::AngleDeg(bad_angle),
             ..ReaderOptions::default()
         };
         let err = format!("{:#}", read_dataset(dir.path(), &opts, &fail).unwrap_err());
-        assert!(err.contains("crop_angle_deg"), "{err}");
+        assert!(err.contains("crop.angle_deg"), "{err}");
     }
     // The authors' layout records no lens: refused, naming the folder.
     let real = tempfile::tempdir().unwrap();
     write_synthetic(real.path(), &SyntheticSpec::small(Layout::Authors)).unwrap();
-    let opts = ReaderOptions {
-        crop_angle_deg: Some(18.0),
+    // The angle that half of a 32 px frame spans at a focal length of 40 px.
+    let angle = grasp_schema::dataset::crop_angle_deg(0.5, 40.0, 32, 32);
+    let mut opts = ReaderOptions {
+        crop: Crop::AngleDeg(angle),
         ..ReaderOptions::default()
     };
     let err = format!("{:#}", read_dataset(real.path(), &opts, &fail).unwrap_err());
     assert!(err.contains("focal length") && err.contains("rgb"), "{err}");
+    assert!(
+        err.contains("--focal-px") && err.contains("--hfov-deg"),
+        "{err}"
+    );
+    // Given the camera's lens, it reads, and each frame is cut at the
+    // angle through that lens at the frame's own size.
+    let hfov = 2.0 * (16.0f64 / 40.0).atan().to_degrees();
+    opts.lens = Some(Lens::horizontal_fov(hfov).unwrap());
+    let read = read_dataset(real.path(), &opts, &fail).unwrap();
+    let seq = &read.sequences[0];
+    let f = seq.crop_fraction(32, 32).unwrap().unwrap();
+    assert!((f - 0.5).abs() < 1e-9, "{f}");
+    // Twice the frame size: the same angle, the same fraction.
+    let f = seq.crop_fraction(64, 64).unwrap().unwrap();
+    assert!((f - 0.5).abs() < 1e-9, "{f}");
+    let frame = seq.load_frame(0, &fail).unwrap().unwrap();
+    assert_eq!(frame.dimensions(), (16, 16));
 }
 
 #[test]
@@ -410,7 +441,7 @@ fn denoising_filters_the_crop_the_backbone_sees() {
     let (dir, _) = generated();
     let bad = BadData::new(OnBadData::Fail);
     let opts = |denoise| ReaderOptions {
-        center_crop: Some(0.5),
+        crop: fraction(0.5),
         denoise,
         ..ReaderOptions::default()
     };

@@ -294,3 +294,153 @@ fn eval_pools_repeated_data_roots_into_one_report() {
     let (ok, text) = grasp_train(dir.path(), &empty);
     assert!(!ok && text.contains("empty"), "{text}");
 }
+
+/// The crop angle that half of a 32 px synthetic frame spans through the
+/// synthetic lens (a focal length of 32 px).
+fn half_frame_angle() -> String {
+    grasp_schema::dataset::crop_angle_deg(0.5, 32.0, 32, 32).to_string()
+}
+
+/// The authors' layout has no sequence.json: a fixed-angle checkpoint
+/// evaluates it once told the camera's lens, and the report records the
+/// input record and the lens it used.
+#[test]
+fn eval_reads_the_authors_layout_with_a_fixed_angle_checkpoint_given_the_lens() {
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let angle = half_frame_angle();
+    train_tiny_on_data(work, &["--crop-angle-deg", &angle]);
+    write_synthetic(&work.join("real"), &SyntheticSpec::small(Layout::Authors)).unwrap();
+    let eval = |out: &str, lens: &[&str]| {
+        let mut args = vec![
+            "eval",
+            "-c",
+            "run/seed-0",
+            "--data",
+            "real",
+            "--real-fps",
+            "5",
+        ];
+        args.extend(["--out", out]);
+        args.extend(lens);
+        grasp_train(work, &args)
+    };
+    // Without a lens there is no angle to cut: refused, saying how to give one.
+    let (ok, text) = eval("none", &[]);
+    assert!(
+        !ok && text.contains("--focal-px") && text.contains("rgb"),
+        "{text}"
+    );
+    // A focal length in millimetres is not a camera.
+    let (ok, text) = eval("mm", &["--focal-px", "1.93", "--lens-size", "32x32"]);
+    assert!(
+        !ok && text.contains("focal_px") && text.contains("field of view"),
+        "{text}"
+    );
+    // The same lens measured at twice the resolution, and as a field of view.
+    let hfov = (2.0 * (16.0f64 / 32.0).atan().to_degrees()).to_string();
+    for (out, lens) in [
+        ("focal", vec!["--focal-px", "64", "--lens-size", "64x64"]),
+        ("hfov", vec!["--hfov-deg", hfov.as_str()]),
+    ] {
+        let (ok, text) = eval(out, &lens);
+        assert!(ok, "{text}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(work.join(out).join("report.json")).unwrap())
+                .unwrap();
+        let input = &report["input"];
+        assert_eq!(
+            input["spec"]["crop"]["angle_deg"]
+                .as_f64()
+                .unwrap()
+                .to_string(),
+            angle,
+            "{input}"
+        );
+        assert!(input["lens"].is_object(), "{input}");
+        assert!(report["runs"][0]["metrics"]["videos"].as_u64().unwrap() > 0);
+        let md = std::fs::read_to_string(work.join(out).join("report.md")).unwrap();
+        assert!(
+            md.contains("degrees") && md.contains("the checkpoint's"),
+            "{md}"
+        );
+    }
+}
+
+/// Checkpoints trained on different inputs are not averaged as one model,
+/// and a flag that replaces the checkpoint's crop is recorded.
+#[test]
+fn eval_refuses_a_mix_of_inputs_and_records_a_replaced_crop() {
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    train_tiny_on_data(work, &[]);
+    let mut args = vec![
+        "--threads",
+        "2",
+        "train",
+        "--data",
+        "data",
+        "--out",
+        "cropped",
+    ];
+    args.extend(["--mode", "from-scratch", "--width-mult", "0.25"]);
+    args.extend([
+        "--input-size",
+        "32",
+        "--max-epochs",
+        "1",
+        "--center-crop",
+        "0.5",
+    ]);
+    let (ok, text) = grasp_train(work, &args);
+    assert!(ok, "{text}");
+    let args = [
+        "eval",
+        "-c",
+        "run/seed-0",
+        "-c",
+        "cropped/seed-0",
+        "--data",
+        "data",
+    ];
+    let (ok, text) = grasp_train(work, &args);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("run/seed-0") && text.contains("cropped/seed-0") && text.contains("0.5"),
+        "{text}"
+    );
+    let args = [
+        "eval",
+        "-c",
+        "run/seed-0",
+        "--data",
+        "data",
+        "--center-crop",
+        "0.5",
+    ];
+    let (ok, text) = grasp_train(work, &[&args[..], &["--out", "r"]].concat());
+    assert!(ok, "{text}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(work.join("r/report.json")).unwrap()).unwrap();
+    let overrides = report["input"]["overrides"].to_string();
+    assert!(
+        overrides.contains("--center-crop 0.5") && overrides.contains("whole frame"),
+        "{overrides}"
+    );
+
+    // 1 x 1 frames give the backbone nothing to see: an error naming a
+    // frame, not "100 % per video".
+    let tiny = SyntheticSpec {
+        size: 1,
+        ..SyntheticSpec::small(Layout::Generated)
+    };
+    write_synthetic(&work.join("dots"), &tiny).unwrap();
+    let args = ["eval", "-c", "run/seed-0", "--data", "dots", "--out", "d"];
+    let (ok, text) = grasp_train(work, &args);
+    assert!(
+        !ok && text.contains("1x1") && text.contains(".png"),
+        "{text}"
+    );
+}

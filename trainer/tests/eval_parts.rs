@@ -106,20 +106,23 @@ fn parts_windows_and_center_crop_through_evaluation() {
     let before = cache_entries(&cfg.cache_dir);
     let mut crop = cfg.clone();
     crop.out = dir.path().join("crop");
-    crop.reader.center_crop = Some(0.5);
+    crop.reader.crop = grasp_model::input::Crop::Fraction(0.5);
     let c = trainer::experiment::run(&crop, 1).unwrap();
     assert!(
         cache_entries(&cfg.cache_dir) >= 2 * before,
         "cropped features cached apart"
     );
     let test = trainer::experiment::test_split_of(&c.runs[0].checkpoint, &bad).unwrap();
-    assert!(test.sequences.iter().all(|s| s.center_crop == Some(0.5)));
+    assert!(test
+        .sequences
+        .iter()
+        .all(|s| s.crop == grasp_model::input::Crop::Fraction(0.5)));
     let mut bad_crop = cfg.clone();
-    bad_crop.reader.center_crop = Some(1.5);
+    bad_crop.reader.crop = grasp_model::input::Crop::Fraction(1.5);
     bad_crop.out = dir.path().join("bad");
     let err = format!(
         "{:#}",
         trainer::experiment::run(&bad_crop, 1).err().unwrap()
     );
-    assert!(err.contains("center_crop"), "{err}");
+    assert!(err.contains("crop.fraction"), "{err}");
 }

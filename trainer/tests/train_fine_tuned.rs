@@ -168,7 +168,7 @@ fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
     // The same checkpoint serves as a frozen backbone, tuned blocks included.
     let (as_backbone, _) = BackboneInfo::from_checkpoint(ckpt).unwrap();
     let reused =
-        Backbone::load_pretrained(&as_backbone, clf.meta.preprocessing.clone(), &dev).unwrap();
+        Backbone::load_pretrained(&as_backbone, clf.meta.input.preprocess.clone(), &dev).unwrap();
     assert!(close(&values(&reused.extract(&images).unwrap()), &expected));
 }
 

@@ -67,7 +67,7 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
     let clf = Classifier::load(&fc.runs[0].checkpoint, &candle_core::Device::Cpu).unwrap();
     assert_eq!(clf.meta.mode, TrainMode::FrozenPretrained);
     assert_eq!(clf.meta.backbone.width_mult, 0.25);
-    assert_eq!(clf.meta.preprocessing.size, 32);
+    assert_eq!(clf.meta.input.preprocess.size, 32);
     assert_eq!(
         clf.meta.backbone.source_checkpoint.as_deref(),
         Some(seed0.as_path())

@@ -538,14 +538,19 @@ impl EfficientNetLite {
 /// Pooled block indices must name blocks of the network, each once, in
 /// order (the order of their channels in the feature vector).
 pub fn check_pooled_blocks(blocks: &[usize], count: usize) -> Result<()> {
+    // Plain messages, not `bail!`: these are a user's (or a checkpoint's)
+    // mistake, and `bail!` would carry a backtrace into the message under
+    // RUST_BACKTRACE=1.
     if let Some(b) = blocks.iter().find(|&&b| b >= count) {
-        candle_core::bail!(
+        return Err(candle_core::Error::Msg(format!(
             "pooled block {b}: the network has blocks 0 to {}",
             count.saturating_sub(1)
-        );
+        )));
     }
     if blocks.windows(2).any(|w| w[0] >= w[1]) {
-        candle_core::bail!("pooled blocks {blocks:?} must be strictly increasing");
+        return Err(candle_core::Error::Msg(format!(
+            "pooled blocks {blocks:?} must be strictly increasing"
+        )));
     }
     Ok(())
 }

@@ -15,6 +15,7 @@ pub mod view;
 pub use bad::{BadData, OnBadData};
 pub use reader::{read_dataset, ReaderOptions};
 
+use anyhow::Context;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -49,10 +50,13 @@ pub struct Sequence {
     pub frames: Vec<PathBuf>,
     pub labels: Vec<Class>,
     pub label_source: LabelSource,
-    /// The backbone sees the central square of this fraction of each frame's
-    /// shorter side (`ReaderOptions::center_crop`); `None`: whole frames.
+    /// The model's centre crop (its input record's, `ReaderOptions::crop`).
     #[serde(default)]
-    pub center_crop: Option<f64>,
+    pub crop: grasp_model::input::Crop,
+    /// The camera's lens, which a fixed-angle crop is cut through: the
+    /// `sequence.json`'s intrinsics, or the one given for real data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens: Option<grasp_model::input::Lens>,
     /// Leading frames in which the wrist camera does not see the target
     /// (`SequencePlan::lead_in_frames`; 0 for the authors' data).
     #[serde(default)]
@@ -108,20 +112,28 @@ impl Sequence {
         if let Some(p) = &self.probe {
             img = p.apply(&img, &format!("{}/{}", self.id, i + self.first_frame));
         }
+        let fraction = self
+            .crop_fraction(img.width(), img.height())
+            .with_context(|| format!("{}", self.frames[i].display()))?;
         let input = match &self.view {
-            None => match self.center_crop {
+            None => match fraction {
                 Some(f) => images::center_crop(&img, f),
                 None => img,
             },
-            Some(v) => v.apply(&img, self.center_crop, self.rendered_region),
+            Some(v) => v.apply(&img, fraction, self.rendered_region),
         };
         // After the probe, which stands for the camera, and the crop, so
         // that only what the backbone sees is filtered.
-        Ok(Some(if self.denoise {
-            grasp_model::model::denoise::denoise(&input)
-        } else {
-            input
-        }))
+        Ok(Some(grasp_model::input::filter(input, self.denoise)))
+    }
+
+    /// The fraction of a `width` x `height` frame's shorter side the
+    /// backbone sees: the model's crop through the sequence's lens at the
+    /// frame's own size ([`grasp_model::input::Crop::fraction`]), cut to
+    /// what was rendered.
+    pub fn crop_fraction(&self, width: u32, height: u32) -> anyhow::Result<Option<f64>> {
+        let fraction = self.crop.fraction(self.lens.as_ref(), width, height)?;
+        Ok(fraction.map(|f| f.min(self.rendered_region.unwrap_or(1.0))))
     }
 
     /// The sequence's grasp class (its pre-shape).

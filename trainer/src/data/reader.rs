@@ -9,6 +9,7 @@
 
 use super::{BadData, Dataset, LabelSource, Sequence};
 use anyhow::{Context, Result};
+use grasp_model::input::{Crop, Lens};
 use grasp_schema::dataset::{SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER};
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
@@ -24,18 +25,17 @@ pub struct ReaderOptions {
     pub real_fps: f64,
     /// Length of the final `no_grasp` segment of real data, in seconds.
     pub no_grasp_tail_s: f64,
-    /// Feed the backbone only the central square of this fraction of each
-    /// frame's shorter side (0 < f <= 1); absent: whole frames.
-    pub center_crop: Option<f64>,
-    /// Feed the backbone the central square spanning this angle (degrees,
-    /// its full width) of each frame, through the lens its `sequence.json`
-    /// records: the same part of the world whatever the lens, where a fixed
-    /// fraction sees more of it through a wider one. Not with
-    /// `center_crop`; frames without intrinsics are refused.
-    pub crop_angle_deg: Option<f64>,
+    /// The centre crop the backbone sees (the model's input record): a
+    /// fixed angle is cut through the lens each `sequence.json` records,
+    /// else through `lens`.
+    pub crop: Crop,
     /// Remove the sensor noise of the backbone's input square (non-local
     /// means at the level estimated in it) before the backbone.
     pub denoise: bool,
+    /// The camera of data without `sequence.json` (the authors' layout, a
+    /// user's recordings), which a fixed-angle crop needs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens: Option<Lens>,
 }
 
 impl Default for ReaderOptions {
@@ -44,9 +44,9 @@ impl Default for ReaderOptions {
             camera: WRIST_CAMERA_FOLDER.to_string(),
             real_fps: 30.0,
             no_grasp_tail_s: 0.5,
-            center_crop: None,
-            crop_angle_deg: None,
+            crop: Crop::Whole,
             denoise: false,
+            lens: None,
         }
     }
 }
@@ -98,11 +98,11 @@ pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<
     if narrow_lens.get() > 0 {
         tracing::warn!(
             "{}: {} sequence(s) were rendered through a lens too narrow (or a centre too small) \
-             for the crop of {} degrees; they are cropped to all that was rendered, so the head \
+             for the crop of {}; they are cropped to all that was rendered, so the head \
              sees their parts larger than in training",
             root.display(),
             narrow_lens.get(),
-            opts.crop_angle_deg.unwrap_or_default()
+            opts.crop.describe()
         );
     }
     Ok(Dataset {
@@ -112,46 +112,38 @@ pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<
 }
 
 impl ReaderOptions {
-    /// Refuses a crop outside (0, 1], an angle outside (0, 180) degrees, and
-    /// both crops at once.
+    /// The input record's one validation of the crop (and of the lens).
     pub fn validate(&self) -> Result<()> {
-        if let Some(f) = self.center_crop.filter(|f| !(*f > 0.0 && *f <= 1.0)) {
-            anyhow::bail!("center_crop must be in (0, 1], got {f}");
-        }
-        if let Some(a) = self.crop_angle_deg.filter(|a| !(*a > 0.0 && *a < 180.0)) {
-            anyhow::bail!("crop_angle_deg must be in (0, 180) degrees, got {a}");
-        }
-        if let (Some(f), Some(a)) = (self.center_crop, self.crop_angle_deg) {
-            anyhow::bail!(
-                "center_crop ({f}) and crop_angle_deg ({a}) both set: a model crops a fixed \
-                 fraction of the frame or a fixed angle, not both"
-            );
-        }
+        self.crop.validate()?;
         Ok(())
     }
 
-    /// The centre crop of a frame of `record`'s camera, rendered in its
-    /// central `region`: the fixed fraction, or the fraction that
-    /// `crop_angle_deg` takes through its lens, and whether a lens too
-    /// narrow for the angle had it cut down to what was rendered (the head
-    /// then sees the part a little larger than in training, instead of the
-    /// black surround).
+    /// The crop of a frame of `record`'s camera, rendered in its central
+    /// `region`, through the lens it records: a fraction of the shorter
+    /// side, and whether a lens too narrow for a fixed angle had it cut
+    /// down to what was rendered (the head then sees the part a little
+    /// larger than in training, instead of the black surround).
     fn crop_for(
         &self,
+        lens: Option<&Lens>,
         record: &SequenceRecord,
         region: f64,
-    ) -> Result<(Option<f64>, bool), String> {
-        let Some(angle) = self.crop_angle_deg else {
-            return Ok((self.center_crop, false));
-        };
+    ) -> Result<(Option<f64>, bool), grasp_model::input::InputError> {
         let k = &record.plan.intrinsics;
-        let focal = k.shorter_side_focal();
-        match grasp_schema::dataset::angle_crop_fraction(angle, focal, k.width, k.height) {
-            Some(f) => Ok((Some(f.min(region)), f > region + 1e-9)),
-            None => Err(format!(
-                "plan.intrinsics ({}x{}, focal length {focal}) give no crop of {angle} degrees",
-                k.width, k.height
-            )),
+        let fraction = self.crop.fraction(lens, k.width, k.height)?;
+        Ok(match (self.crop, fraction) {
+            (Crop::AngleDeg(_), Some(f)) => (Some(f.min(region)), f > region + 1e-9),
+            (_, f) => (f, false),
+        })
+    }
+
+    /// The lens of a generated sequence: its `plan.intrinsics`. A fixed
+    /// angle needs it valid; other crops do without.
+    fn record_lens(&self, record: &SequenceRecord) -> Result<Option<Lens>, String> {
+        match Lens::from_intrinsics(&record.plan.intrinsics) {
+            Ok(lens) => Ok(Some(lens)),
+            Err(e) if matches!(self.crop, Crop::AngleDeg(_)) => Err(e.to_string()),
+            Err(_) => Ok(None),
         }
     }
 }
@@ -177,14 +169,16 @@ fn read_sequence(
         match read_record(&json) {
             Ok(record) => match record.center_region() {
                 Some(region) => {
+                    let at_json = |why: String| anyhow::anyhow!("{}: {why}", json.display());
+                    let lens = opts.record_lens(&record).map_err(at_json)?;
                     let (crop, cut) = opts
-                        .crop_for(&record, region)
-                        .map_err(|why| anyhow::anyhow!("{}: {why}", json.display()))?;
+                        .crop_for(lens.as_ref(), &record, region)
+                        .map_err(|e| at_json(e.to_string()))?;
                     if cut {
                         ctx.narrow_lens.set(ctx.narrow_lens.get() + 1);
                     }
                     check_center_region(&json, region, crop)?;
-                    from_record(dir, ctx, &record, region, crop, opts)
+                    from_record(dir, ctx, &record, region, lens, opts)
                 }
                 None => {
                     bad.report(&json, "render.center_region must be a fraction in (0, 1]")?;
@@ -235,7 +229,7 @@ fn from_record(
     ctx: &FolderContext,
     record: &SequenceRecord,
     region: f64,
-    crop: Option<f64>,
+    lens: Option<Lens>,
     opts: &ReaderOptions,
 ) -> Sequence {
     let plan = &record.plan;
@@ -251,7 +245,8 @@ fn from_record(
         frames: record.frame_files.iter().map(|f| dir.join(f)).collect(),
         labels: plan.labels(),
         label_source: LabelSource::SequenceJson,
-        center_crop: crop,
+        crop: opts.crop,
+        lens,
         lead_in: plan.lead_in_frames(),
         first_frame: 0,
         rendered_region: (region < 1.0).then_some(region),
@@ -264,11 +259,11 @@ fn from_record(
 }
 
 fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<Sequence> {
-    if let Some(angle) = opts.crop_angle_deg {
+    if let (Crop::AngleDeg(angle), None) = (opts.crop, opts.lens) {
         anyhow::bail!(
-            "{}: a crop of {angle} degrees (crop_angle_deg) needs the camera's focal length, \
-             which only a sequence.json records; crop these frames by a fraction \
-             (center_crop) instead",
+            "{}: the model crops a fixed angle of {angle} degrees, which needs the camera's \
+             focal length, and these frames have no sequence.json: give the camera's lens \
+             (--focal-px with --lens-size, --hfov-deg, or --lens-file)",
             dir.display()
         );
     }
@@ -290,7 +285,8 @@ fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<
         labels: folder_labels(frames.len(), ctx.preshape, opts),
         frames,
         label_source: LabelSource::PreshapeFolder,
-        center_crop: opts.center_crop,
+        crop: opts.crop,
+        lens: opts.lens,
         lead_in: 0,
         first_frame: 0,
         rendered_region: None,

@@ -110,6 +110,44 @@ pub struct Report {
     /// Bad data left out (`--on-bad-data skip`): how much, and where listed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bad_data: Option<BadDataNote>,
+    /// How frames became the backbone's input (`eval`): the checkpoints'
+    /// record, the lens given, and any flag that replaced part of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input: Option<InputRecord>,
+}
+
+/// The input record an evaluation used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputRecord {
+    pub spec: grasp_model::input::InputSpec,
+    /// The lens given for frames without sequence.json (theirs is used
+    /// where they have one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lens: Option<grasp_model::input::Lens>,
+    /// What replaced the checkpoint's record, e.g. `--center-crop 0.5
+    /// replaced the checkpoint's crop (18.3 degrees)`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub overrides: Vec<String>,
+}
+
+impl InputRecord {
+    /// One line for report.md.
+    pub fn describe(&self) -> String {
+        let mut line = format!("input: {}", self.spec.describe());
+        if let Some(lens) = &self.lens {
+            line += &format!(
+                "; lens for frames without sequence.json: {}",
+                lens.describe()
+            );
+        }
+        if self.overrides.is_empty() {
+            line += " (the checkpoint's)";
+        }
+        for o in &self.overrides {
+            line += &format!("; {o}");
+        }
+        line
+    }
 }
 
 /// What the lead-in trim dropped: frames, and the videos they came from.
@@ -171,6 +209,7 @@ impl Report {
             lead_in_trimmed: None,
             sensor_probe: None,
             pooled_with: Vec::new(),
+            input: None,
             per_part,
         }
     }
@@ -304,6 +343,9 @@ pub fn markdown(report: &Report) -> String {
             roots.join(", "),
             roots.len() + 1
         );
+    }
+    if let Some(input) = &report.input {
+        let _ = writeln!(s, "- Checkpoints' {}\n", input.describe());
     }
     if let Some(p) = &report.sensor_probe {
         let _ = writeln!(

@@ -139,7 +139,11 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 classes: Class::ALL.to_vec(),
                 mode: cfg.mode,
                 head: net.head.cfg,
-                preprocessing: prep.preprocess.clone(),
+                input: grasp_model::input::InputSpec {
+                    crop: cfg.reader.crop,
+                    denoise: cfg.reader.denoise,
+                    preprocess: prep.preprocess.clone(),
+                },
                 backbone: backbone_info.clone(),
                 seed,
                 epoch,

@@ -5,12 +5,14 @@
 //! from scratch, or its fine-tuned last blocks under `tail.`) and `best.json` ([`CheckpointMeta`]: classes, mode,
 //! preprocessing, backbone, training config). Both are written atomically.
 
+mod legacy;
+
 use crate::backbone::{resolve, Backbone, BackboneInfo, Preprocess};
 use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
 use crate::heads::{Head, HeadConfig, HeadKind};
-use crate::model::preprocess::center_crop;
+use crate::input::{InputSpec, Lens};
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
 use grasp_schema::atomic::{write_atomic, write_atomic_with};
@@ -19,9 +21,11 @@ use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// 2: the backbone records its architecture and the preprocessing its
-/// resize filter. Version 1 (MobileNetV2, bilinear) still loads.
-pub const FORMAT_VERSION: u32 = 2;
+/// 3: the input record (`input`: crop, denoising, preprocessing) replaces
+/// `preprocessing` and the trainer's reader options. 2: the backbone
+/// records its architecture and the preprocessing its resize filter.
+/// Versions 1 and 2 still load, their fields mapped ([`legacy`]).
+pub const FORMAT_VERSION: u32 = legacy::INPUT_RECORD_VERSION;
 const OLDEST_FORMAT_VERSION: u32 = 1;
 pub const META_FILE: &str = "best.json";
 pub const WEIGHTS_FILE: &str = "best.safetensors";
@@ -58,7 +62,9 @@ pub struct CheckpointMeta {
     pub classes: Vec<Class>,
     pub mode: TrainMode,
     pub head: HeadConfig,
-    pub preprocessing: Preprocess,
+    /// How frames become the backbone's input: training, evaluation and
+    /// the hand all read it from here.
+    pub input: InputSpec,
     pub backbone: BackboneInfo,
     pub seed: u64,
     pub epoch: usize,
@@ -88,19 +94,31 @@ impl CheckpointMeta {
         };
         let text =
             std::fs::read_to_string(&json).map_err(|e| ModelError::read("checkpoint", &json, e))?;
-        let meta: CheckpointMeta =
-            serde_json::from_str(&text).map_err(|e| ModelError::Corrupt {
-                path: json.clone(),
-                reason: format!("invalid checkpoint metadata: {e}"),
-            })?;
-        if !(OLDEST_FORMAT_VERSION..=FORMAT_VERSION).contains(&meta.format_version) {
+        let corrupt = |reason: String| ModelError::Corrupt {
+            path: json.clone(),
+            reason,
+        };
+        let mut value: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| corrupt(format!("invalid checkpoint metadata: {e}")))?;
+        let found = value
+            .get("format_version")
+            .and_then(serde_json::Value::as_u64)
+            .ok_or_else(|| corrupt("missing or invalid field `format_version`".into()))?;
+        let found = u32::try_from(found).unwrap_or(u32::MAX);
+        if !(OLDEST_FORMAT_VERSION..=FORMAT_VERSION).contains(&found) {
             return Err(ModelError::UnsupportedVersion {
                 path: json,
-                found: meta.format_version,
+                found,
                 oldest: OLDEST_FORMAT_VERSION,
                 newest: FORMAT_VERSION,
             });
         }
+        if found < legacy::INPUT_RECORD_VERSION {
+            legacy::upgrade(&mut value).map_err(&corrupt)?;
+        }
+        let meta: CheckpointMeta = serde_json::from_value(value)
+            .map_err(|e| corrupt(format!("invalid checkpoint metadata: {e}")))?;
+        meta.input.validate().map_err(|e| corrupt(e.to_string()))?;
         let dir = json.parent().unwrap_or(Path::new(".")).to_path_buf();
         Ok((meta, dir))
     }
@@ -147,7 +165,19 @@ impl BackboneInfo {
                 info
             }
         };
-        Ok((info, meta.preprocessing))
+        Ok((info, meta.input.preprocess))
+    }
+}
+
+/// A backbone record the checkpoint's `best.json` holds but no backbone can
+/// be built from (a pooled block the network lacks): corrupt, naming it.
+fn in_checkpoint(e: ModelError, dir: &Path) -> ModelError {
+    match e {
+        ModelError::Invalid(reason) => ModelError::Corrupt {
+            path: dir.join(META_FILE),
+            reason: format!("backbone: {reason}"),
+        },
+        other => other,
     }
 }
 
@@ -213,28 +243,14 @@ pub fn save(dir: &Path, meta: &CheckpointMeta, tensors: &[(String, Tensor)]) -> 
     Ok(write_atomic(&dir.join(META_FILE), json.as_bytes())?)
 }
 
-/// The centre crop a head was trained on, applied to every camera frame
-/// before the backbone.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum CentreCrop {
-    /// A fixed fraction of the frame's shorter side (`--center-crop`).
-    Fraction(f64),
-    /// The square spanning a fixed angle, in degrees (`--crop-angle-deg`):
-    /// its fraction of a frame follows from the camera's focal length.
-    AngleDeg(f64),
-}
-
 /// A trained pre-shape classifier: backbone plus head, for inference.
 pub struct Classifier {
     pub meta: CheckpointMeta,
     backbone: Backbone,
     head: Head,
-    crop: Option<CentreCrop>,
-    /// The crop is denoised before the backbone (`--denoise`).
-    denoise: bool,
-    /// Focal length in pixels, along the frames' shorter side, of the
-    /// camera whose frames `predict` is given ([`Classifier::set_focal_px`]).
-    focal_px: Option<f64>,
+    /// The lens of the camera whose frames `predict` is given
+    /// ([`Classifier::set_lens`]); a fixed-angle crop needs it.
+    lens: Option<Lens>,
 }
 
 impl Classifier {
@@ -264,7 +280,7 @@ impl Classifier {
         let backbone = match meta.mode {
             TrainMode::FromScratch => Backbone::from_vb(
                 meta.backbone.clone(),
-                meta.preprocessing.clone(),
+                meta.input.preprocess.clone(),
                 vb.pp("backbone"),
                 device,
             )
@@ -278,24 +294,23 @@ impl Classifier {
             TrainMode::FrozenPretrained => {
                 let mut info = meta.backbone.clone();
                 info.weights_path = info.weights_path.map(|p| resolve(&p, &dir));
-                Backbone::load_pretrained(&info, meta.preprocessing.clone(), device)?
+                Backbone::load_pretrained(&info, meta.input.preprocess.clone(), device)
+                    .map_err(|e| in_checkpoint(e, &dir))?
             }
             TrainMode::FineTuned => Backbone::load_pretrained(
                 &tuned_backbone(&meta, &dir)?,
-                meta.preprocessing.clone(),
+                meta.input.preprocess.clone(),
                 device,
-            )?,
+            )
+            .map_err(|e| in_checkpoint(e, &dir))?,
         };
         check_head_width(&meta, backbone.net.feature_dim(), &dir)?;
-        let crop = trained_crop(&meta, &dir)?;
-        let denoise = trained_denoise(&meta, &dir)?;
+        check_finite(&weights)?;
         Ok(Classifier {
             meta,
             backbone,
             head: head.detached(),
-            crop,
-            denoise,
-            focal_px: None,
+            lens: None,
         })
     }
 
@@ -311,70 +326,34 @@ impl Classifier {
         &self.backbone
     }
 
-    /// The centre crop applied to camera frames, as recorded at training;
-    /// `None`: whole frames.
-    pub fn crop(&self) -> Option<CentreCrop> {
-        self.crop
+    /// How frames become the backbone's input, as recorded at training.
+    pub fn input(&self) -> &InputSpec {
+        &self.meta.input
     }
 
-    /// Whether the crop is denoised before the backbone, as at training.
-    pub fn denoises(&self) -> bool {
-        self.denoise
+    /// Tells the classifier the lens of the camera whose frames it will be
+    /// given. A checkpoint that crops a fixed angle needs it; the others
+    /// ignore it.
+    pub fn set_lens(&mut self, lens: Lens) {
+        self.lens = Some(lens);
     }
 
-    /// Tells the classifier the focal length, in pixels along the frames'
-    /// shorter side, of the camera whose frames it will be given. A
-    /// checkpoint that crops a fixed angle needs it; the others ignore it.
-    pub fn set_focal_px(&mut self, focal_px: f64) -> Result<()> {
-        if !(focal_px.is_finite() && focal_px > 0.0) {
-            return Err(ModelError::Invalid(format!(
-                "the camera's focal length must be a positive number of pixels, got {focal_px}"
-            )));
-        }
-        self.focal_px = Some(focal_px);
-        Ok(())
+    pub fn lens(&self) -> Option<&Lens> {
+        self.lens.as_ref()
     }
 
     /// The fraction of the shorter side of `width` x `height` frames that
-    /// the crop takes (`None`: whole frames). A fixed-angle crop without a
-    /// focal length ([`Classifier::set_focal_px`]) is an error; through a
-    /// lens too narrow to hold the angle it is the whole frame, as the
-    /// trainer cuts it down to what it has.
+    /// the crop takes (`None`: whole frames); see [`InputSpec::crop_fraction`].
     pub fn crop_fraction(&self, width: u32, height: u32) -> Result<Option<f64>> {
-        match self.crop {
-            None => Ok(None),
-            Some(CentreCrop::Fraction(f)) => Ok(Some(f)),
-            Some(CentreCrop::AngleDeg(angle)) => {
-                let focal = self.focal_px.ok_or_else(|| {
-                    ModelError::Invalid(format!(
-                        "the checkpoint crops a fixed angle of {angle} degrees: it needs the \
-                         camera's focal length (from the recording's sequence.json, or given \
-                         for a live camera)"
-                    ))
-                })?;
-                match grasp_schema::dataset::angle_crop_fraction(angle, focal, width, height) {
-                    Some(f) => Ok(Some(f.min(1.0))),
-                    None => Err(ModelError::Invalid(format!(
-                        "no crop of {angle} degrees in a {width}x{height} frame at a focal \
-                         length of {focal} px"
-                    ))),
-                }
-            }
-        }
+        Ok(self
+            .meta
+            .input
+            .crop_fraction(self.lens.as_ref(), width, height)?)
     }
 
-    /// A whole camera frame as the backbone is fed it: centre-cropped, then
-    /// denoised, as the checkpoint was trained.
+    /// A whole camera frame as the backbone is fed it ([`InputSpec::prepare`]).
     pub fn prepare(&self, frame: &RgbImage) -> Result<RgbImage> {
-        let cropped = match self.crop_fraction(frame.width(), frame.height())? {
-            Some(fraction) => center_crop(frame, fraction),
-            None => frame.clone(),
-        };
-        Ok(if self.denoise {
-            crate::model::denoise::denoise(&cropped)
-        } else {
-            cropped
-        })
+        Ok(self.meta.input.prepare(frame, self.lens.as_ref())?)
     }
 
     /// Per-frame class probabilities of whole camera frames (softmax by
@@ -386,15 +365,11 @@ impl Classifier {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        let feats = if self.crop.is_none() && !self.denoise {
-            self.backbone.extract(frames)?
-        } else {
-            let prepared = frames
-                .iter()
-                .map(|f| self.prepare(f))
-                .collect::<Result<Vec<_>>>()?;
-            self.backbone.extract(&prepared)?
-        };
+        let prepared = frames
+            .iter()
+            .map(|f| self.prepare(f))
+            .collect::<Result<Vec<_>>>()?;
+        let feats = self.backbone.extract(&prepared)?;
         self.predict_features(&feats)
     }
 
@@ -427,55 +402,27 @@ pub fn probabilities(logits: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
         .collect()
 }
 
-/// The trainer records its reader options in `train_config.reader`; a crop
-/// outside (0, 1], an angle outside (0, 180) degrees or both crops at once
-/// is a corrupt checkpoint, not a silent whole-frame model.
-fn trained_crop(meta: &CheckpointMeta, dir: &Path) -> Result<Option<CentreCrop>> {
-    let reader = &meta.train_config["reader"];
-    let corrupt = |field: &str, want: &str, value: &serde_json::Value| {
-        ModelError::Invalid(format!(
-            "{}: train_config.reader.{field} must be {want}, got {value}",
-            dir.join(META_FILE).display()
-        ))
-    };
-    let fraction = match &reader["center_crop"] {
-        serde_json::Value::Null => None,
-        value => match value.as_f64() {
-            Some(f) if f > 0.0 && f <= 1.0 => Some(CentreCrop::Fraction(f)),
-            _ => return Err(corrupt("center_crop", "a fraction in (0, 1]", value)),
-        },
-    };
-    let angle = match &reader["crop_angle_deg"] {
-        serde_json::Value::Null => None,
-        value => match value.as_f64() {
-            Some(a) if a > 0.0 && a < 180.0 => Some(CentreCrop::AngleDeg(a)),
-            _ => {
-                return Err(corrupt(
-                    "crop_angle_deg",
-                    "an angle in (0, 180) degrees",
-                    value,
-                ))
-            }
-        },
-    };
-    match (fraction, angle) {
-        (Some(_), Some(_)) => Err(ModelError::Invalid(format!(
-            "{}: train_config.reader sets both center_crop and crop_angle_deg",
-            dir.join(META_FILE).display()
-        ))),
-        (crop, None) | (None, crop) => Ok(crop),
+/// Refuses a weights file with a non-finite value (a diverged training, a
+/// corrupted copy): its every output would be NaN, which the hand must never
+/// be driven by, and a report would look normal.
+fn check_finite(weights: &Path) -> Result<()> {
+    let tensors = candle_core::safetensors::load(weights, &Device::Cpu).map_err(|e| {
+        ModelError::Unreadable {
+            path: weights.to_path_buf(),
+            what: "not a readable safetensors file",
+            source: Box::new(e),
+        }
+    })?;
+    let mut names: Vec<&String> = tensors.keys().collect();
+    names.sort();
+    for name in names {
+        let t = tensors[name].to_dtype(DType::F32)?.flatten_all()?;
+        if t.to_vec1::<f32>()?.iter().any(|v| !v.is_finite()) {
+            return Err(ModelError::Corrupt {
+                path: weights.to_path_buf(),
+                reason: format!("tensor {name} holds non-finite values (NaN or infinity)"),
+            });
+        }
     }
-}
-
-/// `train_config.reader.denoise`: absent (checkpoints from before it) is
-/// false; anything but a boolean is a corrupt checkpoint.
-fn trained_denoise(meta: &CheckpointMeta, dir: &Path) -> Result<bool> {
-    match &meta.train_config["reader"]["denoise"] {
-        serde_json::Value::Null => Ok(false),
-        serde_json::Value::Bool(b) => Ok(*b),
-        value => Err(ModelError::Invalid(format!(
-            "{}: train_config.reader.denoise must be true or false, got {value}",
-            dir.join(META_FILE).display()
-        ))),
-    }
+    Ok(())
 }
