@@ -30,7 +30,7 @@
 #   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
 #             with the main job's into one report per head and condition
 #             (310 videos); default, unseen_look and looks B, C and D
-#             (look_b, look_c, look_d, more held-out looks: EXPERIMENTS.md
+#             (look_b, look_c, look_d, more held-out looks: EXPERIMENTS-archive.md
 #             sections 15, 16 and 18)
 #             unless DRAW_CONDITIONS.
 #   inlook    how much of a held-out look's gap is transfer: each look of
@@ -40,11 +40,11 @@
 #             and the main job's frozen FC recipe, with and without its style
 #             views and damping, trains on it, as on the default look's;
 #             scored on the draws stage's pooled draws (that stage first).
-#             EXPERIMENTS.md section 19.
+#             EXPERIMENTS-archive.md section 19.
 #   camera    the camera's view normalised: the main job's frozen FC recipe
 #             with a fixed-fraction or a fixed-angle crop, denoised or not,
 #             scored on the draws stage's pooled draws (that stage first).
-#             EXPERIMENTS.md section 21.
+#             EXPERIMENTS-archive.md section 21.
 #   summary   the tables and plots (summary/*/summary.md, error.png).
 #
 # Everything goes under $OUT (default runs/experiments), and every command is
@@ -75,7 +75,7 @@ declare -A SETTINGS=(
 mkdir -p "$OUT"
 LOG="$OUT/commands.log"
 
-# Logs and runs one command; EXPERIMENTS.md quotes these lines.
+# Logs and runs one command; EXPERIMENTS-archive.md quotes these lines.
 run() {
   echo "+ $*" | tee -a "$LOG" >&2
   "$@"
@@ -347,7 +347,7 @@ score_draws() { # runs
 # views, damping) with its crop a fixed fraction (0.42) or a fixed angle
 # (18.3 degrees, 0.42 of the default lens), denoised or not, on the main
 # job's data, scored on the pooled draws (the draws stage first).
-# EXPERIMENTS.md section 21.
+# EXPERIMENTS-archive.md section 21.
 stage_camera() {
   local variant
   local -A variants=([fraction]="" [fraction-denoised]="--denoise"

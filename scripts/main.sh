@@ -94,7 +94,7 @@ else
 fi
 # Models: MODEL is HEAD or HEAD-tuned (EfficientNet-Lite0's last eight blocks
 # fine-tuned with the head after a linear probe, the trainer's defaults; at
-# most 6 epochs, as every seed's best came at epoch 3: EXPERIMENTS.md,
+# most 6 epochs, as every seed's best came at epoch 3: EXPERIMENTS-archive.md,
 # section 11. Not with --weights, which may be MobileNetV2).
 if [ "$SCRATCH" = 1 ]; then
   MODELS=(fc) SEEDS=1
@@ -104,7 +104,7 @@ else
   [ -n "$WEIGHTS" ] || MODELS+=(fc-tuned)
   TRAIN_FLAGS=(--cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
   [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
-  # The camera's view normalised (EXPERIMENTS.md, section 21): the crop
+  # The camera's view normalised (EXPERIMENTS-archive.md, section 21): the crop
   # spans a fixed angle whatever the lens, and is denoised first.
   if [ "$CROP_ANGLE" != none ]; then
     TRAIN_FLAGS+=(--crop-angle-deg "$CROP_ANGLE")
@@ -119,7 +119,7 @@ else
   [ "${#STYLE_FLAGS[@]}" = 0 ] || [ "$DAMPING" = 0 ] || STYLE_FLAGS+=(--view-damping "$DAMPING")
 fi
 # The frozen heads read pooled blocks; the fine-tuned one does not, as they
-# cost it 3.6 points on unseen_look (EXPERIMENTS.md section 12). The LSTM
+# cost it 3.6 points on unseen_look (EXPERIMENTS-archive.md section 12). The LSTM
 # trains on sequences started anywhere in their first half, which a reach
 # from the ground needs (section 13). The frozen FC head also trains on four
 # style views of every sequence (section 14), with the feature directions
@@ -138,7 +138,7 @@ mode_flags() { # model
 }
 CONDITIONS=(default fast from_ground seated background unseen_look)
 # More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
-# (EXPERIMENTS.md, sections 15, 16 and 18).
+# (EXPERIMENTS-archive.md, sections 15, 16 and 18).
 LOOKS=(look_b look_c look_d)
 # Test sets scored: the conditions and the held-out looks.
 TEST_SETS=("${CONDITIONS[@]}" "${LOOKS[@]}")
