@@ -15,7 +15,7 @@ use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{RenderCost, SequenceRecord, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
 use indicatif::{ProgressBar, ProgressStyle};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -63,6 +63,10 @@ pub struct RenderSummary {
     pub fatal: Option<String>,
     /// Largest peak resident memory reported by any worker, KiB.
     pub peak_worker_rss_kib: u64,
+    /// The devices this run's sequences were rendered on (`render.cost.device`).
+    pub devices: BTreeSet<String>,
+    /// Why `[render] device = "auto"` rendered on the CPU, logged once.
+    pub device_note: Option<String>,
 }
 
 impl RenderSummary {
@@ -95,7 +99,10 @@ enum Event {
         id: String,
         error: String,
     },
-    /// Nothing more can be written (a full disk): stop the whole run.
+    /// A worker's note for the log (the device fallback), once per start.
+    Note(String),
+    /// Nothing more can be written (a full disk), or no worker can start
+    /// as configured: stop the whole run.
     Fatal {
         id: String,
         error: String,
@@ -196,9 +203,6 @@ pub fn render(
     Ok(summary)
 }
 
-/// The jobs of this run: the unfinished sequences of the shard, and the
-/// finished-looking ones whose files are missing or damaged (re-rendered,
-/// with a message).
 /// Fails when a finished folder holds another sequence than the one this
 /// config plans there: the folder was rendered with other settings (more or
 /// fewer sequences per pair, other objects, parts or conditions), which
@@ -235,6 +239,9 @@ fn refuse_other_sequences(
     )
 }
 
+/// The jobs of this run: the unfinished sequences of the shard, and the
+/// finished-looking ones whose files are missing or damaged (re-rendered,
+/// with a message).
 fn unfinished_jobs(
     dataset: &DatasetDir,
     in_shard: &[Assigned],
@@ -391,6 +398,7 @@ fn run_pool(
                 files,
             }) => {
                 let frames = plan.frames.len();
+                summary.devices.insert(cost.device.clone());
                 summary.peak_worker_rss_kib = summary.peak_worker_rss_kib.max(peak_rss_kib);
                 let record = SequenceRecord {
                     plan: *plan,
@@ -418,6 +426,13 @@ fn run_pool(
                 pb.inc(1);
                 let fps = summary.frames as f64 / start.elapsed().as_secs_f64().max(1e-9);
                 pb.set_message(format!("{fps:.2} frames/s"));
+            }
+            Ok(Event::Note(note)) => {
+                // Every worker start says it again; once is enough.
+                if summary.device_note.is_none() {
+                    log(&|| tracing::warn!("{note}"));
+                    summary.device_note = Some(note);
+                }
             }
             Ok(Event::Retry { id, error }) => {
                 summary.retries += 1;
@@ -497,7 +512,15 @@ struct WorkerProc {
     child: Arc<Mutex<Child>>,
     stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
+    /// What the worker asked to be logged when it started.
+    note: Option<String>,
 }
+
+/// A worker that cannot start as configured (a `[render] device` Blender
+/// does not offer): every retry would fail the same way.
+#[derive(Debug, thiserror::Error)]
+#[error("worker failed to start: {0}")]
+struct CannotStart(String);
 
 impl WorkerProc {
     fn spawn(slot: usize, ctx: &Shared) -> Result<Self> {
@@ -527,6 +550,7 @@ impl WorkerProc {
             child: Arc::new(Mutex::new(child)),
             stdin,
             stdout,
+            note: None,
         };
         ctx.children.lock().unwrap_or_else(|e| e.into_inner())[slot] = Some(proc.child.clone());
         let init = Request::Init {
@@ -534,7 +558,12 @@ impl WorkerProc {
             settings: ctx.settings.clone(),
         };
         match proc.call(&init, &log_path)? {
-            Response::Ready { .. } => Ok(proc),
+            Response::Ready { note, .. } => Ok(WorkerProc { note, ..proc }),
+            Response::Error {
+                message,
+                fatal: true,
+                ..
+            } => Err(CannotStart(message).into()),
             Response::Error { message, .. } => bail!("worker failed to start: {message}"),
             other => bail!("unexpected worker answer {other:?}"),
         }
@@ -610,7 +639,11 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
         let part_labels: Vec<String> = request.parts.iter().map(|p| p.name.clone()).collect();
         let outcome = (|| -> Result<(u64, RenderCost)> {
             if proc.is_none() {
-                proc = Some(WorkerProc::spawn(slot, ctx)?);
+                let mut started = WorkerProc::spawn(slot, ctx)?;
+                if let Some(note) = started.note.take() {
+                    let _ = tx.send(Event::Note(note));
+                }
+                proc = Some(started);
             }
             let p = proc.as_mut().expect("worker started above");
             match p.call(&Request::Render(Box::new(request)), &log) {
@@ -657,6 +690,11 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                     let _ = std::fs::remove_dir_all(h);
                 }
                 if ctx.stopped() {
+                    break;
+                }
+                if e.downcast_ref::<CannotStart>().is_some() {
+                    let error = format!("{e:#}");
+                    let _ = tx.send(Event::Fatal { id, error });
                     break;
                 }
                 // A full disk fails every sequence alike: stop, do not retry.
