@@ -7,6 +7,7 @@
 //! moved into the dataset atomically ([`crate::dataset::writer`]).
 
 pub mod cli;
+pub mod consistency;
 pub mod device;
 pub mod effects;
 pub mod orchestrator;
