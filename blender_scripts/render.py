@@ -112,6 +112,8 @@ def use_device(device):
 
 def _cycles(scene, s):
     c = scene.cycles
+    # The CPU until the worker picks a device (use_device; the choice is
+    # made in generator/src/render/device.rs).
     c.device = "CPU"
     c.samples = int(s["samples"])
     c.use_adaptive_sampling = s.get("adaptive_threshold", 0.0) > 0.0

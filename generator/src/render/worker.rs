@@ -59,14 +59,14 @@ pub fn run() -> Result<()> {
             Request::Render(req) => {
                 let start = Instant::now();
                 let reply = match render(&worker, &settings, &req) {
-                    Ok(mut cost) => Response::Done {
+                    Ok(cost) => Response::Done {
                         id: req.id.clone(),
                         seconds: start.elapsed().as_secs_f64(),
                         peak_rss_kib: proc_status_kib("VmHWM:"),
                         rss_kib: proc_status_kib("VmRSS:"),
-                        cost: {
-                            cost.device = device.used.clone();
-                            cost
+                        cost: RenderCost {
+                            device: device.used.clone(),
+                            ..cost
                         },
                     },
                     Err(e) => Response::Error {
