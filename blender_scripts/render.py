@@ -10,6 +10,8 @@ PASSES = ("rgb", "depth", "instance", "part")
 INDEX_OBJECT, INDEX_HAND, INDEX_TABLE = 1, 2, 3
 # Scene property holding `center_region` (see apply_center_region).
 CENTER_REGION = "grasp_center_region"
+# Cycles' GPU backends, by their `[render] device` names.
+GPU_BACKENDS = ("cuda", "optix", "hip", "oneapi", "metal")
 
 
 def configure(settings):
@@ -76,8 +78,42 @@ def apply_center_region(scene):
         r.border_min_y, r.border_max_y = 0.5 - half_y, 0.5 + half_y
 
 
+def cycles_gpu_devices():
+    """The GPU devices Cycles sees, per backend ({"cuda": [names], ...}; an
+    empty list where the machine or this build has none). The choice among
+    them is made in Rust (generator/src/render/device.rs)."""
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    prefs.refresh_devices()
+    found = {}
+    for backend in GPU_BACKENDS:
+        kind = backend.upper()
+        # The list includes the CPU beside the GPUs; keep the GPUs only.
+        found[backend] = [d.name for d in prefs.get_devices_for_type(kind) if d.type == kind]
+    return found
+
+
+def use_device(device):
+    """Renders Cycles on `device` ("cpu" or a GPU backend name) with all of
+    that backend's GPUs and not the CPU beside them, so the record names one
+    device."""
+    scene = bpy.context.scene
+    if device == "cpu":
+        scene.cycles.device = "CPU"
+        return
+    kind = device.upper()
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    prefs.compute_device_type = kind
+    for d in prefs.get_devices_for_type(kind):
+        d.use = d.type == kind
+    if prefs.compute_device_type != kind or not prefs.has_active_device():
+        raise ValueError(f"Cycles did not switch to {device} ({prefs.compute_device_type})")
+    scene.cycles.device = "GPU"
+
+
 def _cycles(scene, s):
     c = scene.cycles
+    # The CPU until the worker picks a device (use_device; the choice is
+    # made in generator/src/render/device.rs).
     c.device = "CPU"
     c.samples = int(s["samples"])
     c.use_adaptive_sampling = s.get("adaptive_threshold", 0.0) > 0.0

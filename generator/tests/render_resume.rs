@@ -108,3 +108,77 @@ fn resuming_with_settings_that_number_folders_differently_is_refused() {
     assert_eq!(std::fs::read(dir.join(SEQUENCE_FILE)).unwrap(), written);
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
 }
+
+/// Issue 39: a dataset resumed after a change of a render setting that
+/// changes pixels (`center_region`) would hold frames of two renders, and
+/// `dataset verify --config` said ok. Resuming is refused, naming the field
+/// and both values (so is another resolution); verify reports it; the
+/// device, threads and PNG compression may differ.
+#[test]
+fn resuming_with_another_render_setting_is_refused_and_verify_reports_it() {
+    use generator::dataset::verify::verify_config;
+    use generator::render::{Device, RenderConfig, Shard};
+    if !have_blender() {
+        return;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let src = Arc::new(source(3, 2, 16));
+    render(src.clone(), &workbench(), &options(out.path(), 1)).unwrap();
+    // One sequence left to render, as after an interrupted run.
+    let records = tree(out.path());
+    let last = records
+        .keys()
+        .filter(|k| k.ends_with(grasp_schema::dataset::SEQUENCE_FILE))
+        .max()
+        .unwrap();
+    let last_dir = out.path().join(last).parent().unwrap().to_path_buf();
+    std::fs::remove_dir_all(&last_dir).unwrap();
+
+    let cropped = RenderConfig {
+        center_region: 0.5,
+        ..workbench()
+    };
+    let mut opts = options(out.path(), 1);
+    opts.resume = true;
+    let err = format!("{:#}", render(src.clone(), &cropped, &opts).unwrap_err());
+    assert!(err.contains("[render] center_region"), "{err}");
+    assert!(
+        err.contains("rendered with 1.0, the config has 0.5"),
+        "{err}"
+    );
+    assert!(err.contains("1 more finished sequence(s) differ"), "{err}");
+    assert!(!last_dir.exists(), "nothing rendered");
+
+    let report = verify_config(out.path(), src.as_ref(), &cropped, false, Shard::ALL).unwrap();
+    let text = report.render_text();
+    assert!(!report.ok());
+    assert!(
+        text.contains("[render] center_region: rendered with 1.0, the config has 0.5"),
+        "{text}"
+    );
+    assert!(text.contains("(2 sequence(s) so;"), "{text}");
+
+    // The resolution is planned ([plan.camera]), not a [render] setting.
+    let larger = Arc::new(source(3, 2, 24));
+    let err = format!(
+        "{:#}",
+        render(larger.clone(), &workbench(), &opts).unwrap_err()
+    );
+    assert!(
+        err.contains("[plan.camera] resolution: rendered at 16x16, the config plans 24x24"),
+        "{err}"
+    );
+    assert!(!last_dir.exists(), "nothing rendered");
+
+    // Where the pixels are computed may change: the resume goes through.
+    let elsewhere = RenderConfig {
+        device: Device::Cpu,
+        threads: 1,
+        png_compression: 50,
+        ..workbench()
+    };
+    let s = render(src.clone(), &elsewhere, &opts).unwrap();
+    assert_eq!((s.skipped, s.rendered), (2, 1), "{s:?}");
+    let report = verify_config(out.path(), src.as_ref(), &workbench(), true, Shard::ALL).unwrap();
+    assert!(report.ok(), "{}", report.render_text());
+}

@@ -173,6 +173,12 @@ pub struct RenderCost {
     /// the machine. 0 where the platform does not report it.
     #[serde(default)]
     pub cpu_seconds: f64,
+    /// The device that rendered the sequence (`cpu`, `optix`, `cuda`, ...;
+    /// `gpu_module` for Workbench and EEVEE), which `[render] device =
+    /// "auto"` leaves to the machine. Empty in records written before it
+    /// was recorded (those were all rendered on the CPU).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub device: String,
 }
 
 impl SequenceRecord {
@@ -180,6 +186,12 @@ impl SequenceRecord {
     pub fn render_cost(&self) -> Option<RenderCost> {
         let v = self.render.get(RENDER_COST_KEY)?;
         serde_json::from_value(v.clone()).ok()
+    }
+
+    /// The device that rendered the sequence ([`RenderCost::device`]), when
+    /// the record says.
+    pub fn render_device(&self) -> Option<String> {
+        Some(self.render_cost()?.device).filter(|d| !d.is_empty())
     }
 
     /// The object's part names in label order (label k is entry k - 1),

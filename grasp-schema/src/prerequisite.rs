@@ -1,6 +1,6 @@
 //! Tests whose prerequisite lies outside the repository: the Python venv
-//! with Blender (`scripts/setup.sh`) and the authors' YCB release in
-//! `../shared/ycb`. Rust's test harness has no "skipped" status, so a test
+//! with Blender (`scripts/setup.sh`), the authors' YCB release in
+//! `../shared/ycb`, and a GPU that Blender's Cycles can render on. Rust's test harness has no "skipped" status, so a test
 //! without its prerequisite prints `SKIPPED: <test>: <reason>` to stderr and
 //! returns; under the test command (`scripts/test.sh` sets
 //! [`REQUIRE_BLENDER_ENV`] and [`REQUIRE_SHARED_ENV`] to 1) it fails
@@ -14,6 +14,10 @@ pub const REQUIRE_BLENDER_ENV: &str = "GRASP_REQUIRE_BLENDER";
 /// Set to 1 to make a missing `../shared` (the YCB release) a test failure
 /// instead of a skip.
 pub const REQUIRE_SHARED_ENV: &str = "GRASP_REQUIRE_SHARED";
+/// Set to 1 to make a machine without a GPU that Cycles reports a test
+/// failure instead of a skip. `scripts/test.sh` leaves it unset: CI has no
+/// GPU. Set it on a workstation to be sure the GPU test ran.
+pub const REQUIRE_GPU_ENV: &str = "GRASP_REQUIRE_GPU";
 
 /// Whether `var` is set to 1.
 pub fn required(var: &str) -> bool {

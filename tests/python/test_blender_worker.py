@@ -16,7 +16,7 @@ if os.environ.get("GRASP_REQUIRE_BLENDER") == "1":
 else:
     bpy = pytest.importorskip("bpy")
 
-from blender_scripts import materials, world  # noqa: E402
+from blender_scripts import materials, render, world  # noqa: E402
 from blender_scripts.worker import Worker  # noqa: E402
 
 GEOMETRY = {
@@ -152,6 +152,19 @@ def test_center_region_renders_only_the_central_square(tmp_path):
     # Whole frames again for the next worker.
     Worker(GEOMETRY, SETTINGS)
     assert not bpy.context.scene.render.use_border
+
+
+def test_cycles_reports_every_gpu_backend_and_switches_to_the_cpu():
+    # The generator picks among these names (generator/src/render/device.rs).
+    Worker(GEOMETRY, dict(SETTINGS, engine="cycles"))
+    found = render.cycles_gpu_devices()
+    assert sorted(found) == sorted(render.GPU_BACKENDS)
+    assert all(isinstance(v, list) for v in found.values())
+    src = (Path(__file__).resolve().parents[2] / "generator/src/render/device.rs").read_text()
+    for backend in render.GPU_BACKENDS:
+        assert f'"{backend}"' in src, backend
+    render.use_device("cpu")
+    assert bpy.context.scene.cycles.device == "CPU"
 
 
 def test_bad_meshes_are_refused():

@@ -9,7 +9,8 @@ use std::path::PathBuf;
 pub enum DatasetCommand {
     /// Check a finished dataset: counts per pair and condition, missing,
     /// truncated or corrupt files, manifest, and (with --config) that every
-    /// configured sequence is there and each record equals a fresh plan.
+    /// configured sequence is there, each record equals a fresh plan and was
+    /// rendered with the config's render settings.
     Verify {
         dir: PathBuf,
         /// The config the dataset was made with; enables the re-plan check.
@@ -43,12 +44,14 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             decode,
             shard,
         } => {
-            let source = match config {
-                Some(p) => Some(crate::plan::PlannerSource::new(&GeneratorConfig::load(p)?)?),
-                None => None,
+            let report = match config {
+                Some(p) => {
+                    let config = GeneratorConfig::load(p)?;
+                    let source = crate::plan::PlannerSource::new(&config)?;
+                    super::verify::verify_config(dir, &source, &config.render, *decode, *shard)?
+                }
+                None => super::verify::verify_shard(dir, None, *decode, *shard)?,
             };
-            let source = source.as_ref().map(|s| s as &dyn crate::plan::PlanSource);
-            let report = super::verify::verify_shard(dir, source, *decode, *shard)?;
             print!("{}", report.render_text());
             if !report.ok() {
                 bail!("{}: {} problems", dir.display(), report.problems.len());

@@ -143,7 +143,11 @@ fn setting_label(r: &SequenceRecord) -> String {
     let k = &r.plan.intrinsics;
     let engine = r.render["engine"].as_str().unwrap_or("?");
     let samples = r.render["samples"].as_u64().unwrap_or(0);
-    format!("{engine}, {samples} samples, {}x{}", k.width, k.height)
+    let label = format!("{engine}, {samples} samples, {}x{}", k.width, k.height);
+    match r.render_device() {
+        Some(device) => format!("{label}, {device}"),
+        None => label,
+    }
 }
 
 /// Reads every finished sequence under `root`.

@@ -14,6 +14,7 @@ use super::writer::{
 };
 use super::{assign_folders, Assigned};
 use crate::plan::PlanSource;
+use crate::render::RenderConfig;
 use anyhow::{Context, Result};
 use grasp_schema::dataset::{
     head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,
@@ -109,6 +110,30 @@ pub fn verify_shard(
     decode: bool,
     shard: Shard,
 ) -> Result<VerifyReport> {
+    verify_against(root, source, None, decode, shard)
+}
+
+/// [`verify_shard`] against a whole config (`dataset verify --config`):
+/// also every record's render settings against the config's `[render]`
+/// ([`crate::render::consistency`]), so a dataset resumed with another
+/// `center_region` or sample count is reported.
+pub fn verify_config(
+    root: &Path,
+    source: &dyn PlanSource,
+    render: &RenderConfig,
+    decode: bool,
+    shard: Shard,
+) -> Result<VerifyReport> {
+    verify_against(root, Some(source), Some(render), decode, shard)
+}
+
+fn verify_against(
+    root: &Path,
+    source: Option<&dyn PlanSource>,
+    render: Option<&RenderConfig>,
+    decode: bool,
+    shard: Shard,
+) -> Result<VerifyReport> {
     let scan_error = || format!("cannot scan dataset {}", root.display());
     // Folder lists only: records are read and checked one at a time, so a
     // dataset of any size verifies in little memory.
@@ -131,6 +156,7 @@ pub fn verify_shard(
     let mut ids = BTreeSet::new();
     let mut present = BTreeSet::new();
     let mut expected_heads = BTreeSet::new();
+    let mut other_render = OtherRender::default();
     visit_sequences(root, false, |rel, record| {
         let record = match record {
             Ok(r) => r,
@@ -174,6 +200,9 @@ pub fn verify_shard(
         if let (Some(source), Some(dirs)) = (source, &expected_dirs) {
             check_against_plan(source, dirs, rel, &record, &mut report);
         }
+        if let Some(render) = render {
+            other_render.check(render, rel, &record);
+        }
         Ok(())
     })
     .with_context(scan_error)?;
@@ -189,6 +218,7 @@ pub fn verify_shard(
             "{rel}: head camera folder without a finished wrist sequence (resume the run)"
         ));
     }
+    other_render.report(&mut report);
     if let Some(assigned) = &assigned {
         check_complete(assigned, &present, shard, &mut report);
     }
@@ -335,6 +365,33 @@ fn check_frames(
                 k.height
             )),
             Ok(_) => {}
+        }
+    }
+}
+
+/// Render settings that differ from the config's, each with the first
+/// folder and the number of sequences (one line per setting and value, not
+/// per sequence: a resumed dataset may hold thousands).
+#[derive(Default)]
+struct OtherRender(BTreeMap<String, (String, usize)>);
+
+impl OtherRender {
+    fn check(&mut self, render: &RenderConfig, rel: &str, record: &SequenceRecord) {
+        for change in crate::render::consistency::changed_settings(render, &record.render) {
+            let entry = self
+                .0
+                .entry(change.to_string())
+                .or_insert_with(|| (rel.to_string(), 0));
+            entry.1 += 1;
+        }
+    }
+
+    fn report(self, report: &mut VerifyReport) {
+        for (change, (first, count)) in self.0 {
+            report.problems.push(format!(
+                "{first}: {change} ({count} sequence(s) so; a dataset must not mix render \
+                 settings)"
+            ));
         }
     }
 }

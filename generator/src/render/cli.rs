@@ -84,6 +84,10 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         s.retries,
         s.seconds
     );
+    if !s.devices.is_empty() {
+        let devices: Vec<&str> = s.devices.iter().map(String::as_str).collect();
+        println!("rendered on: {}", devices.join(", "));
+    }
     if s.peak_worker_rss_kib > 0 {
         println!(
             "peak worker memory (RSS): {:.0} MiB",

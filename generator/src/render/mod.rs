@@ -7,6 +7,8 @@
 //! moved into the dataset atomically ([`crate::dataset::writer`]).
 
 pub mod cli;
+pub mod consistency;
+pub mod device;
 pub mod effects;
 pub mod orchestrator;
 pub mod parts;
@@ -21,6 +23,7 @@ use grasp_schema::dataset::CENTER_REGION_KEY;
 use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
+pub use device::Device;
 pub use orchestrator::{render, RenderOptions, RenderSummary};
 pub use scene::SceneGeometry;
 pub use source::RenderSource;
@@ -79,6 +82,10 @@ impl Default for Bounces {
 #[serde(default, deny_unknown_fields)]
 pub struct RenderConfig {
     pub engine: Engine,
+    /// Where Cycles renders: `auto` (a GPU backend Blender reports, else the
+    /// CPU), `cpu`, or one GPU backend. It changes how pixels are computed,
+    /// never the plans, labels or random draws.
+    pub device: Device,
     /// Samples per pixel (Cycles, EEVEE); Workbench uses 8x anti-aliasing at
     /// 8 or more, none below.
     pub samples: u32,
@@ -123,6 +130,7 @@ impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
             engine: Engine::Cycles,
+            device: Device::Auto,
             samples: 4,
             denoiser: "openimagedenoise".into(),
             denoising_prefilter: "fast".into(),
@@ -148,6 +156,14 @@ impl RenderConfig {
     pub fn validate(&self) -> Result<()> {
         if self.samples == 0 {
             bail!("[render] samples: must be at least 1");
+        }
+        if self.device.is_gpu() && self.engine != Engine::Cycles {
+            bail!(
+                "[render] device = \"{}\" chooses a Cycles device, but engine is {:?}, which \
+                 draws through Blender's GPU module (use device = \"auto\")",
+                self.device.name(),
+                format!("{:?}", self.engine).to_lowercase()
+            );
         }
         if !["openimagedenoise", "none"].contains(&self.denoiser.as_str()) {
             bail!(
@@ -209,6 +225,7 @@ impl RenderConfig {
         let prefilter = self.denoising_prefilter.to_ascii_uppercase();
         let mut settings = serde_json::json!({
             "engine": self.engine,
+            "device": self.device,
             "samples": self.samples,
             "denoiser": self.denoiser,
             "denoising_prefilter": prefilter,

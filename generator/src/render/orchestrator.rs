@@ -15,7 +15,7 @@ use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{RenderCost, SequenceRecord, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
 use indicatif::{ProgressBar, ProgressStyle};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -63,6 +63,10 @@ pub struct RenderSummary {
     pub fatal: Option<String>,
     /// Largest peak resident memory reported by any worker, KiB.
     pub peak_worker_rss_kib: u64,
+    /// The devices this run's sequences were rendered on (`render.cost.device`).
+    pub devices: BTreeSet<String>,
+    /// Why `[render] device = "auto"` rendered on the CPU, logged once.
+    pub device_note: Option<String>,
 }
 
 impl RenderSummary {
@@ -95,7 +99,10 @@ enum Event {
         id: String,
         error: String,
     },
-    /// Nothing more can be written (a full disk): stop the whole run.
+    /// A worker's note for the log (the device fallback), once per start.
+    Note(String),
+    /// Nothing more can be written (a full disk), or no worker can start
+    /// as configured: stop the whole run.
     Fatal {
         id: String,
         error: String,
@@ -143,7 +150,7 @@ pub fn render(
         .map(|a| dataset.is_finished(&a.rel_dir))
         .collect();
     let finished_count = finished.iter().filter(|f| **f).count();
-    refuse_other_sequences(&dataset, &in_shard, &finished)?;
+    refuse_other_sequences(source.as_ref(), &dataset, &in_shard, &finished, config)?;
     if finished_count > 0 && !opts.resume {
         bail!(
             "{} already holds {finished_count} finished sequences of this dataset; pass \
@@ -196,45 +203,131 @@ pub fn render(
     Ok(summary)
 }
 
-/// The jobs of this run: the unfinished sequences of the shard, and the
-/// finished-looking ones whose files are missing or damaged (re-rendered,
-/// with a message).
 /// Fails when a finished folder holds another sequence than the one this
 /// config plans there: the folder was rendered with other settings (more or
 /// fewer sequences per pair, other objects, parts or conditions), which
 /// number the folders differently. Keeping it would leave one sequence
 /// twice and another missing; rendering over it would destroy it.
+/// Fails too when a finished sequence was rendered with other `[render]`
+/// settings that change pixels ([`super::consistency`]), or when the first
+/// finished sequence differs from a fresh plan (another resolution, seed or
+/// planning setting; one plan, not all: planning every finished sequence
+/// would slow each resume): resuming would mix two renders in one dataset.
 fn refuse_other_sequences(
+    source: &dyn RenderSource,
     dataset: &DatasetDir,
     in_shard: &[Assigned],
     finished: &[bool],
+    config: &RenderConfig,
 ) -> Result<()> {
-    let mut other = in_shard
-        .iter()
-        .zip(finished)
-        .filter(|(_, done)| **done)
-        .filter_map(|(a, _)| {
-            let path = dataset
-                .root
-                .join(&a.rel_dir)
-                .join(grasp_schema::dataset::SEQUENCE_FILE);
-            let held = crate::dataset::writer::read_record(&path).ok()?.plan.key;
-            (held != a.planned.key).then_some((a, held))
-        });
-    let Some((first, held)) = other.next() else {
+    // One record at a time: a large dataset's records do not fit in memory.
+    let mut other_key = Mismatches::default();
+    let mut other_render = Mismatches::default();
+    let mut sample: Option<(PathBuf, SequencePlan)> = None;
+    for (a, _) in in_shard.iter().zip(finished).filter(|(_, done)| **done) {
+        let path = dataset
+            .root
+            .join(&a.rel_dir)
+            .join(grasp_schema::dataset::SEQUENCE_FILE);
+        let Ok(record) = crate::dataset::writer::read_record(&path) else {
+            continue;
+        };
+        if record.plan.key == a.planned.key && sample.is_none() {
+            sample = Some((dataset.root.join(&a.rel_dir), record.plan.clone()));
+        }
+        if record.plan.key != a.planned.key {
+            other_key.add(|| {
+                format!(
+                    "{} holds sequence {}, but this config plans {} there",
+                    dataset.root.join(&a.rel_dir).display(),
+                    record.plan.key.id(),
+                    a.planned.key.id()
+                )
+            });
+        }
+        let changes = super::consistency::changed_settings(config, &record.render);
+        if !changes.is_empty() {
+            other_render.add(|| {
+                format!(
+                    "{}: {}",
+                    dataset.root.join(&a.rel_dir).display(),
+                    super::consistency::describe(&changes)
+                )
+            });
+        }
+    }
+    if let Some(first) = other_key.first {
+        bail!(
+            "{first} ({} more such folder(s)): the dataset was rendered with other settings \
+             (sequences per pair, objects, parts or conditions number the folders); render into \
+             a new folder, or back to the old settings",
+            other_key.count - 1
+        );
+    }
+    if let Some(first) = other_render.first {
+        bail!(
+            "{first} ({} more finished sequence(s) differ); resuming would mix two renders in \
+             one dataset: set the render settings back, or render into a new folder",
+            other_render.count - 1
+        );
+    }
+    match sample {
+        Some((dir, recorded)) => refuse_other_plan(source, &dir, &recorded),
+        None => Ok(()),
+    }
+}
+
+/// Fails when a finished sequence's plan is not what the config plans for
+/// it now, naming `[plan.camera] resolution` when that is what changed.
+fn refuse_other_plan(source: &dyn RenderSource, dir: &Path, recorded: &SequencePlan) -> Result<()> {
+    let id = recorded.key.id();
+    // The same JSON round trip as the record, so floats compare exactly.
+    let fresh = source.plan(&recorded.key).and_then(|p| {
+        let text = serde_json::to_string(&p)?;
+        Ok(serde_json::from_str::<SequencePlan>(&text)?)
+    });
+    let fresh = fresh.with_context(|| format!("re-planning finished sequence {id}"))?;
+    if &fresh == recorded {
         return Ok(());
+    }
+    let size = |p: &SequencePlan| format!("{}x{}", p.intrinsics.width, p.intrinsics.height);
+    let what = match size(&fresh) == size(recorded) {
+        true => format!(
+            "its sequence.json differs from a fresh plan of {id} (another seed, code, or \
+             [dataset], [plan], [appearance] or [randomize] setting)"
+        ),
+        false => format!(
+            "[plan.camera] resolution: rendered at {}, the config plans {}",
+            size(recorded),
+            size(&fresh)
+        ),
     };
     bail!(
-        "{} holds sequence {}, but this config plans {} there ({} more such folder(s)): the \
-         dataset was rendered with other settings (sequences per pair, objects, parts or \
-         conditions number the folders); render into a new folder, or back to the old settings",
-        dataset.root.join(&first.rel_dir).display(),
-        held.id(),
-        first.planned.key.id(),
-        other.count()
+        "{}: {what}; resuming would mix two datasets in one folder: set the settings back, or \
+         render into a new folder",
+        dir.display()
     )
 }
 
+/// The first of a kind of mismatch, described, and how many there are.
+#[derive(Default)]
+struct Mismatches {
+    first: Option<String>,
+    count: usize,
+}
+
+impl Mismatches {
+    fn add(&mut self, describe: impl FnOnce() -> String) {
+        if self.first.is_none() {
+            self.first = Some(describe());
+        }
+        self.count += 1;
+    }
+}
+
+/// The jobs of this run: the unfinished sequences of the shard, and the
+/// finished-looking ones whose files are missing or damaged (re-rendered,
+/// with a message).
 fn unfinished_jobs(
     dataset: &DatasetDir,
     in_shard: &[Assigned],
@@ -391,6 +484,7 @@ fn run_pool(
                 files,
             }) => {
                 let frames = plan.frames.len();
+                summary.devices.insert(cost.device.clone());
                 summary.peak_worker_rss_kib = summary.peak_worker_rss_kib.max(peak_rss_kib);
                 let record = SequenceRecord {
                     plan: *plan,
@@ -418,6 +512,13 @@ fn run_pool(
                 pb.inc(1);
                 let fps = summary.frames as f64 / start.elapsed().as_secs_f64().max(1e-9);
                 pb.set_message(format!("{fps:.2} frames/s"));
+            }
+            Ok(Event::Note(note)) => {
+                // Every worker start says it again; once is enough.
+                if summary.device_note.is_none() {
+                    log(&|| tracing::warn!("{note}"));
+                    summary.device_note = Some(note);
+                }
             }
             Ok(Event::Retry { id, error }) => {
                 summary.retries += 1;
@@ -497,7 +598,15 @@ struct WorkerProc {
     child: Arc<Mutex<Child>>,
     stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
+    /// What the worker asked to be logged when it started.
+    note: Option<String>,
 }
+
+/// A worker that cannot start as configured (a `[render] device` Blender
+/// does not offer): every retry would fail the same way.
+#[derive(Debug, thiserror::Error)]
+#[error("worker failed to start: {0}")]
+struct CannotStart(String);
 
 impl WorkerProc {
     fn spawn(slot: usize, ctx: &Shared) -> Result<Self> {
@@ -527,6 +636,7 @@ impl WorkerProc {
             child: Arc::new(Mutex::new(child)),
             stdin,
             stdout,
+            note: None,
         };
         ctx.children.lock().unwrap_or_else(|e| e.into_inner())[slot] = Some(proc.child.clone());
         let init = Request::Init {
@@ -534,7 +644,12 @@ impl WorkerProc {
             settings: ctx.settings.clone(),
         };
         match proc.call(&init, &log_path)? {
-            Response::Ready { .. } => Ok(proc),
+            Response::Ready { note, .. } => Ok(WorkerProc { note, ..proc }),
+            Response::Error {
+                message,
+                fatal: true,
+                ..
+            } => Err(CannotStart(message).into()),
             Response::Error { message, .. } => bail!("worker failed to start: {message}"),
             other => bail!("unexpected worker answer {other:?}"),
         }
@@ -610,7 +725,11 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
         let part_labels: Vec<String> = request.parts.iter().map(|p| p.name.clone()).collect();
         let outcome = (|| -> Result<(u64, RenderCost)> {
             if proc.is_none() {
-                proc = Some(WorkerProc::spawn(slot, ctx)?);
+                let mut started = WorkerProc::spawn(slot, ctx)?;
+                if let Some(note) = started.note.take() {
+                    let _ = tx.send(Event::Note(note));
+                }
+                proc = Some(started);
             }
             let p = proc.as_mut().expect("worker started above");
             match p.call(&Request::Render(Box::new(request)), &log) {
@@ -657,6 +776,11 @@ fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
                     let _ = std::fs::remove_dir_all(h);
                 }
                 if ctx.stopped() {
+                    break;
+                }
+                if e.downcast_ref::<CannotStart>().is_some() {
+                    let error = format!("{e:#}");
+                    let _ = tx.send(Event::Fatal { id, error });
                     break;
                 }
                 // A full disk fails every sequence alike: stop, do not retry.

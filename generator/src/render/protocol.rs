@@ -53,6 +53,14 @@ pub struct MeshFiles {
 pub enum Response {
     Ready {
         pid: u32,
+        /// The device it renders on (`cpu`, `optix`, ...; see
+        /// [`super::device`]).
+        #[serde(default)]
+        device: String,
+        /// A line for the log, when `[render] device = "auto"` fell back
+        /// to the CPU.
+        #[serde(default)]
+        note: Option<String>,
     },
     Done {
         id: String,
@@ -70,5 +78,9 @@ pub enum Response {
     Error {
         id: Option<String>,
         message: String,
+        /// Retrying cannot help (a configured device Blender lacks): the
+        /// parent stops the run.
+        #[serde(default)]
+        fatal: bool,
     },
 }

@@ -2,8 +2,10 @@
 //! `bpy` once, builds the scene once, then renders the sequences the parent
 //! sends until told to quit or its stdin closes.
 
+use super::device::{self, DeviceUnavailable, Resolved};
 use super::parts::{read_exr, write_labels, PartLabeler};
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
+use super::{Device, Engine};
 use crate::catalog::TriMesh;
 use anyhow::{anyhow, bail, Context, Result};
 use grasp_schema::dataset::{part_file_name, RenderCost, HEAD_CAMERA_FOLDER, WRIST_CAMERA_FOLDER};
@@ -26,7 +28,8 @@ pub fn run() -> Result<()> {
     let Some(first) = lines.next() else {
         return Ok(());
     };
-    let (worker, settings) = match init_worker(&first.context("reading the init message")?) {
+    let (worker, settings, device) = match init_worker(&first.context("reading the init message")?)
+    {
         Ok(w) => w,
         Err(e) => {
             send(
@@ -34,6 +37,7 @@ pub fn run() -> Result<()> {
                 &Response::Error {
                     id: None,
                     message: format!("{e:#}"),
+                    fatal: e.downcast_ref::<DeviceUnavailable>().is_some(),
                 },
             )?;
             return Err(e);
@@ -43,6 +47,8 @@ pub fn run() -> Result<()> {
         &mut out,
         &Response::Ready {
             pid: std::process::id(),
+            device: device.used.clone(),
+            note: device.note.clone(),
         },
     )?;
     for line in lines {
@@ -58,11 +64,15 @@ pub fn run() -> Result<()> {
                         seconds: start.elapsed().as_secs_f64(),
                         peak_rss_kib: proc_status_kib("VmHWM:"),
                         rss_kib: proc_status_kib("VmRSS:"),
-                        cost,
+                        cost: RenderCost {
+                            device: device.used.clone(),
+                            ..cost
+                        },
                     },
                     Err(e) => Response::Error {
                         id: Some(req.id.clone()),
                         message: format!("{e:#}"),
+                        fatal: false,
                     },
                 };
                 crash_once_if_asked();
@@ -146,7 +156,7 @@ fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> Result<Bou
         .map_err(py_err)
 }
 
-fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value)> {
+fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value, Resolved)> {
     let Request::Init { geometry, settings } =
         serde_json::from_str::<Request>(line).context("invalid init message")?
     else {
@@ -165,8 +175,44 @@ fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value)> {
             })
             .map_err(py_err)
             .context("building the Blender scene")?;
-        Ok((worker.unbind(), settings.clone()))
+        let device = choose_device(py, &settings)?;
+        Ok((worker.unbind(), settings.clone(), device))
     })
+}
+
+/// Asks Blender for its GPU devices when the engine and `[render] device`
+/// need it, picks one ([`device::resolve`]) and switches Cycles to it.
+fn choose_device(py: Python<'_>, settings: &serde_json::Value) -> Result<Resolved> {
+    let engine: Engine = serde_json::from_value(settings["engine"].clone())
+        .context("the render settings' engine")?;
+    let requested: Device = match settings.get("device") {
+        Some(d) => serde_json::from_value(d.clone()).context("the render settings' device")?,
+        None => Device::Auto,
+    };
+    let render = py.import("blender_scripts.render").map_err(py_err)?;
+    let reported: device::Reported = match device::needs_query(engine, requested) {
+        false => device::Reported::new(),
+        true => {
+            let found = render
+                .call_method0("cycles_gpu_devices")
+                .map_err(py_err)
+                .context("asking Blender for its GPU devices")?;
+            let text: String = py
+                .import("json")
+                .and_then(|json| json.call_method1("dumps", (found,)))
+                .and_then(|t| t.extract())
+                .map_err(py_err)?;
+            serde_json::from_str(&text).context("Blender's GPU device list")?
+        }
+    };
+    let chosen = device::resolve(engine, requested, &reported)?;
+    if engine == Engine::Cycles {
+        render
+            .call_method1("use_device", (chosen.used.as_str(),))
+            .map_err(py_err)
+            .with_context(|| format!("switching Cycles to device {}", chosen.used))?;
+    }
+    Ok(chosen)
 }
 
 fn to_pyerr(e: anyhow::Error) -> PyErr {
