@@ -28,8 +28,10 @@ Exit codes:
   4  the hand could not be reached or did not acknowledge a command
   5  a decision was older than --max-decision-age-ms before the hand acknowledged it
      (not executed, no closure; the hand is opened if a copy may have reached it)
-With several approaches, the code of the first failed one. The last line on
-stderr says why.";
+  128+N  stopped by signal N: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; nothing
+     is sent after it, and the hand is opened if a command may have reached it
+With several approaches, the code of the first failed one (a stop counts where it
+came). The last line on stderr says why.";
 
 /// Drive the Hannes hand from a wrist camera: classify the frames of each
 /// approach, pick the pre-shape by majority vote and send it over the
@@ -130,7 +132,7 @@ struct RunArgs {
     as_fast: bool,
     /// Append one JSON report per approach to this file (with `approach`,
     /// its number, and `result`: commanded, no_command, aborted, expired,
-    /// hand_failed).
+    /// hand_failed, stopped).
     #[arg(long)]
     report: Option<PathBuf>,
 }
@@ -393,6 +395,10 @@ struct RunPrinter<'a> {
 impl SessionObserver for RunPrinter<'_> {
     fn waiting(&mut self, approach: usize, trigger: &str) {
         eprintln!("approach {approach}: waiting for trigger ({trigger})");
+    }
+
+    fn triggered(&mut self, approach: usize) {
+        eprintln!("approach {approach}: triggered, classifying the approach window");
     }
 
     fn frame(&mut self, p: &FramePrediction) {
