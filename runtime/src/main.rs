@@ -33,6 +33,13 @@ Exit codes:
 With several approaches, the code of the first failed one (a stop counts where it
 came). The last line on stderr says why.";
 
+const REPLAY_EXIT_CODES: &str = "\
+Exit codes (as `run`'s):
+  0  a decision was taken (a pre-shape, or no command on a weak vote)
+  1  error (arguments, config, checkpoint, source)
+  2  command-line usage error
+  3  aborted (frame source or classifier failed, invalid model output)";
+
 /// Drive the Hannes hand from a wrist camera: classify the frames of each
 /// approach, pick the pre-shape by majority vote and send it over the
 /// serial link (protocol: docs/hannes-protocol.md).
@@ -50,6 +57,7 @@ enum Cmd {
     Run(RunArgs),
     /// Classify a recorded sequence; print per-frame predictions and the
     /// decision (no hand needed).
+    #[command(after_help = REPLAY_EXIT_CODES)]
     Replay(ReplayArgs),
     /// The hand side of the protocol, simulated; prints one JSON line per
     /// event.
@@ -493,7 +501,7 @@ fn replay(args: ReplayArgs) -> Result<()> {
     )?;
     if json {
         println!("{}", serde_json::to_string_pretty(&window)?);
-        return Ok(());
+        return replay_result(&window.decision);
     }
     let d = &window.decision;
     println!("decision: {}", d.outcome);
@@ -509,7 +517,18 @@ fn replay(args: ReplayArgs) -> Result<()> {
         "frames: {} classified, {} dropped, {} invalid",
         window.feed.delivered, window.feed.dropped, d.invalid_frames
     );
-    Ok(())
+    replay_result(d)
+}
+
+/// Replay fails like `run` on the same recording: an aborted window exits
+/// with [`runtime::session::EXIT_ABORTED`].
+fn replay_result(decision: &runtime::policy::Decision) -> Result<()> {
+    match &decision.outcome {
+        runtime::policy::Outcome::Aborted { .. } => {
+            Err(Failure::new(runtime::session::EXIT_ABORTED, decision.outcome.to_string()).into())
+        }
+        _ => Ok(()),
+    }
 }
 
 fn header() -> String {

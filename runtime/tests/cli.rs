@@ -381,6 +381,27 @@ fn logs_carry_no_colour_codes_when_stderr_is_not_a_terminal() {
     );
 }
 
+#[test]
+fn replay_exits_3_like_run_when_a_frame_cannot_be_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 8, Some(3));
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    for json in [false, true] {
+        let mut args = vec!["replay", "--checkpoint", &ckpt, "--source"];
+        args.push(seq.to_str().unwrap());
+        if json {
+            args.push("--json");
+        }
+        let out = hannes_run(&args);
+        assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+        let reason = last_line(&out.stderr);
+        assert!(
+            reason.starts_with("Error: aborted") && reason.contains("frame"),
+            "{reason}"
+        );
+    }
+}
+
 /// `hannes-run run` in the background, its stderr collected line by line
 /// so a test can wait for a phase of the approach.
 struct Running {
