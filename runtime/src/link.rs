@@ -667,6 +667,8 @@ impl Hand {
                 state = ?d.ack.state,
                 "acknowledged"
             ),
+            // Not a failure of the link: the caller asked for it.
+            Err(e @ LinkError::Stopped { .. }) => tracing::warn!("{e}"),
             Err(e) => tracing::error!("{e}"),
         }
         delivery

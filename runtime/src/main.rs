@@ -436,6 +436,10 @@ impl SessionObserver for RunPrinter<'_> {
         if let Some(e) = &report.link_error {
             eprintln!("approach {n}: link error: {e}");
         }
+        if let Some(stop) = &report.stopped {
+            let by = stop.signal.map_or("request".into(), |s| s.name());
+            println!("approach {n}: STOPPED by {by} {}", stop.phase);
+        }
         if let Some(path) = self.report {
             let line = ReportLine {
                 approach: n,
