@@ -20,23 +20,34 @@
 //! transmission waits for the source: [`classify_window`] hands back a
 //! [`StoppedFeed`] whose capture thread may still be fetching the frame
 //! after the window, to be joined after [`actuate`].
+//!
+//! A stop (SIGINT, SIGTERM, SIGHUP: the `stop` flag) ends the approach
+//! wherever it is: nothing new is sent after it (no pre-shape, no
+//! retransmission, no closure), and if a PRESHAPE or CLOSE may have reached
+//! the hand, OPEN is sent so the hand is not left shaped by a program that
+//! is going away. The report records where it stopped ([`StopReport`]).
 
 use crate::classifier::{FrameClassifier, Probabilities};
 use crate::feed::{FeedItem, FeedMode, FeedStats, FrameFeed, StoppedFeed};
 use crate::link::{Hand, LinkError};
-use crate::policy::{Decision, PolicyConfig, Step, Vote};
+use crate::policy::{Decision, Outcome, PolicyConfig, Step, Vote};
 use crate::protocol::{preshape_command, Command, HandState, Status};
+use crate::signals::Signal;
 use crate::source::FrameSource;
 use crate::trigger::Trigger;
 use anyhow::Result;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::Serialize;
-use std::sync::atomic::AtomicBool;
+use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How long past the window a live feed may stall before the window is
 /// closed with the frames seen so far.
 const LIVE_GRACE: Duration = Duration::from_millis(500);
+
+/// How often the window looks at the stop flag while it waits for a frame.
+const STOP_POLL: Duration = Duration::from_millis(20);
 
 /// One classified frame.
 #[derive(Debug, Clone, Serialize)]
@@ -96,6 +107,52 @@ pub struct ExpiredCommand {
     pub refused_by_hand: bool,
 }
 
+/// Where in the approach a stop was noticed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopPhase {
+    /// Before any pre-shape was sent.
+    Window,
+    /// While the PRESHAPE was being sent, or just after its ACK.
+    Preshape,
+    /// Between the pre-shape and the closure trigger.
+    ClosureDelay,
+    /// While the CLOSE was being sent, or just after its ACK.
+    Closure,
+}
+
+impl fmt::Display for StopPhase {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            StopPhase::Window => "during the approach window",
+            StopPhase::Preshape => "while the pre-shape was being sent",
+            StopPhase::ClosureDelay => "while waiting for the closure",
+            StopPhase::Closure => "while the closure was being sent",
+        })
+    }
+}
+
+/// An approach ended by a stop request.
+#[derive(Debug, Clone, Serialize)]
+pub struct StopReport {
+    /// The signal, when a signal set the stop flag.
+    pub signal: Option<Signal>,
+    pub phase: StopPhase,
+    /// A PRESHAPE or CLOSE may have reached the hand: OPEN was sent (see
+    /// the report's `reopened` and `link_error`).
+    pub may_have_moved: bool,
+}
+
+impl StopReport {
+    fn new(phase: StopPhase, may_have_moved: bool) -> Self {
+        StopReport {
+            signal: crate::signals::received(),
+            phase,
+            may_have_moved,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct ApproachReport {
     pub window: WindowReport,
@@ -104,10 +161,12 @@ pub struct ApproachReport {
     /// The pre-shape or closure that was too old to execute.
     pub expired: Option<ExpiredCommand>,
     /// OPEN sent after an expired pre-shape a copy of which may have been
-    /// executed in time (its ACK lost).
+    /// executed in time (its ACK lost), or after a stop.
     pub reopened: Option<CommandReport>,
     /// Link failure, if the hand could not be commanded.
     pub link_error: Option<String>,
+    /// The approach was stopped (a signal) before it ended.
+    pub stopped: Option<StopReport>,
 }
 
 /// Classifies the approach window. `t0` is the trigger time. Returns as
@@ -121,6 +180,21 @@ pub fn classify_window(
     t0: Instant,
     on_frame: &mut dyn FnMut(&FramePrediction),
 ) -> Result<(StoppedFeed, WindowReport)> {
+    let never = AtomicBool::new(false);
+    classify_window_until(source, mode, classifier, policy, t0, &never, on_frame)
+}
+
+/// [`classify_window`] that ends as soon as `stop` is set, with the
+/// outcome [`crate::policy::Outcome::Stopped`] (no decision).
+pub fn classify_window_until(
+    source: Box<dyn FrameSource>,
+    mode: FeedMode,
+    classifier: &mut dyn FrameClassifier,
+    policy: &PolicyConfig,
+    t0: Instant,
+    stop: &AtomicBool,
+    on_frame: &mut dyn FnMut(&FramePrediction),
+) -> Result<(StoppedFeed, WindowReport)> {
     let feed = FrameFeed::start(source, mode)?;
     let window = Duration::from_secs_f64(policy.window_s);
     let deadline = match mode {
@@ -130,10 +204,11 @@ pub fn classify_window(
     let mut vote = Vote::new(policy.clone());
     let mut predictions = Vec::new();
     let decision = loop {
-        let frame = match feed.next(deadline) {
-            FeedItem::Frame(f) => f,
-            FeedItem::Ended | FeedItem::TimedOut => break vote.finish(),
-            FeedItem::Failed(e) => break vote.abort(format!("frame source failed: {e}")),
+        let frame = match next_unless_stopped(&feed, deadline, stop) {
+            None => break vote.stop(),
+            Some(FeedItem::Frame(f)) => f,
+            Some(FeedItem::Ended | FeedItem::TimedOut) => break vote.finish(),
+            Some(FeedItem::Failed(e)) => break vote.abort(format!("frame source failed: {e}")),
         };
         if frame.time_s >= policy.window_s {
             break vote.finish();
@@ -195,8 +270,29 @@ pub fn classify_window(
     Ok((stopped, report))
 }
 
+/// The feed's next item, waiting until `deadline` (forever if `None`);
+/// `None` once `stop` is set, looked at every [`STOP_POLL`] while waiting.
+fn next_unless_stopped(
+    feed: &FrameFeed,
+    deadline: Option<Instant>,
+    stop: &AtomicBool,
+) -> Option<FeedItem> {
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            return None;
+        }
+        let slice = Instant::now() + STOP_POLL;
+        let until = deadline.map_or(slice, |d| d.min(slice));
+        match feed.next(Some(until)) {
+            FeedItem::TimedOut if deadline.is_none_or(|d| Instant::now() < d) => {}
+            item => return Some(item),
+        }
+    }
+}
+
 /// Sends the decided pre-shape, then the closure once `closure` fires;
-/// neither is executed once older than `max_age` (see the module docs).
+/// neither is executed once older than `max_age`, and nothing is sent once
+/// `stop` is set (see the module docs).
 pub fn actuate(
     hand: &Hand,
     window: WindowReport,
@@ -212,77 +308,160 @@ pub fn actuate(
         expired: None,
         reopened: None,
         link_error: None,
+        stopped: None,
     };
+    let act = Actuation { hand, stop, t0 };
     let Some(preshape) = report.window.decision.outcome.preshape() else {
+        if report.window.decision.outcome == Outcome::Stopped {
+            report.stopped = Some(StopReport::new(StopPhase::Window, false));
+        }
         tracing::warn!("no pre-shape sent: {}", report.window.decision.outcome);
         return Ok(report);
     };
-    let decided = report.window.decided_at;
+    if act.stop_requested() {
+        // Decided, but the stop came before the first transmission.
+        act.stop_and_open(&mut report, StopPhase::Window, false);
+        return Ok(report);
+    }
     let order = Order {
         command: preshape_command(preshape),
         preshape: Some(preshape),
-        since: decided,
+        since: report.window.decided_at,
         max_age: Some(max_age),
     };
-    match order.send(hand, t0) {
-        Sent::Acked(c) => report.preshape = Some(c),
-        Sent::Expired(e) => {
-            tracing::error!(
-                "stale decision: {preshape} was decided {:.0} ms ago, over the {:.0} ms limit; \
-                 not sent, no closure",
-                e.age_ms,
-                e.limit_ms
-            );
-            let may_have_reached = e.transmissions > 0 && !e.refused_by_hand;
-            report.expired = Some(e);
-            if may_have_reached {
-                reopen(hand, &mut report, t0);
-            }
-            return Ok(report);
-        }
-        Sent::Failed(e) => {
-            report.link_error = Some(e);
-            return Ok(report);
-        }
+    if !act.record_preshape(&mut report, order.send(hand, t0, Some(stop))) {
+        return Ok(report);
     }
-    if let Some(closure) = closure {
-        if closure.wait(stop)? {
-            let order = Order {
-                command: Command::Close,
-                preshape: None,
-                since: Instant::now(),
-                max_age: Some(max_age),
-            };
-            match order.send(hand, t0) {
-                Sent::Acked(c) => report.closure = Some(c),
-                Sent::Expired(e) => {
-                    tracing::error!(
-                        "closure not acknowledged within {:.0} ms of its trigger: not sent again",
-                        e.limit_ms
-                    );
-                    report.expired = Some(e);
-                }
-                Sent::Failed(e) => report.link_error = Some(e),
-            }
-        }
+    let Some(closure) = closure else {
+        return Ok(report);
+    };
+    let fired = closure.wait(stop)?;
+    if act.stop_requested() {
+        act.stop_and_open(&mut report, StopPhase::ClosureDelay, true);
+        return Ok(report);
     }
+    if !fired {
+        // The trigger can never fire (e.g. stdin closed): the hand stays
+        // pre-shaped, as without a closure.
+        return Ok(report);
+    }
+    let order = Order {
+        command: Command::Close,
+        preshape: None,
+        since: Instant::now(),
+        max_age: Some(max_age),
+    };
+    act.record_closure(&mut report, order.send(hand, t0, Some(stop)));
     Ok(report)
 }
 
-/// Opens the hand after an expired pre-shape that may have been executed.
-fn reopen(hand: &Hand, report: &mut ApproachReport, t0: Instant) {
-    let order = Order {
-        command: Command::Open,
-        preshape: None,
-        since: Instant::now(),
-        max_age: None, // opening is always safe
-    };
-    match order.send(hand, t0) {
-        Sent::Acked(c) => report.reopened = Some(c),
-        Sent::Expired(_) => unreachable!("OPEN has no age limit"),
-        Sent::Failed(e) => {
-            tracing::error!("cannot open the hand after the stale decision: {e}");
-            report.link_error = Some(e);
+/// What sending the commands of one approach needs.
+struct Actuation<'a> {
+    hand: &'a Hand,
+    stop: &'a AtomicBool,
+    t0: Instant,
+}
+
+impl Actuation<'_> {
+    fn stop_requested(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+
+    /// Records how the PRESHAPE went; whether the approach goes on to the
+    /// closure.
+    fn record_preshape(&self, report: &mut ApproachReport, sent: Sent) -> bool {
+        match sent {
+            Sent::Acked(c) => {
+                report.preshape = Some(c);
+                if self.stop_requested() {
+                    // The stop came with the ACK: no closure follows.
+                    self.stop_and_open(report, StopPhase::Preshape, true);
+                    return false;
+                }
+                true
+            }
+            Sent::Expired(e) => {
+                tracing::error!(
+                    "stale decision: {} was decided {:.0} ms ago, over the {:.0} ms limit; \
+                     not sent, no closure",
+                    e.preshape.map_or("the pre-shape".into(), |p| p.to_string()),
+                    e.age_ms,
+                    e.limit_ms
+                );
+                let may_have_reached = e.transmissions > 0 && !e.refused_by_hand;
+                report.expired = Some(e);
+                if may_have_reached {
+                    self.reopen(report, "after the stale decision");
+                }
+                false
+            }
+            Sent::Stopped { transmissions } => {
+                self.stop_and_open(report, StopPhase::Preshape, transmissions > 0);
+                false
+            }
+            Sent::Failed(e) => {
+                report.link_error = Some(e);
+                false
+            }
+        }
+    }
+
+    /// Records how the CLOSE went.
+    fn record_closure(&self, report: &mut ApproachReport, sent: Sent) {
+        match sent {
+            Sent::Acked(c) => {
+                report.closure = Some(c);
+                if self.stop_requested() {
+                    self.stop_and_open(report, StopPhase::Closure, true);
+                }
+            }
+            Sent::Expired(e) => {
+                tracing::error!(
+                    "closure not acknowledged within {:.0} ms of its trigger: not sent again",
+                    e.limit_ms
+                );
+                report.expired = Some(e);
+            }
+            // The pre-shape reached the hand: it is opened whether or not
+            // the CLOSE did.
+            Sent::Stopped { .. } => self.stop_and_open(report, StopPhase::Closure, true),
+            Sent::Failed(e) => report.link_error = Some(e),
+        }
+    }
+
+    /// Ends the approach on a stop; opens the hand if a PRESHAPE or CLOSE
+    /// may have reached it (when in doubt, open).
+    fn stop_and_open(&self, report: &mut ApproachReport, phase: StopPhase, moved: bool) {
+        let stop = StopReport::new(phase, moved);
+        tracing::warn!(
+            "stopped by {} {phase}: nothing more is sent{}",
+            stop.signal.map_or("request".into(), |s| s.name()),
+            if moved { "; opening the hand" } else { "" }
+        );
+        report.stopped = Some(stop);
+        if moved {
+            self.reopen(report, "after the stop");
+        }
+    }
+
+    /// Opens the hand (after an expired pre-shape that may have been
+    /// executed, or a stop). Never stopped itself: opening is always safe.
+    fn reopen(&self, report: &mut ApproachReport, why: &str) {
+        let order = Order {
+            command: Command::Open,
+            preshape: None,
+            since: Instant::now(),
+            max_age: None, // opening is always safe
+        };
+        match order.send(self.hand, self.t0, None) {
+            Sent::Acked(c) => report.reopened = Some(c),
+            Sent::Expired(_) | Sent::Stopped { .. } => {
+                unreachable!("OPEN has no age limit and no stop")
+            }
+            Sent::Failed(e) => {
+                tracing::error!("cannot open the hand {why}: {e}");
+                report.link_error = Some(e);
+            }
         }
     }
 }
@@ -298,11 +477,15 @@ struct Order {
 enum Sent {
     Acked(CommandReport),
     Expired(ExpiredCommand),
+    /// A stop came first; copies transmitted before it.
+    Stopped {
+        transmissions: u32,
+    },
     Failed(String),
 }
 
 impl Order {
-    fn send(&self, hand: &Hand, t0: Instant) -> Sent {
+    fn send(&self, hand: &Hand, t0: Instant, stop: Option<&AtomicBool>) -> Sent {
         let expires = self.max_age.map(|a| self.since + a);
         let expired = |transmissions, refused_by_hand| {
             Sent::Expired(ExpiredCommand {
@@ -314,7 +497,7 @@ impl Order {
                 refused_by_hand,
             })
         };
-        match hand.send_until(self.command, expires) {
+        match hand.send_unless_stopped(self.command, expires, stop) {
             Ok(d) => Sent::Acked(CommandReport {
                 command: self.command.name(),
                 preshape: self.preshape,
@@ -330,6 +513,7 @@ impl Order {
                 status: Status::Expired,
                 ..
             }) => expired(1, true),
+            Err(LinkError::Stopped { transmissions, .. }) => Sent::Stopped { transmissions },
             Err(e) => Sent::Failed(e.to_string()),
         }
     }

@@ -10,6 +10,11 @@
 //! CLOSE carry it to the hand as a deadline on the hand's clock
 //! ([`HandClock`]), so a frame delayed on the way is refused by the hand
 //! instead of executed late.
+//!
+//! A command may also be given a stop flag ([`Hand::send_unless_stopped`]):
+//! once it is set (a signal), no copy is transmitted and no reconnect is
+//! waited for. The ACK wait of a copy already sent still runs out (one
+//! `ack_timeout_ms` at most), so the caller learns whether it arrived.
 
 use crate::decoder::{Decoder, DecoderStats};
 use crate::protocol::{Ack, Command, HandTime, Status};
@@ -103,6 +108,16 @@ pub enum LinkError {
     /// hand in time (its ACK lost); the hand refuses one that arrives late.
     #[error("{command} (seq {seq}) expired before the hand on {device} acknowledged it ({transmissions} transmissions); not sent again")]
     Expired {
+        command: &'static str,
+        seq: u8,
+        transmissions: u32,
+        device: String,
+    },
+    /// A stop was requested (a signal) before the ACK: the command is not
+    /// transmitted again. If `transmissions` > 0 a copy may have reached
+    /// the hand.
+    #[error("{command} (seq {seq}) was not sent again to the hand on {device}: stop requested ({transmissions} transmissions)")]
+    Stopped {
         command: &'static str,
         seq: u8,
         transmissions: u32,
@@ -279,14 +294,19 @@ impl HandLink {
     /// Opens the device (retrying until `reconnect_timeout_ms`) and starts a
     /// session with HELLO. A no-op while connected.
     pub fn connect(&mut self) -> Result<(), LinkError> {
-        self.connect_until(None).map_err(|e| match e {
+        self.connect_until(None, None).map_err(|e| match e {
             Reconnect::Failed(e) => e,
-            Reconnect::Expired => unreachable!("no expiry given"),
+            Reconnect::Expired | Reconnect::Stopped => unreachable!("no expiry or stop given"),
         })
     }
 
-    /// [`HandLink::connect`], giving up at `expires` too.
-    fn connect_until(&mut self, expires: Option<Instant>) -> Result<(), Reconnect> {
+    /// [`HandLink::connect`], giving up at `expires` too, or once `stop`
+    /// is set.
+    fn connect_until(
+        &mut self,
+        expires: Option<Instant>,
+        stop: Option<&AtomicBool>,
+    ) -> Result<(), Reconnect> {
         if self.conn.is_some() {
             return Ok(());
         }
@@ -295,6 +315,9 @@ impl HandLink {
         loop {
             if expires.is_some_and(|e| Instant::now() >= e) {
                 return Err(Reconnect::Expired);
+            }
+            if is_set(stop) {
+                return Err(Reconnect::Stopped);
             }
             let last_error = match self.connector.open() {
                 Ok(conn) => {
@@ -345,12 +368,29 @@ impl HandLink {
         command: Command,
         expires: Option<Instant>,
     ) -> Result<Delivery, LinkError> {
+        self.send_unless_stopped(command, expires, None)
+    }
+
+    /// [`HandLink::send_until`] that transmits nothing more once `stop` is
+    /// set ([`LinkError::Stopped`]).
+    pub fn send_unless_stopped(
+        &mut self,
+        command: Command,
+        expires: Option<Instant>,
+        stop: Option<&AtomicBool>,
+    ) -> Result<Delivery, LinkError> {
         let seq = self.alloc_seq();
         let started = Instant::now();
         let max_attempts = 1 + self.cfg.retries;
         let mut attempts = 0;
         let transmitted_before = self.stats.transmissions;
         let expired = |link: &HandLink| LinkError::Expired {
+            command: command.name(),
+            seq,
+            transmissions: (link.stats.transmissions - transmitted_before) as u32,
+            device: link.device(),
+        };
+        let stopped = |link: &HandLink| LinkError::Stopped {
             command: command.name(),
             seq,
             transmissions: (link.stats.transmissions - transmitted_before) as u32,
@@ -363,12 +403,15 @@ impl HandLink {
             if expires.is_some_and(|e| Instant::now() >= e) {
                 return Err(expired(self));
             }
+            if is_set(stop) {
+                return Err(stopped(self));
+            }
             if self.conn.is_none() {
                 if !self.down_reported {
                     tracing::warn!(device = %self.device(), "link down: re-opening");
                     self.down_reported = true;
                 }
-                match self.connect_until(expires) {
+                match self.connect_until(expires, stop) {
                     Ok(()) => {
                         self.stats.reconnects += 1;
                         self.down_reported = false;
@@ -376,6 +419,7 @@ impl HandLink {
                     }
                     Err(Reconnect::Failed(e)) => return Err(e),
                     Err(Reconnect::Expired) => return Err(expired(self)),
+                    Err(Reconnect::Stopped) => return Err(stopped(self)),
                 }
                 continue; // the expiry is checked again after the wait
             }
@@ -554,6 +598,12 @@ enum Reconnect {
     Failed(LinkError),
     /// The command's expiry came first.
     Expired,
+    /// A stop was requested.
+    Stopped,
+}
+
+fn is_set(flag: Option<&AtomicBool>) -> bool {
+    flag.is_some_and(|f| f.load(Ordering::SeqCst))
 }
 
 /// A [`HandLink`] shared with a heartbeat thread.
@@ -596,7 +646,18 @@ impl Hand {
         command: Command,
         expires: Option<Instant>,
     ) -> Result<Delivery, LinkError> {
-        let delivery = lock(&self.link).send_until(command, expires);
+        self.send_unless_stopped(command, expires, None)
+    }
+
+    /// [`Hand::send_until`] that transmits nothing more once `stop` is set
+    /// ([`HandLink::send_unless_stopped`]).
+    pub fn send_unless_stopped(
+        &self,
+        command: Command,
+        expires: Option<Instant>,
+        stop: Option<&AtomicBool>,
+    ) -> Result<Delivery, LinkError> {
+        let delivery = lock(&self.link).send_unless_stopped(command, expires, stop);
         match &delivery {
             Ok(d) => tracing::info!(
                 command = command.name(),
@@ -606,6 +667,8 @@ impl Hand {
                 state = ?d.ack.state,
                 "acknowledged"
             ),
+            // Not a failure of the link: the caller asked for it.
+            Err(e @ LinkError::Stopped { .. }) => tracing::warn!("{e}"),
             Err(e) => tracing::error!("{e}"),
         }
         delivery

@@ -29,8 +29,17 @@ Exit codes:
   4  the hand could not be reached or did not acknowledge a command
   5  a decision was older than --max-decision-age-ms before the hand acknowledged it
      (not executed, no closure; the hand is opened if a copy may have reached it)
-With several approaches, the code of the first failed one. The last line on
-stderr says why.";
+  128+N  stopped by signal N: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; nothing
+     is sent after it, and the hand is opened if a command may have reached it
+With several approaches, the code of the first failed one (a stop counts where it
+came). The last line on stderr says why.";
+
+const REPLAY_EXIT_CODES: &str = "\
+Exit codes (as `run`'s):
+  0  a decision was taken (a pre-shape, or no command on a weak vote)
+  1  error (arguments, config, checkpoint, source)
+  2  command-line usage error
+  3  aborted (frame source or classifier failed, invalid model output)";
 
 /// Drive the Hannes hand from a wrist camera: classify the frames of each
 /// approach, pick the pre-shape by majority vote and send it over the
@@ -49,6 +58,7 @@ enum Cmd {
     Run(RunArgs),
     /// Classify a recorded sequence; print per-frame predictions and the
     /// decision (no hand needed).
+    #[command(after_help = REPLAY_EXIT_CODES)]
     Replay(ReplayArgs),
     /// The hand side of the protocol, simulated; prints one JSON line per
     /// event.
@@ -160,7 +170,7 @@ struct RunArgs {
     as_fast: bool,
     /// Append one JSON report per approach to this file (with `approach`,
     /// its number, and `result`: commanded, no_command, aborted, expired,
-    /// hand_failed).
+    /// hand_failed, stopped).
     #[arg(long)]
     report: Option<PathBuf>,
 }
@@ -438,6 +448,10 @@ impl SessionObserver for RunPrinter<'_> {
         eprintln!("approach {approach}: waiting for trigger ({trigger})");
     }
 
+    fn triggered(&mut self, approach: usize) {
+        eprintln!("approach {approach}: triggered, classifying the approach window");
+    }
+
     fn frame(&mut self, p: &FramePrediction) {
         tracing::debug!(frame = p.index, class = ?p.class, "classified");
     }
@@ -464,6 +478,10 @@ impl SessionObserver for RunPrinter<'_> {
         );
         if let Some(e) = &report.link_error {
             eprintln!("approach {n}: link error: {e}");
+        }
+        if let Some(stop) = &report.stopped {
+            let by = stop.signal.map_or("request".into(), |s| s.name());
+            println!("approach {n}: STOPPED by {by} {}", stop.phase);
         }
         if let Some(path) = self.report {
             let line = ReportLine {
@@ -541,7 +559,7 @@ fn replay(args: ReplayArgs) -> Result<()> {
             window: &window,
         };
         println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
+        return replay_result(&window.decision);
     }
     let d = &window.decision;
     println!("decision: {}", d.outcome);
@@ -557,7 +575,18 @@ fn replay(args: ReplayArgs) -> Result<()> {
         "frames: {} classified, {} dropped, {} invalid",
         window.feed.delivered, window.feed.dropped, d.invalid_frames
     );
-    Ok(())
+    replay_result(d)
+}
+
+/// Replay fails like `run` on the same recording: an aborted window exits
+/// with [`runtime::session::EXIT_ABORTED`].
+fn replay_result(decision: &runtime::policy::Decision) -> Result<()> {
+    match &decision.outcome {
+        runtime::policy::Outcome::Aborted { .. } => {
+            Err(Failure::new(runtime::session::EXIT_ABORTED, decision.outcome.to_string()).into())
+        }
+        _ => Ok(()),
+    }
 }
 
 fn header() -> String {

@@ -157,6 +157,9 @@ pub enum Outcome {
     NoCommand { why: LowConfidence },
     /// The approach ended without actuation.
     Aborted { error: String },
+    /// A stop was requested (a signal) before the vote was settled:
+    /// nothing is sent.
+    Stopped,
 }
 
 impl Outcome {
@@ -166,7 +169,7 @@ impl Outcome {
             Outcome::Majority { preshape }
             | Outcome::Early { preshape }
             | Outcome::Fallback { preshape, .. } => Some(*preshape),
-            Outcome::NoCommand { .. } | Outcome::Aborted { .. } => None,
+            Outcome::NoCommand { .. } | Outcome::Aborted { .. } | Outcome::Stopped => None,
         }
     }
 }
@@ -181,6 +184,7 @@ impl fmt::Display for Outcome {
             }
             Outcome::NoCommand { why } => write!(f, "no command ({why})"),
             Outcome::Aborted { error } => write!(f, "aborted, no command: {error}"),
+            Outcome::Stopped => write!(f, "stopped before a decision, no command"),
         }
     }
 }
@@ -274,6 +278,11 @@ impl Vote {
     /// Ends the approach without actuation (source or classifier failure).
     pub fn abort(&self, error: String) -> Decision {
         self.decision(Outcome::Aborted { error })
+    }
+
+    /// Ends the window without a decision: a stop was requested.
+    pub fn stop(&self) -> Decision {
+        self.decision(Outcome::Stopped)
     }
 
     fn decision(&self, outcome: Outcome) -> Decision {

@@ -12,12 +12,17 @@
 //! | 3 ([`EXIT_ABORTED`]) | an approach was aborted: the frame source or the classifier failed, or the model output was invalid |
 //! | 4 ([`EXIT_HAND`]) | the hand could not be reached or did not acknowledge a command |
 //! | 5 ([`EXIT_EXPIRED`]) | a decision (or closure) became older than its age limit before the hand acknowledged it: not executed |
+//! | 128 + N ([`Signal::exit_code`]: 130 SIGINT, 143 SIGTERM, 129 SIGHUP) | stopped by signal N: during an approach (nothing sent after it; the hand opened if a command may have reached it) or between approaches |
+//!
+//! A stop counts as a failure at the point it came: with an earlier failed
+//! approach, the code is that approach's.
 
-use crate::approach::{actuate, classify_window, ApproachReport, FramePrediction};
+use crate::approach::{actuate, classify_window_until, ApproachReport, FramePrediction};
 use crate::classifier::FrameClassifier;
 use crate::feed::FeedMode;
 use crate::link::{Hand, LinkError};
 use crate::policy::{Outcome, PolicyConfig};
+use crate::signals::Signal;
 use crate::source::FrameSource;
 use crate::trigger::Trigger;
 use anyhow::Result;
@@ -28,6 +33,21 @@ use std::time::Instant;
 pub const EXIT_ABORTED: u8 = 3;
 pub const EXIT_HAND: u8 = 4;
 pub const EXIT_EXPIRED: u8 = 5;
+/// The code of a stop whose signal is unknown (the flag set otherwise):
+/// SIGINT's.
+pub const EXIT_STOPPED: u8 = 128 + libc::SIGINT as u8;
+
+/// The exit code of a stop by `signal`.
+pub fn exit_code_of_stop(signal: Option<Signal>) -> u8 {
+    signal.map_or(EXIT_STOPPED, Signal::exit_code)
+}
+
+fn stopped_by(signal: Option<Signal>) -> String {
+    match signal {
+        Some(s) => format!("stopped by {s}"),
+        None => "stopped on request".into(),
+    }
+}
 
 /// The exit code of an error that stopped `run` before any approach:
 /// [`EXIT_HAND`] if the hand could not be reached, else 1.
@@ -52,11 +72,17 @@ pub enum ApproachResult {
     Expired,
     /// The hand could not be reached or did not acknowledge.
     HandFailed,
+    /// A stop (a signal) ended the approach before it was done.
+    Stopped,
 }
 
 impl ApproachResult {
     pub fn of(report: &ApproachReport) -> Self {
-        if matches!(report.window.decision.outcome, Outcome::Aborted { .. }) {
+        // The stop first: whatever else went wrong, it is why the approach
+        // ended where it did.
+        if report.stopped.is_some() {
+            ApproachResult::Stopped
+        } else if matches!(report.window.decision.outcome, Outcome::Aborted { .. }) {
             ApproachResult::Aborted
         } else if report.expired.is_some() {
             ApproachResult::Expired
@@ -70,12 +96,13 @@ impl ApproachResult {
     }
 
     /// The run's exit code if this approach is its first failure.
-    pub fn exit_code(self) -> Option<u8> {
+    pub fn exit_code(self, report: &ApproachReport) -> Option<u8> {
         match self {
             ApproachResult::Commanded | ApproachResult::NoCommand => None,
             ApproachResult::Aborted => Some(EXIT_ABORTED),
             ApproachResult::HandFailed => Some(EXIT_HAND),
             ApproachResult::Expired => Some(EXIT_EXPIRED),
+            ApproachResult::Stopped => Some(exit_code_of_stop(report.stopped.as_ref()?.signal)),
         }
     }
 }
@@ -106,6 +133,22 @@ pub fn failure_reason(approach: usize, report: &ApproachReport) -> String {
             "approach {approach}: the hand was not commanded: {}",
             report.link_error.as_deref().unwrap_or("link failure")
         ),
+        ApproachResult::Stopped => {
+            let stop = report.stopped.as_ref().expect("stopped");
+            let hand = match (stop.may_have_moved, &report.reopened) {
+                (false, _) => "nothing was sent to the hand".to_string(),
+                (true, Some(_)) => "hand opened".to_string(),
+                (true, None) => format!(
+                    "the hand could not be opened ({}); its watchdog opens it",
+                    report.link_error.as_deref().unwrap_or("link failure")
+                ),
+            };
+            format!(
+                "approach {approach}: {} {}: {hand}",
+                stopped_by(stop.signal),
+                stop.phase
+            )
+        }
         ApproachResult::Commanded | ApproachResult::NoCommand => format!("approach {approach}: ok"),
     }
 }
@@ -114,8 +157,10 @@ pub fn failure_reason(approach: usize, report: &ApproachReport) -> String {
 #[derive(Debug, Clone, Serialize)]
 pub struct SessionFailure {
     pub approach: usize,
-    pub result: ApproachResult,
+    /// `None`: a stop between approaches.
+    pub result: Option<ApproachResult>,
     pub reason: String,
+    pub exit_code: u8,
 }
 
 /// What a run amounted to.
@@ -128,6 +173,11 @@ pub struct SessionSummary {
     /// Decisions (or closures) dropped as too old.
     pub expired: usize,
     pub hand_failures: usize,
+    /// Approaches ended by a stop (a signal).
+    pub stopped: usize,
+    /// A stop came between approaches (while waiting for a trigger, or
+    /// after an approach had ended).
+    pub stopped_between: bool,
     pub first_failure: Option<SessionFailure>,
 }
 
@@ -141,32 +191,53 @@ impl SessionSummary {
             ApproachResult::Aborted => self.aborted += 1,
             ApproachResult::Expired => self.expired += 1,
             ApproachResult::HandFailed => self.hand_failures += 1,
+            ApproachResult::Stopped => self.stopped += 1,
         }
-        if result.exit_code().is_some() && self.first_failure.is_none() {
+        if let (Some(code), None) = (result.exit_code(report), &self.first_failure) {
             self.first_failure = Some(SessionFailure {
                 approach: n,
-                result,
+                result: Some(result),
                 reason: failure_reason(n, report),
+                exit_code: code,
             });
         }
     }
 
-    pub fn failures(&self) -> usize {
-        self.aborted + self.expired + self.hand_failures
+    /// A stop by `signal` outside an approach: `waiting` for the trigger
+    /// of approach `n`, or after approach `n` ended.
+    pub fn record_stop_between(&mut self, n: usize, waiting: bool, signal: Option<Signal>) {
+        self.stopped_between = true;
+        if self.first_failure.is_some() {
+            return;
+        }
+        let when = match waiting {
+            true => format!("while waiting for the trigger of approach {n}"),
+            false => format!("after approach {n} ended"),
+        };
+        self.first_failure = Some(SessionFailure {
+            approach: n,
+            result: None,
+            reason: format!("{} {when}: no command in flight", stopped_by(signal)),
+            exit_code: exit_code_of_stop(signal),
+        });
     }
 
-    /// 0, or the code of the first failed approach.
+    pub fn failures(&self) -> usize {
+        self.aborted + self.expired + self.hand_failures + self.stopped
+    }
+
+    /// 0, or the code of the first failure (an approach, or a stop).
     pub fn exit_code(&self) -> u8 {
-        self.first_failure
-            .as_ref()
-            .and_then(|f| f.result.exit_code())
-            .unwrap_or(0)
+        self.first_failure.as_ref().map_or(0, |f| f.exit_code)
     }
 
     /// The one-line reason of a failed run.
     pub fn failure_message(&self) -> Option<String> {
         let first = self.first_failure.as_ref()?;
-        let more = self.failures() - 1;
+        // A stop between approaches is a failure but not an approach's.
+        let more = self
+            .failures()
+            .saturating_sub(usize::from(first.result.is_some()));
         Some(match more {
             0 => first.reason.clone(),
             _ => format!(
@@ -180,14 +251,15 @@ impl SessionSummary {
     pub fn describe(&self) -> String {
         format!(
             "{} approach{}: {} commanded, {} without command, {} aborted, {} expired \
-             (stale decision), {} hand failures",
+             (stale decision), {} hand failures, {} stopped",
             self.approaches,
             if self.approaches == 1 { "" } else { "es" },
             self.commanded,
             self.no_command,
             self.aborted,
             self.expired,
-            self.hand_failures
+            self.hand_failures,
+            self.stopped
         )
     }
 }
@@ -195,6 +267,8 @@ impl SessionSummary {
 /// Sees a run's progress (the CLI prints it).
 pub trait SessionObserver {
     fn waiting(&mut self, _approach: usize, _trigger: &str) {}
+    /// The trigger fired: the approach window starts.
+    fn triggered(&mut self, _approach: usize) {}
     fn frame(&mut self, _prediction: &FramePrediction) {}
     fn approach(&mut self, _approach: usize, _report: &ApproachReport) -> Result<()> {
         Ok(())
@@ -237,15 +311,20 @@ impl Session<'_> {
         for n in 1..=approaches {
             observer.waiting(n, &trigger.describe());
             if !trigger.wait(self.stop)? {
+                if self.stop_requested() {
+                    summary.record_stop_between(n, true, crate::signals::received());
+                }
                 break;
             }
             let t0 = Instant::now();
-            let (feed, window) = classify_window(
+            observer.triggered(n);
+            let (feed, window) = classify_window_until(
                 source,
                 self.mode,
                 &mut *self.classifier,
                 self.policy,
                 t0,
+                self.stop,
                 &mut |p| observer.frame(p),
             )?;
             let closure: Option<&mut dyn Trigger> = match &mut closure {
@@ -260,10 +339,17 @@ impl Session<'_> {
             source = feed.join();
             summary.record(n, &report);
             observer.approach(n, &report)?;
-            if self.stop.load(Ordering::Relaxed) {
+            if self.stop_requested() {
+                if report.stopped.is_none() && n < approaches {
+                    summary.record_stop_between(n, false, crate::signals::received());
+                }
                 break;
             }
         }
         Ok((source, summary))
+    }
+
+    fn stop_requested(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
     }
 }

@@ -380,3 +380,276 @@ fn logs_carry_no_colour_codes_when_stderr_is_not_a_terminal() {
         "ANSI escape codes in a pipe: {text:?}"
     );
 }
+
+#[test]
+fn replay_exits_3_like_run_when_a_frame_cannot_be_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 8, Some(3));
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    for json in [false, true] {
+        let mut args = vec!["replay", "--checkpoint", &ckpt, "--source"];
+        args.push(seq.to_str().unwrap());
+        if json {
+            args.push("--json");
+        }
+        let out = hannes_run(&args);
+        assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+        let reason = last_line(&out.stderr);
+        assert!(
+            reason.starts_with("Error: aborted") && reason.contains("frame"),
+            "{reason}"
+        );
+    }
+}
+
+/// `hannes-run run` in the background, its stderr collected line by line
+/// so a test can wait for a phase of the approach.
+struct Running {
+    child: std::process::Child,
+    stderr: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Running {
+    fn spawn(args: &[&str]) -> Running {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .env("RUST_BACKTRACE", "0")
+            .env("RUST_LOG", "info")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stderr = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let reader = {
+            let (pipe, lines) = (child.stderr.take().unwrap(), stderr.clone());
+            std::thread::spawn(move || {
+                use std::io::BufRead;
+                for line in std::io::BufReader::new(pipe).lines() {
+                    let Ok(line) = line else { break };
+                    lines.lock().unwrap().push(line);
+                }
+            })
+        };
+        Running {
+            child,
+            stderr,
+            reader: Some(reader),
+        }
+    }
+
+    fn stderr(&self) -> String {
+        self.stderr.lock().unwrap().join("\n")
+    }
+
+    /// Waits (bounded) for a line of stderr that contains every one of
+    /// `parts`.
+    fn wait_for_line(&self, parts: &[&str]) {
+        let seen = eventually(Duration::from_secs(60), || {
+            let lines = self.stderr.lock().unwrap();
+            lines.iter().any(|l| parts.iter().all(|p| l.contains(p)))
+        });
+        assert!(seen, "no line with {parts:?} in:\n{}", self.stderr());
+    }
+
+    fn signal(&self, signal: i32) {
+        // SAFETY: a plain kill(2) of our own child.
+        assert_eq!(unsafe { libc::kill(self.child.id() as i32, signal) }, 0);
+    }
+
+    /// Waits (bounded) for the exit; returns the code and stderr.
+    fn finish(mut self) -> (Option<i32>, String) {
+        let mut status = None;
+        let exited = eventually(Duration::from_secs(60), || {
+            status = self.child.try_wait().unwrap();
+            status.is_some()
+        });
+        if !exited {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+            panic!(
+                "hannes-run did not exit after the signal:\n{}",
+                self.stderr()
+            );
+        }
+        self.reader.take().unwrap().join().unwrap();
+        (status.unwrap().code(), self.stderr())
+    }
+}
+
+/// The movements the hand executed, in order.
+fn movements(events: &[HandEvent]) -> Vec<&'static str> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            HandEvent::Preshape { .. } => Some("preshape"),
+            HandEvent::Close { .. } => Some("close"),
+            HandEvent::Open { .. } => Some("open"),
+            HandEvent::WatchdogOpen { .. } => Some("watchdog_open"),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Replaces the value of `option` in `args`.
+fn set<'a>(args: &mut [&'a str], option: &str, value: &'a str) {
+    let i = args.iter().position(|a| *a == option).expect(option);
+    args[i + 1] = value;
+}
+
+fn report_line(path: &Path) -> serde_json::Value {
+    serde_json::from_str(std::fs::read_to_string(path).unwrap().trim()).unwrap()
+}
+
+/// Before the fix the window ran to its end, the PRESHAPE was sent after
+/// the signal and `run` exited 0.
+#[test]
+fn a_signal_during_the_window_sends_nothing_and_exits_with_its_code() {
+    let dir = tempfile::tempdir().unwrap();
+    // One frame a second, a 30 s window: the signal comes in the window.
+    let seq = sequence(dir.path(), 40, None);
+    let config = quick_link_config(dir.path());
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let report = dir.path().join("report.jsonl");
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let mut args = run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        pty.path().to_str().unwrap(),
+        config.to_str().unwrap(),
+    );
+    args.retain(|a| *a != "--as-fast");
+    set(&mut args, "--closure", "delay:30");
+    args.extend(["--fps", "1", "--window", "30"]);
+    args.extend(["--report", report.to_str().unwrap()]);
+    let run = Running::spawn(&args);
+    run.wait_for_line(&["approach 1: triggered"]);
+    run.signal(libc::SIGTERM);
+    let (code, stderr) = run.finish();
+    assert_eq!(code, Some(143), "{stderr}");
+    assert_eq!(
+        last_line(stderr.as_bytes()),
+        "Error: approach 1: stopped by SIGTERM during the approach window: \
+         nothing was sent to the hand"
+    );
+    assert!(stderr.contains("1 stopped"), "{stderr}");
+    let events = pty.hand.events();
+    assert!(movements(&events).is_empty(), "{events:?}");
+    let line = report_line(&report);
+    assert_eq!(line["result"], "stopped");
+    assert_eq!(line["stopped"]["signal"], "SIGTERM");
+    assert_eq!(line["stopped"]["phase"], "window");
+    assert_eq!(line["window"]["decision"]["outcome"]["how"], "stopped");
+    assert!(line["preshape"].is_null() && line["reopened"].is_null());
+}
+
+/// Before the fix a signal while the PRESHAPE waited for its ACK changed
+/// nothing: it was retransmitted, the closure followed, and `run` exited 0.
+#[test]
+fn a_signal_while_the_preshape_is_in_flight_stops_retransmissions_and_opens_the_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 4, None);
+    // One attempt waits 1.5 s for its ACK; the hand holds every PRESHAPE
+    // (and what follows it) 3 s: the first copy is in flight when the
+    // signal comes, and a retransmission would follow 1.5 s after it.
+    let config = dir.path().join("run.toml");
+    std::fs::write(
+        &config,
+        "[link]\nack_timeout_ms = 1500\nretries = 5\nwatchdog_ms = 20000\n",
+    )
+    .unwrap();
+    let faults: FaultSpec = "delay=1:3000,on=preshape".parse().unwrap();
+    let received = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let pty = {
+        let received = received.clone();
+        PtyHand::plug_with_faults(&dir.path().join("hand"), faults, move |e| {
+            if let HandEvent::Fault {
+                toward: runtime::simhand::Toward::Hand,
+                cmd: 0x10,
+                ..
+            } = e
+            {
+                received.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            }
+        })
+        .unwrap()
+    };
+    let report = dir.path().join("report.jsonl");
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let mut args = run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        pty.path().to_str().unwrap(),
+        config.to_str().unwrap(),
+    );
+    set(&mut args, "--closure", "delay:30");
+    args.extend(["--max-decision-age-ms", "30000"]);
+    args.extend(["--report", report.to_str().unwrap()]);
+    let run = Running::spawn(&args);
+    let arrived = eventually(Duration::from_secs(60), || {
+        received.load(std::sync::atomic::Ordering::SeqCst) > 0
+    });
+    assert!(arrived, "no PRESHAPE reached the hand:\n{}", run.stderr());
+    // Copies so far (1 unless this test stalled past an ACK timeout).
+    let before_signal = received.load(std::sync::atomic::Ordering::SeqCst);
+    run.signal(libc::SIGHUP);
+    let (code, stderr) = run.finish();
+    assert_eq!(code, Some(129), "{stderr}");
+    assert_eq!(
+        last_line(stderr.as_bytes()),
+        "Error: approach 1: stopped by SIGHUP while the pre-shape was being sent: hand opened"
+    );
+    assert_eq!(
+        received.load(std::sync::atomic::Ordering::SeqCst),
+        before_signal,
+        "a PRESHAPE was sent after the signal: {:?}",
+        pty.hand.events()
+    );
+    // The copy in flight was executed when the hand let it through; the
+    // OPEN sent after the signal came behind it.
+    assert_eq!(movements(&pty.hand.events()), vec!["preshape", "open"]);
+    let line = report_line(&report);
+    assert_eq!(line["result"], "stopped");
+    assert_eq!(line["stopped"]["phase"], "preshape");
+    assert_eq!(line["stopped"]["may_have_moved"], true);
+    assert_eq!(line["reopened"]["command"], "OPEN");
+    assert!(line["closure"].is_null());
+}
+
+/// Before the fix Ctrl-C in the closure delay ended `run` at once with
+/// code 0, the hand left pre-shaped and the report saying "commanded".
+#[test]
+fn ctrl_c_during_the_closure_delay_opens_the_hand_and_exits_130() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 4, None);
+    let config = quick_link_config(dir.path());
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let report = dir.path().join("report.jsonl");
+    let ckpt = checkpoint().to_string_lossy().into_owned();
+    let mut args = run_args(
+        &ckpt,
+        seq.to_str().unwrap(),
+        pty.path().to_str().unwrap(),
+        config.to_str().unwrap(),
+    );
+    set(&mut args, "--closure", "delay:30");
+    args.extend(["--report", report.to_str().unwrap()]);
+    let run = Running::spawn(&args);
+    run.wait_for_line(&["acknowledged", "PRESHAPE"]);
+    run.signal(libc::SIGINT);
+    let (code, stderr) = run.finish();
+    assert_eq!(code, Some(130), "{stderr}");
+    assert_eq!(
+        last_line(stderr.as_bytes()),
+        "Error: approach 1: stopped by SIGINT while waiting for the closure: hand opened"
+    );
+    assert_eq!(movements(&pty.hand.events()), vec!["preshape", "open"]);
+    let line = report_line(&report);
+    assert_eq!(line["result"], "stopped");
+    assert_eq!(line["stopped"]["signal"], "SIGINT");
+    assert_eq!(line["stopped"]["phase"], "closure_delay");
+    assert_eq!(line["preshape"]["command"], "PRESHAPE");
+    assert_eq!(line["reopened"]["hand_state"], "open");
+    assert!(line["closure"].is_null());
+}

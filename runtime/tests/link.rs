@@ -436,3 +436,67 @@ fn heartbeats_keep_the_hand_shaped_and_silence_opens_it() {
         "{events:?}"
     );
 }
+
+#[test]
+fn a_send_after_a_stop_transmits_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let hand = start_hand(pty.path(), fast_link());
+    let stop = AtomicBool::new(true);
+    let before = hand.stats().transmissions;
+    let sent = hand.send_unless_stopped(preshape_command(Preshape::Pinch), None, Some(&stop));
+    assert!(
+        matches!(
+            sent,
+            Err(LinkError::Stopped {
+                transmissions: 0,
+                ..
+            })
+        ),
+        "{sent:?}"
+    );
+    // Heartbeats may go out meanwhile; the PRESHAPE never does.
+    assert!(preshape_events(&pty.hand.events()).is_empty());
+    assert!(hand.stats().transmissions >= before);
+}
+
+#[test]
+fn a_stop_while_waiting_for_the_trigger_fails_the_run_with_the_stop_code() {
+    use runtime::session::{ReportLog, Session, EXIT_STOPPED};
+    let dir = tempfile::tempdir().unwrap();
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let hand = start_hand(pty.path(), fast_link());
+    let stop = AtomicBool::new(true);
+    let policy = PolicyConfig::default();
+    let mut model = FakeModel::new();
+    let mut session = Session {
+        hand: &hand,
+        classifier: &mut model,
+        policy: &policy,
+        mode: FeedMode::Lockstep,
+        stop: &stop,
+    };
+    let source = MemorySource::new(
+        frames_of(&[Class::Power; 4]),
+        30.0,
+        Pacing::AsFastAsPossible,
+    )
+    .unwrap();
+    let mut log = ReportLog::default();
+    let (_, summary) = session
+        .run(
+            Box::new(source),
+            1,
+            &mut Timer(Duration::ZERO),
+            None,
+            &mut log,
+        )
+        .unwrap();
+    assert!(log.0.is_empty(), "no approach ran");
+    assert_eq!(summary.exit_code(), EXIT_STOPPED);
+    assert_eq!(
+        summary.failure_message().unwrap(),
+        "stopped on request while waiting for the trigger of approach 1: no command in flight"
+    );
+    assert!(preshape_events(&pty.hand.events()).is_empty());
+}
