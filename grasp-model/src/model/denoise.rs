@@ -91,13 +91,13 @@ pub fn nl_means(img: &RgbImage, sigma: f32, h: f32) -> RgbImage {
             s
         },
         || {
-            let mut s = Sums::zero(w * hgt);
+            let mut s = Sums::zero(planes.stride * hgt);
             accumulate(&planes, &odd, weighting, &mut s);
             s
         },
     );
     sums.add(&other);
-    sums.image(w, hgt)
+    sums.image(w, hgt, planes.stride)
 }
 
 /// A search offset (dx, dy).
@@ -114,6 +114,18 @@ fn half_window() -> impl Iterator<Item = (usize, Offset)> {
         .enumerate()
 }
 
+/// Row lengths are rounded up to this many floats (one AVX-512 vector), so
+/// that the vectorised loops have no scalar tail; the extra lanes compute
+/// values that are never read out.
+const LANES: usize = 16;
+
+/// Floats after the last padded row, for the rounded-up rows to read.
+const SLACK: usize = 4 * LANES;
+
+fn round_up(n: usize) -> usize {
+    n.div_ceil(LANES) * LANES
+}
+
 /// The image in [0, 1] floats, one plane per channel, with `pad` mirrored
 /// pixels on every side: rows of one channel are contiguous, so the loops
 /// over them vectorise.
@@ -124,6 +136,8 @@ struct Planes {
     /// Size of the unpadded image.
     w: usize,
     h: usize,
+    /// Row stride of the sums: `w` rounded up.
+    stride: usize,
 }
 
 impl Planes {
@@ -131,7 +145,7 @@ impl Planes {
         let (w, h) = (img.width() as usize, img.height() as usize);
         let (width, height) = (w + 2 * pad, h + 2 * pad);
         let raw = img.as_raw();
-        let mut data = [(); 3].map(|_| vec![0f32; width * height]);
+        let mut data = [(); 3].map(|_| vec![0f32; width * height + SLACK]);
         for y in 0..height {
             let sy = mirror(y as isize - pad as isize, h);
             for x in 0..width {
@@ -147,6 +161,7 @@ impl Planes {
             pad,
             w,
             h,
+            stride: round_up(w),
         }
     }
 
@@ -243,11 +258,11 @@ impl Sums {
     /// The centre offset: every pixel counts itself with weight 1 (its
     /// patch distance to itself is 0).
     fn centre(p: &Planes) -> Sums {
-        let mut s = Sums::zero(p.w * p.h);
+        let mut s = Sums::zero(p.stride * p.h);
         for y in 0..p.h {
             let src = p.row(0, y as isize, p.w);
             for (sum, src) in s.chan.iter_mut().zip(src) {
-                sum[y * p.w..(y + 1) * p.w].copy_from_slice(src);
+                sum[y * p.stride..y * p.stride + p.w].copy_from_slice(src);
             }
         }
         s.weight.fill(1.0);
@@ -262,9 +277,11 @@ impl Sums {
         w.for_each(|(a, b)| *a += b);
     }
 
-    fn image(&self, w: usize, h: usize) -> RgbImage {
+    /// The weighted means of the rows of `stride` sums, `w` x `h` pixels.
+    fn image(&self, w: usize, h: usize, stride: usize) -> RgbImage {
         let mut out = RgbImage::new(w as u32, h as u32);
-        for (i, px) in out.pixels_mut().enumerate() {
+        for (j, px) in out.pixels_mut().enumerate() {
+            let i = j / w * stride + j % w;
             for c in 0..3 {
                 let v = self.chan[c][i] / self.weight[i];
                 px.0[c] = (v * 255.0).round().clamp(0.0, 255.0) as u8;
@@ -310,11 +327,16 @@ fn accumulate_offset(
     let (x0, y0) = (0.min(-ox), -oy);
     let (x1, y1) = (w.max(w - ox), h);
     let r = PATCH_RADIUS as isize;
-    let (qw, dw) = ((x1 - x0) as usize, (x1 - x0 + 2 * r) as usize);
+    // Rows of weights are read from |o| on (`skip` below), a stride long:
+    // longer than the x1 - x0 pairs, rounded up (at most SLACK past the
+    // last padded row for the squared differences' reads).
+    let (n, stride) = (round_up(ox.unsigned_abs() + p.stride), p.stride);
+    debug_assert!(n >= (x1 - x0) as usize);
+    let dw = n + LANES;
     let rows = (y1 - y0 + 2 * r) as usize;
     squared_differences(p, (x0 - r, y0 - r), (ox, oy), (dw, rows), &mut s.diff);
     s.column.resize(dw, 0.0);
-    s.weight.resize(qw, 0.0);
+    s.weight.resize(n, 0.0);
     let side = 2 * PATCH_RADIUS + 1;
     for qy in y0..y1 {
         let first = (qy - y0) as usize * dw;
@@ -323,15 +345,20 @@ fn accumulate_offset(
         let wrow = &s.weight[..];
         if (0..h).contains(&qy) {
             // p = q: the neighbour p + o.
-            let i = qy as usize * p.w;
+            let i = qy as usize * stride;
             let skip = (-x0) as usize;
-            gather(&wrow[skip..skip + p.w], p.row(ox, qy + oy, p.w), sums, i);
+            gather(
+                &wrow[skip..skip + stride],
+                p.row(ox, qy + oy, stride),
+                sums,
+                i,
+            );
         }
         if (0..h).contains(&(qy + oy)) {
             // p = q + o: the neighbour p - o.
-            let i = (qy + oy) as usize * p.w;
+            let i = (qy + oy) as usize * stride;
             let skip = (-ox - x0) as usize;
-            gather(&wrow[skip..skip + p.w], p.row(-ox, qy, p.w), sums, i);
+            gather(&wrow[skip..skip + stride], p.row(-ox, qy, stride), sums, i);
         }
     }
 }
@@ -368,41 +395,46 @@ fn column_sums(band: &[f32], width: usize, column: &mut [f32]) {
     }
 }
 
-/// `weight[i]` = the weight of the patch sum over columns i..i + 2 r + 1.
+/// `weight[i]` = the weight of the patch sum over columns i..i + 2 r + 1
+/// (`weight.len()` a multiple of LANES).
 #[inline(always)]
 fn row_weights(column: &[f32], wt: Weighting, weight: &mut [f32]) {
-    let n = weight.len();
-    let side = 2 * PATCH_RADIUS + 1;
-    let column = &column[..n + side - 1];
-    for (i, out) in weight.iter_mut().enumerate() {
-        let mut sum = column[i];
-        for k in 1..side {
-            sum += column[i + k];
+    for (b, out) in weight.chunks_exact_mut(LANES).enumerate() {
+        let i = b * LANES;
+        let mut sum = lanes(column, i);
+        for k in 1..2 * PATCH_RADIUS + 1 {
+            let c = lanes(column, i + k);
+            (0..LANES).for_each(|l| sum[l] += c[l]);
         }
-        *out = wt.of(sum);
+        (0..LANES).for_each(|l| out[l] = wt.of(sum[l]));
     }
 }
 
 /// Adds `weight[i]` x `src[c][i]` to row `start + i` of each channel's sums,
-/// and the weight to the weight sums.
+/// and the weight to the weight sums (`weight.len()` a multiple of LANES).
 #[inline(always)]
 fn gather(weight: &[f32], src: [&[f32]; 3], sums: &mut Sums, start: usize) {
-    let n = weight.len();
-    let [s0, s1, s2] = &mut sums.chan;
-    let (s0, s1, s2) = (
-        &mut s0[start..start + n],
-        &mut s1[start..start + n],
-        &mut s2[start..start + n],
-    );
-    let (v0, v1, v2) = (&src[0][..n], &src[1][..n], &src[2][..n]);
-    let ws = &mut sums.weight[start..start + n];
-    for i in 0..n {
-        let wi = weight[i];
-        ws[i] += wi;
-        s0[i] += wi * v0[i];
-        s1[i] += wi * v1[i];
-        s2[i] += wi * v2[i];
+    for b in (0..weight.len()).step_by(LANES) {
+        let w = lanes(weight, b);
+        for (sum, src) in sums.chan.iter_mut().zip(src) {
+            let (mut s, v) = (lanes(sum, start + b), lanes(src, b));
+            (0..LANES).for_each(|l| s[l] += w[l] * v[l]);
+            sum[start + b..start + b + LANES].copy_from_slice(&s);
+        }
+        let mut s = lanes(&sums.weight, start + b);
+        (0..LANES).for_each(|l| s[l] += w[l]);
+        sums.weight[start + b..start + b + LANES].copy_from_slice(&s);
     }
+}
+
+/// A copy of `v[at..at + LANES]`. Blocks are worked on as such copies: with
+/// every load before every store, the compiler needs no proof that the
+/// slices are apart to vectorise, and a block has no scalar tail.
+#[inline(always)]
+fn lanes(v: &[f32], at: usize) -> [f32; LANES] {
+    v[at..at + LANES]
+        .try_into()
+        .expect("a block of LANES floats")
 }
 
 /// Index `i` mirrored into 0..n without repeating the edge (..., 2, 1, 0, 1,
