@@ -6,8 +6,9 @@
 //!
 //!   cargo run --release -p grasp-model --example bench_denoise -- --iters 200
 //!
-//! Prints one JSON line per input. `--save DIR` also writes each input as
-//! PNG, for `scripts/bench_denoise.py` to run the same work in scikit-image.
+//! Prints one JSON line per input. `--save DIR` also writes each input and
+//! its denoised image as PNG, for `scripts/bench_denoise.py` to run the
+//! same work in scikit-image and compare.
 
 use std::time::Instant;
 
@@ -41,6 +42,7 @@ fn main() -> anyhow::Result<()> {
         if let Some(dir) = &args.save {
             std::fs::create_dir_all(dir)?;
             img.save(dir.join(format!("{name}.png")))?;
+            denoise(img).save(dir.join(format!("{name}-denoised.png")))?;
         }
         let sigma = noise_sigma(img);
         let whole = time(args.iters, || denoise(img));
