@@ -37,25 +37,32 @@ pub fn noise_sigma(img: &RgbImage) -> f32 {
     if w < 3 || h < 3 {
         return 0.0;
     }
-    const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
+    // The mask's responses to 8-bit pixels are integers, so their absolute
+    // sum is exact in integers (and was exact in the f64 of the first
+    // version: the same estimate to the bit). Channels are interleaved, so
+    // the horizontal neighbours of raw[i] are raw[i -+ 3] and one pass over
+    // a row serves all three channels.
     let raw = img.as_raw();
-    let mut total = 0.0f64;
+    let row = |y: usize| &raw[y * w * 3..(y + 1) * w * 3];
+    let mut total = 0u64;
     for y in 1..h - 1 {
-        for x in 1..w - 1 {
-            for c in 0..3 {
-                let mut r = 0.0;
-                for (dy, row) in MASK.iter().enumerate() {
-                    for (dx, m) in row.iter().enumerate() {
-                        r += m * f64::from(raw[((y + dy - 1) * w + x + dx - 1) * 3 + c]);
-                    }
-                }
-                total += r.abs();
-            }
-        }
+        total += laplacian_difference_row(row(y - 1), row(y), row(y + 1));
     }
+    let total = total as f64;
     let count = 3.0 * 6.0 * ((w - 2) * (h - 2)) as f64;
     let sigma = (std::f64::consts::FRAC_PI_2).sqrt() * total / count / 255.0;
     sigma as f32
+}
+
+/// Sum over the inner pixels of a row of |1 -2 1| (x) |1 -2 1|, the
+/// difference of two Laplacians, for all channels (`up`, `mid`, `down`: the
+/// rows above, at and below, interleaved RGB).
+fn laplacian_difference_row(up: &[u8], mid: &[u8], down: &[u8]) -> u64 {
+    let n = mid.len();
+    let line = |r: &[u8], i: usize| i32::from(r[i - 3]) - 2 * i32::from(r[i]) + i32::from(r[i + 3]);
+    (3..n - 3)
+        .map(|i| (line(up, i) - 2 * line(mid, i) + line(down, i)).unsigned_abs() as u64)
+        .sum()
 }
 
 /// `img` with its sensor noise removed: non-local means at a strength of
@@ -167,6 +174,7 @@ impl Planes {
 
     /// `len` values of each channel from image pixel (x, y) on (x and y
     /// may lie in the padding).
+    #[inline(always)]
     fn row(&self, x: isize, y: isize, len: usize) -> [&[f32]; 3] {
         let start =
             (y + self.pad as isize) as usize * self.width + (x + self.pad as isize) as usize;
@@ -283,8 +291,10 @@ impl Sums {
         for (j, px) in out.pixels_mut().enumerate() {
             let i = j / w * stride + j % w;
             for c in 0..3 {
+                // A mean of values in [0, 1]: rounding half up is rounding,
+                // without `f32::round`'s library call.
                 let v = self.chan[c][i] / self.weight[i];
-                px.0[c] = (v * 255.0).round().clamp(0.0, 255.0) as u8;
+                px.0[c] = (v * 255.0 + 0.5).clamp(0.0, 255.0) as u8;
             }
         }
         out
@@ -452,6 +462,33 @@ fn mirror(i: isize, n: usize) -> usize {
 #[cfg(test)]
 mod reference {
     use super::*;
+
+    /// [`super::noise_sigma`] as it was first written, in f64 per pixel.
+    pub(super) fn noise_sigma(img: &RgbImage) -> f32 {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        if w < 3 || h < 3 {
+            return 0.0;
+        }
+        const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
+        let raw = img.as_raw();
+        let mut total = 0.0f64;
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                for c in 0..3 {
+                    let mut r = 0.0;
+                    for (dy, row) in MASK.iter().enumerate() {
+                        for (dx, m) in row.iter().enumerate() {
+                            r += m * f64::from(raw[((y + dy - 1) * w + x + dx - 1) * 3 + c]);
+                        }
+                    }
+                    total += r.abs();
+                }
+            }
+        }
+        let count = 3.0 * 6.0 * ((w - 2) * (h - 2)) as f64;
+        let sigma = (std::f64::consts::FRAC_PI_2).sqrt() * total / count / 255.0;
+        sigma as f32
+    }
 
     /// [`super::nl_means`] as it was first written: every offset of the
     /// window on its own, the patch sums from running row sums, `f32::exp`.
@@ -730,6 +767,16 @@ mod tests {
                         "{w}x{h} sigma {sigma} h {strength}: {d} grey levels"
                     );
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_integer_estimate_is_the_reference_estimate_to_the_bit() {
+        for (w, h) in [(3, 3), (4, 9), (17, 5), (94, 94)] {
+            for sigma in [0.0, 0.02, 0.3] {
+                let img = noisy(&scene(w, h), sigma, 5);
+                assert_eq!(noise_sigma(&img), reference::noise_sigma(&img), "{w}x{h}");
             }
         }
     }
