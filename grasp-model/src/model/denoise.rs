@@ -772,6 +772,14 @@ mod tests {
                         d <= 1,
                         "{w}x{h} sigma {sigma} h {strength}: {d} grey levels"
                     );
+                    // Rounding flips only where a value sits near a half
+                    // level: a handful of 26 508 at 94 x 94.
+                    let pairs = fast.as_raw().iter().zip(slow.as_raw());
+                    let flipped = pairs.filter(|(a, b)| a != b).count();
+                    assert!(
+                        flipped * 1000 <= fast.as_raw().len(),
+                        "{w}x{h}: {flipped} differ"
+                    );
                 }
             }
         }
