@@ -1,0 +1,146 @@
+//! Time of the crop denoiser alone (`model::denoise`), per call, on the
+//! crop the shipped checkpoint denoises: 94 x 94 px (18.3 degrees of a 224
+//! px frame). Two inputs: a smooth scene with camera-like Gaussian noise,
+//! and a crop of `hannes-run bench`'s synthetic frames (noise-like, the
+//! filter's worst case before it became branch-free).
+//!
+//!   cargo run --release -p grasp-model --example bench_denoise -- --iters 200
+//!
+//! Prints one JSON line per input. `--save DIR` also writes each input and
+//! its denoised image as PNG, for `scripts/bench_denoise.py` to run the
+//! same work in scikit-image and compare.
+
+use std::time::Instant;
+
+use clap::Parser;
+use grasp_model::model::denoise::{denoise, nl_means, noise_sigma};
+use image::RgbImage;
+
+#[derive(Parser)]
+struct Args {
+    /// Side of the square crop in pixels.
+    #[arg(long, default_value_t = 94)]
+    size: u32,
+    /// Timed calls per input (after 5 untimed ones).
+    #[arg(long, default_value_t = 200)]
+    iters: usize,
+    /// Gaussian noise added to the scene, as a fraction of full scale.
+    #[arg(long, default_value_t = 0.02)]
+    noise: f32,
+    /// Write the inputs here as `<name>.png`.
+    #[arg(long)]
+    save: Option<std::path::PathBuf>,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let inputs = [
+        ("scene", noisy(&scene(args.size), args.noise, 7)),
+        ("bench_frame", bench_frame_crop(args.size)),
+    ];
+    for (name, img) in &inputs {
+        if let Some(dir) = &args.save {
+            std::fs::create_dir_all(dir)?;
+            img.save(dir.join(format!("{name}.png")))?;
+            denoise(img).save(dir.join(format!("{name}-denoised.png")))?;
+        }
+        let sigma = noise_sigma(img);
+        let whole = time(args.iters, || denoise(img));
+        let filter = time(args.iters, || nl_means(img, sigma, 0.8 * sigma));
+        let line = serde_json::json!({
+            "input": name,
+            "size": args.size,
+            "sigma": sigma,
+            "iters": args.iters,
+            "threads": rayon::current_num_threads(),
+            "denoise_ms": whole,
+            "nl_means_ms": filter,
+        });
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// Minimum (the least disturbed by other processes), median, p99 and mean
+/// of `iters` calls of `f`, in ms, and the process's CPU time per call (all
+/// threads; on a shared machine the steadier measure).
+fn time<T>(iters: usize, mut f: impl FnMut() -> T) -> serde_json::Value {
+    for _ in 0..5 {
+        std::hint::black_box(f());
+    }
+    let cpu = cpu_seconds();
+    let mut ms: Vec<f64> = (0..iters.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(f());
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    let cpu_ms = cpu
+        .zip(cpu_seconds())
+        .map(|(a, b)| (b - a) * 1e3 / ms.len() as f64);
+    let mean = ms.iter().sum::<f64>() / ms.len() as f64;
+    ms.sort_by(f64::total_cmp);
+    let rank = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+    serde_json::json!({
+        "min": ms[0], "p50": rank(0.5), "p99": rank(0.99), "mean": mean, "cpu": cpu_ms,
+    })
+}
+
+/// User plus system CPU time of this process (Linux: /proc/self/stat, in
+/// clock ticks of 10 ms, so time many calls); None elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are the
+    // 14th and 15th of the line.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut fields = rest.split_whitespace().skip(11);
+    let utime: f64 = fields.next()?.parse().ok()?;
+    let stime: f64 = fields.next()?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// A colour ramp with a sharp-edged square (as in the module's tests).
+fn scene(n: u32) -> RgbImage {
+    RgbImage::from_fn(n, n, |x, y| {
+        let third = n / 3..2 * n / 3;
+        let base = (40 + x * 120 / n) as u8;
+        if third.contains(&x) && third.contains(&y) {
+            image::Rgb([200, 60, base])
+        } else {
+            image::Rgb([base, (60 + y * 100 / n) as u8, 90])
+        }
+    })
+}
+
+/// `img` plus seeded Gaussian noise of `sigma` (full scale).
+fn noisy(img: &RgbImage, sigma: f32, seed: u64) -> RgbImage {
+    let mut state = seed;
+    let mut uniform = move || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut out = img.clone();
+    for v in out.iter_mut() {
+        let (u1, u2) = (uniform().max(1e-12), uniform());
+        let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        *v = (f64::from(*v) + 255.0 * f64::from(sigma) * n)
+            .round()
+            .clamp(0.0, 255.0) as u8;
+    }
+    out
+}
+
+/// The centre `n` x `n` of `hannes-run bench`'s first synthetic 224 px frame
+/// (the pattern of `runtime::bench::synthetic_frames`).
+fn bench_frame_crop(n: u32) -> RgbImage {
+    let off = (224 - n.min(224)) / 2;
+    RgbImage::from_fn(n, n, |x, y| {
+        let (x, y) = (x + off, y + off);
+        let v = (x * 7 + y * 13) % 256;
+        image::Rgb([v as u8, (255 - v) as u8, ((x ^ y) % 256) as u8])
+    })
+}
