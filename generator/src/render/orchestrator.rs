@@ -421,6 +421,9 @@ fn write_meshes(
     Ok(out)
 }
 
+/// How often a render without a progress bar logs its progress.
+const PROGRESS_LOG_INTERVAL: Duration = Duration::from_secs(30);
+
 fn progress_bar(total: usize, show: bool) -> ProgressBar {
     if !show {
         return ProgressBar::hidden();
@@ -454,6 +457,10 @@ fn run_pool(
     drop(tx);
     let pb = progress_bar(total, show_progress);
     let start = Instant::now();
+    // Without a terminal (a log file, a cluster's output) the bar draws
+    // nothing: a line every 30 s instead.
+    let log_lines = !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let mut last_line = start;
     // Messages go through the log (stderr) in every mode; the bar steps
     // aside while they print.
     let log = |f: &dyn Fn()| pb.suspend(f);
@@ -512,6 +519,20 @@ fn run_pool(
                 pb.inc(1);
                 let fps = summary.frames as f64 / start.elapsed().as_secs_f64().max(1e-9);
                 pb.set_message(format!("{fps:.2} frames/s"));
+                if log_lines && last_line.elapsed() >= PROGRESS_LOG_INTERVAL {
+                    last_line = Instant::now();
+                    let done = summary.rendered + summary.failed.len();
+                    tracing::info!(
+                        "{}",
+                        grasp_schema::cli::progress_line(
+                            "render",
+                            done as u64,
+                            total as u64,
+                            start.elapsed(),
+                            &format!("{fps:.2} frames/s, {} failed", summary.failed.len()),
+                        )
+                    );
+                }
             }
             Ok(Event::Note(note)) => {
                 // Every worker start says it again; once is enough.

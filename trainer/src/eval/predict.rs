@@ -51,7 +51,7 @@ pub fn predict_dataset(
         });
         bar.inc(1);
     }
-    bar.finish_and_clear();
+    bar.finish();
     Ok(out)
 }
 

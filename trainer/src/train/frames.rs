@@ -51,7 +51,7 @@ impl SplitFrames {
             valid.push(v);
             bar.inc(1);
         }
-        bar.finish_and_clear();
+        bar.finish();
         Ok(Self::index(
             data,
             |si, fi| valid[si][fi],

@@ -291,7 +291,7 @@ fn train_epoch(
         ));
         bar.inc(1);
     }
-    bar.finish_and_clear();
+    bar.finish();
     let n = counted.max(1) as f64;
     Ok((loss_sum / n, correct as f64 / n, counted))
 }
