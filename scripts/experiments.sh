@@ -61,6 +61,13 @@ BIN=${BIN:-target/release}
 SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
+# The heads' crop as a recipe override (grasp-train train --set).
+CROP_SET=(--set "reader.crop={ fraction = $CROP }")
+# The main job's FC head's style views and damping (configs/recipes/fc.toml);
+# words without spaces, so that they also travel in a string.
+STYLE_DAMPED=(--set views.count=4 --set views.scale=0.0 --set views.shift=0.0
+  --set views.color=0.0 --set views.style=0.3 --set "views.style_blocks=[2,4,7]"
+  --set view_damping=1)
 DRAW_SEEDS=${DRAW_SEEDS:-5 7 9 11}
 DRAW_CONDITIONS=${DRAW_CONDITIONS:-default unseen_look look_b look_c look_d}
 INLOOK_CONDITIONS=${INLOOK_CONDITIONS:-unseen_look look_b look_d}
@@ -148,8 +155,8 @@ stage_study() {
     # shellcheck disable=SC2086 # the setting is four words
     render "$OUT/study/$name" 1 2 default ${SETTINGS[$name]}
     run "$BIN/grasp-gen" dataset stats "$OUT/study/$name" --json >"$OUT/study/$name.stats.json"
-    heads "$OUT/study/$name" "$OUT/study-models/$name-whole" --head fc
-    heads "$OUT/study/$name" "$OUT/study-models/$name-crop" --head fc --center-crop "$CROP"
+    heads "$OUT/study/$name" "$OUT/study-models/$name-whole" --set head=fc
+    heads "$OUT/study/$name" "$OUT/study-models/$name-crop" --set head=fc "${CROP_SET[@]}"
   done
 }
 
@@ -161,21 +168,21 @@ stage_ablation() {
     # shellcheck disable=SC2086
     render "$OUT/ablation/no-$lever" 1 2 default $base "$(printf '%s\nenabled = false' "$extra")"
     run "$BIN/grasp-gen" dataset stats "$OUT/ablation/no-$lever" --json >"$OUT/ablation/no-$lever.stats.json"
-    heads "$OUT/ablation/no-$lever" "$OUT/ablation-models/no-$lever" --head fc --center-crop "$CROP"
+    heads "$OUT/ablation/no-$lever" "$OUT/ablation-models/no-$lever" --set head=fc "${CROP_SET[@]}"
   done
   # every lever on, the training noise widened towards (not into) unseen_look's
   # shellcheck disable=SC2086
   render "$OUT/ablation/noise-wide" 1 2 default $base "$(printf '[randomize.sensor_noise]\nsigma = [0.0, 0.029]')"
-  heads "$OUT/ablation/noise-wide" "$OUT/ablation-models/noise-wide" --head fc --center-crop "$CROP"
+  heads "$OUT/ablation/noise-wide" "$OUT/ablation-models/noise-wide" --set head=fc "${CROP_SET[@]}"
 }
 
 stage_parts() {
   local data="$OUT/study/r224-s1dn-f5" crop window
   for crop in 0.35 0.5 0.7; do
-    heads "$data" "$OUT/parts/crop-$crop" --head fc --center-crop "$crop"
+    heads "$data" "$OUT/parts/crop-$crop" --set head=fc --set "reader.crop={ fraction = $crop }"
   done
-  heads "$data" "$OUT/parts/lstm-whole" --head lstm
-  heads "$data" "$OUT/parts/lstm-crop" --head lstm --center-crop "$CROP"
+  heads "$data" "$OUT/parts/lstm-whole" --set head=lstm
+  heads "$data" "$OUT/parts/lstm-crop" --set head=lstm "${CROP_SET[@]}"
   local runs="$OUT/study-models/r224-s1dn-f5-crop"
   checkpoints_of "$runs"
   for window in "--before-tail-s 1.0" "--before-tail-s 0.5" "--to-s 1.5" "--from-s 1.0"; do
@@ -196,11 +203,12 @@ stage_egocentric() {
   render "$ego/val" 2 1 default 128 1 openimagedenoise 2.5 "$head_camera"
   render "$ego/test-default" 3 2 default 128 1 openimagedenoise 2.5 "$head_camera"
   for camera in Wrist_d435 Head_d435 Wrist_d435-whole Head_d435-whole; do
-    local runs="$ego/$camera" crop=(--center-crop "$CROP")
+    local runs="$ego/$camera" crop=("${CROP_SET[@]}")
     [ "${camera%-whole}" = "$camera" ] || crop=()
     [ -f "$runs/.done" ] || {
-      run "$BIN/grasp-train" train --data "$ego/train" --val-data "$ego/val" --head fc --seeds "$SEEDS" \
-        --camera "${camera%-whole}" "${crop[@]}" --out "$runs" --cache-dir "$OUT/cache"
+      run "$BIN/grasp-train" train --data "$ego/train" --val-data "$ego/val" --set head=fc \
+        --seeds "$SEEDS" --set "reader.camera=${camera%-whole}" "${crop[@]}" --out "$runs" \
+        --cache-dir "$OUT/cache"
       touch "$runs/.done"
     }
     checkpoints_of "$runs"
@@ -216,14 +224,14 @@ stage_main() {
 
 # Frozen FC heads (SEEDS of them) trained on DATA/train and DATA/val with
 # the main job's feature cache, unless RUNS is done. They crop the fraction
-# CROP unless the flags give --crop-angle-deg.
+# CROP unless the flags set reader.crop.
 frozen_fc() { # runs data train-flags...
-  local runs=$1 data=$2 crop=(--center-crop "$CROP")
+  local runs=$1 data=$2 crop=("${CROP_SET[@]}")
   shift 2
-  [[ " $* " != *" --crop-angle-deg "* ]] || crop=()
+  [[ " $* " != *" reader.crop="* ]] || crop=()
   [ -f "$runs/.done" ] || {
-    run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --head fc \
-      --seeds "$SEEDS" --mode frozen-pretrained "${crop[@]}" --out "$runs" \
+    run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --set head=fc \
+      --seeds "$SEEDS" --set mode=frozen-pretrained "${crop[@]}" --out "$runs" \
       --cache-dir "$OUT/main/features" "$@"
     touch "$runs/.done"
   }
@@ -250,7 +258,7 @@ stage_large() {
 stage_size() {
   local n
   for n in 1 2 4 8 16; do
-    main_fc "$OUT/size-$n" --sequences-per-pair "$n" --input-size "$INPUT_SIZE"
+    main_fc "$OUT/size-$n" --set "sequences_per_pair=$n" --set "input_size=$INPUT_SIZE"
   done
 }
 
@@ -258,7 +266,7 @@ stage_size() {
 stage_input() {
   local n
   for n in 64 96 128 160 224; do
-    main_fc "$OUT/input-$n" --input-size "$n"
+    main_fc "$OUT/input-$n" --set "input_size=$n"
     probes "$OUT/input-$n"
   done
 }
@@ -321,10 +329,10 @@ stage_inlook() {
 # draws of every condition of the draws stage.
 inlook_heads() { # dir data
   local dir=$1 data=$2 recipe c
-  local -A recipes=([plain]="" [style-damped]="-c configs/train-style-views.toml --view-damping 1")
+  local -A recipes=([plain]="" [style-damped]="${STYLE_DAMPED[*]}")
   for recipe in plain style-damped; do
     # shellcheck disable=SC2086 # the recipe's flags are words
-    frozen_fc "$dir/fc-$recipe" "$data" --input-size "$INPUT_SIZE" --pooled-blocks 7,10,14,15 \
+    frozen_fc "$dir/fc-$recipe" "$data" --set "input_size=$INPUT_SIZE" --set "pooled_blocks=[7,10,14,15]" \
       ${recipes[$recipe]}
     score_draws "$dir/fc-$recipe"
   done
@@ -350,12 +358,13 @@ score_draws() { # runs
 # EXPERIMENTS-archive.md section 21.
 stage_camera() {
   local variant
-  local -A variants=([fraction]="" [fraction-denoised]="--denoise"
-    [angle]="--crop-angle-deg 18.3" [angle-denoised]="--crop-angle-deg 18.3 --denoise")
+  local -A variants=([fraction]="" [fraction-denoised]="--set reader.denoise=true"
+    [angle]="--set reader.crop={angle_deg=18.3}"
+    [angle-denoised]="--set reader.crop={angle_deg=18.3} --set reader.denoise=true")
   for variant in fraction fraction-denoised angle angle-denoised; do
     # shellcheck disable=SC2086 # the variant's flags are words
-    frozen_fc "$OUT/camera/$variant" "$OUT/main/data" --input-size "$INPUT_SIZE" \
-      --pooled-blocks 7,10,14,15 -c configs/train-style-views.toml --view-damping 1 \
+    frozen_fc "$OUT/camera/$variant" "$OUT/main/data" --set "input_size=$INPUT_SIZE" \
+      --set "pooled_blocks=[7,10,14,15]" "${STYLE_DAMPED[@]}" \
       ${variants[$variant]}
     score_draws "$OUT/camera/$variant"
   done

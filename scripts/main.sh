@@ -17,25 +17,17 @@
 #                   (1 sample, denoised) at 224 x 224 and 2.5 frames/s, only
 #                   the central half of each frame rendered (the heads see
 #                   less), 24 training sequences per pair, 2 test sequences
-#                   per pair and condition (62 videos each). The backbone is
-#                   the ImageNet EfficientNet-Lite0 that scripts/setup.sh
-#                   pip-installs; the heads see the centre of each frame
-#                   that spans 18.3 degrees (--crop-angle-deg: 42 % of it
-#                   through the default lens, less through a wider one),
-#                   denoised (--denoise), at 128 x 128 (--input-size);
-#                   the frozen heads read the pooled outputs of blocks 7,
-#                   10, 14 and 15 after the head's (--pooled-blocks), and
-#                   the LSTM trains on sequences started anywhere in their
-#                   first half (--lstm-start-crop 0.5); the frozen FC head
-#                   adds style views (configs/train-style-views.toml)
-#                   and damps what they change (--view-damping 1),
-#                   EXPERIMENTS.md.
+#                   per pair and condition (62 videos each). The models are
+#                   trained from the recipes configs/recipes/fc.toml,
+#                   lstm.toml and fc-tuned.toml (every value they are trained
+#                   with, and why), 3 seeds each.
 #                   About 35 minutes on 2 idle cores after setup.
 #   --large         the same with 32 training sequences per pair (a third
 #                   more training renders and fine-tuning epochs).
 #   --from-scratch  the earlier CPU fallback: configs/main-small.toml
-#                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair), a
-#                   MobileNetV2 at width 0.35 on 64 px trained end to end.
+#                   (Workbench, 96 px, 10 frames/s, 4 sequences per pair) and
+#                   configs/recipes/scratch.toml (a MobileNetV2 at width
+#                   0.35 on 64 px trained end to end).
 #   --paper-scale   the paper's size: configs/default.toml (47 sequences per
 #                   pair, Cycles 224 x 224 at 30 frames/s, 4 samples);
 #                   frozen Lite0 heads as by default (hours on 2 cores).
@@ -49,16 +41,8 @@
 #
 # Re-running resumes: finished sequences, trainings and evaluations are kept.
 # Environment: SKIP_SETUP=1 skips scripts/setup.sh, BIN (target/release),
-# CONFIG overrides the config, TRAIN_SEQ / TEST_SEQ the sequences per pair,
-# SEEDS (3), CROP_ANGLE (18.3 degrees; "none" crops the fixed fraction
-# CROP instead), CROP (0.42, with CROP_ANGLE=none; "none" for whole frames,
-# which needs a CONFIG with center_region = 1), DENOISE (1; 0 feeds the
-# crop as rendered), INPUT_SIZE (128, the backbone's input side),
-# POOLED (7,10,14,15, the frozen heads' pooled blocks; "none" for the
-# head's features alone), LSTM_START_CROP (0.5; 0 trains the LSTM on whole
-# sequences), STYLE (configs/train-style-views.toml, the frozen FC head's
-# views; "none" for none), DAMPING (1, the frozen FC head's --view-damping
-# of what its views change; 0 for none).
+# CONFIG overrides the render config, TRAIN_SEQ / TEST_SEQ the sequences per
+# pair, SEEDS (3). To train other models, edit or copy the recipes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -70,7 +54,7 @@ while [ $# -gt 0 ]; do
     --from-scratch) SCRATCH=1 ;;
     --ycb) YCB=${2:?--ycb needs a folder}; shift ;;
     --weights) WEIGHTS=${2:?--weights needs a file}; shift ;;
-    -h | --help) sed -n '2,57p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,45p' "$0"; exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2; exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -78,11 +62,10 @@ while [ $# -gt 0 ]; do
 done
 [ "$SCRATCH" = 0 ] || [ -z "$WEIGHTS" ] || { echo "--from-scratch takes no --weights" >&2; exit 2; }
 
-SEEDS=${SEEDS:-3} POOLED_FLAGS=()
-CROP=${CROP:-0.42} CROP_ANGLE=${CROP_ANGLE:-18.3} DENOISE=${DENOISE:-1}
-INPUT_SIZE=${INPUT_SIZE:-128} POOLED=${POOLED:-7,10,14,15}
-LSTM_START_CROP=${LSTM_START_CROP:-0.5}
-STYLE=${STYLE:-configs/train-style-views.toml} STYLE_FLAGS=() DAMPING=${DAMPING:-1}
+SEEDS=${SEEDS:-3}
+# The crop angle of the recipes (configs/recipes/*.toml, reader.crop): a
+# look through a narrower lens is rendered as far out as it needs.
+CROP_ANGLE=18.3
 if [ "$PAPER" = 1 ]; then
   CONFIG=${CONFIG:-configs/default.toml} TRAIN_SEQ=${TRAIN_SEQ:-47} TEST_SEQ=${TEST_SEQ:-2}
 elif [ "$LARGE" = 1 ]; then
@@ -92,50 +75,22 @@ elif [ "$SCRATCH" = 1 ]; then
 else
   CONFIG=${CONFIG:-configs/main.toml} TRAIN_SEQ=${TRAIN_SEQ:-24} TEST_SEQ=${TEST_SEQ:-2}
 fi
-# Models: MODEL is HEAD or HEAD-tuned (EfficientNet-Lite0's last eight blocks
-# fine-tuned with the head after a linear probe, the trainer's defaults; at
-# most 6 epochs, as every seed's best came at epoch 3: EXPERIMENTS-archive.md,
-# section 11. Not with --weights, which may be MobileNetV2).
+# Models: each is trained from configs/recipes/MODEL.toml.
+TRAIN_SETS=()
 if [ "$SCRATCH" = 1 ]; then
-  MODELS=(fc) SEEDS=1
-  TRAIN_FLAGS=(--width-mult 0.35 --input-size 64 --max-epochs 8 --lr 3e-3)
+  MODELS=(scratch) SEEDS=1
 else
   MODELS=(fc lstm)
-  [ -n "$WEIGHTS" ] || MODELS+=(fc-tuned)
-  TRAIN_FLAGS=(--cache-dir "$OUT/features" --input-size "$INPUT_SIZE")
-  [ -z "$WEIGHTS" ] || TRAIN_FLAGS+=(--weights "$WEIGHTS")
-  # The camera's view normalised (EXPERIMENTS-archive.md, section 21): the crop
-  # spans a fixed angle whatever the lens, and is denoised first.
-  if [ "$CROP_ANGLE" != none ]; then
-    TRAIN_FLAGS+=(--crop-angle-deg "$CROP_ANGLE")
-  elif [ "$CROP" != none ]; then
-    TRAIN_FLAGS+=(--center-crop "$CROP")
+  # Another frozen backbone (--weights, maybe a MobileNetV2) is not tuned,
+  # and reads neither Lite0's pooled blocks nor its restyled ones.
+  if [ -n "$WEIGHTS" ]; then
+    TRAIN_SETS=(--set "weights=$WEIGHTS" --set "pooled_blocks=[]" --set views.count=0
+      --set views.style=0 --set view_damping=0)
+  else
+    MODELS+=(fc-tuned)
   fi
-  [ "$DENOISE" = 0 ] || TRAIN_FLAGS+=(--denoise)
-  # Lite0's blocks only (--weights may be MobileNetV2)
-  [ -n "$WEIGHTS" ] || [ "$POOLED" = none ] || POOLED_FLAGS=(--pooled-blocks "$POOLED")
-  # style views restyle Lite0's blocks (--weights may be MobileNetV2)
-  [ -n "$WEIGHTS" ] || [ "$STYLE" = none ] || STYLE_FLAGS=(-c "$STYLE")
-  [ "${#STYLE_FLAGS[@]}" = 0 ] || [ "$DAMPING" = 0 ] || STYLE_FLAGS+=(--view-damping "$DAMPING")
+  TRAIN_SETS+=(--cache-dir "$OUT/features")
 fi
-# The frozen heads read pooled blocks; the fine-tuned one does not, as they
-# cost it 3.6 points on unseen_look (EXPERIMENTS-archive.md section 12). The LSTM
-# trains on sequences started anywhere in their first half, which a reach
-# from the ground needs (section 13). The frozen FC head also trains on four
-# style views of every sequence (section 14), with the feature directions
-# they change damped (section 17).
-mode_flags() { # model
-  case $1 in
-    *-tuned) echo --mode fine-tuned --max-epochs 6 ;;
-    *) if [ "$SCRATCH" = 1 ]; then
-      echo --mode from-scratch
-    else
-      echo --mode frozen-pretrained "${POOLED_FLAGS[@]}"
-    fi ;;
-  esac
-  [ "$1" != lstm ] || echo --lstm-start-crop "$LSTM_START_CROP"
-  [ "$1" != fc ] || echo "${STYLE_FLAGS[@]}"
-}
 CONDITIONS=(default fast from_ground seated background unseen_look)
 # More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
 # (EXPERIMENTS-archive.md, sections 15, 16 and 18).
@@ -166,7 +121,6 @@ derived_config() { # seed, sequences per pair, conditions, name
 # the default (look B's): render that much of it, 2 % to spare (at most the
 # whole frame), where the config's center_region is smaller.
 fit_region() { # config
-  [ "$CROP_ANGLE" != none ] || return 0
   local need
   need=$(awk -v a="$CROP_ANGLE" '
     /^\[/ { look = ($0 == "[appearance.unseen_look]") }
@@ -213,9 +167,8 @@ for model in "${MODELS[@]}"; do
   CHECKPOINTS=()
   for ((s = 0; s < SEEDS; s++)); do CHECKPOINTS+=(-c "$MODEL/seed-$s"); done
   [ -f "$MODEL/.done" ] || {
-    # shellcheck disable=SC2046 # mode_flags is a list of words
-    $BIN/grasp-train train --data "$OUT/data/train" --val-data "$OUT/data/val" \
-      --head "${model%%-*}" $(mode_flags "$model") --seeds "$SEEDS" "${TRAIN_FLAGS[@]}" --out "$MODEL"
+    $BIN/grasp-train train --recipe "configs/recipes/$model.toml" --data "$OUT/data/train" \
+      --val-data "$OUT/data/val" --seeds "$SEEDS" "${TRAIN_SETS[@]}" --out "$MODEL"
     touch "$MODEL/.done"
   }
   for condition in "${TEST_SETS[@]}"; do
@@ -238,8 +191,11 @@ trap 'kill $HAND 2>/dev/null || true' EXIT
 for _ in $(seq 50); do [ -e "$PTY" ] && break; sleep 0.1; done
 # The recording replays at its own 2.5 frames/s; a decision's age runs from
 # the vote, so the default 300 ms limit holds for it as for a live camera.
-REPLAYED="$OUT/model-fc/seed-0"
-[ ! -d "$OUT/model-fc-tuned" ] || REPLAYED="$OUT/model-fc-tuned/seed-0"
+# The shipped model: the fine-tuned FC head when trained, else the FC head.
+for model in fc-tuned fc scratch; do
+  REPLAYED="$OUT/model-$model/seed-0"
+  [ ! -d "$REPLAYED" ] || break
+done
 $BIN/hannes-run run --checkpoint "$REPLAYED" --source "$SEQUENCE" --port "$PTY" \
   --trigger now --closure delay:0.5 --report "$OUT/replay.jsonl"
 sleep 0.5

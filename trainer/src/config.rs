@@ -220,21 +220,21 @@ impl TrainConfig {
     fn validate_view_damping(&self) -> Result<()> {
         let d = self.view_damping;
         if !d.is_finite() || d < 0.0 {
-            anyhow::bail!("view_damping (--view-damping) must be 0 or positive, got {d}");
+            anyhow::bail!("view_damping must be 0 or positive, got {d}");
         }
         let views = self.views.count + usize::from(self.look_twins.is_some());
         if d > 0.0 && (self.mode != TrainMode::FrozenPretrained || views == 0) {
             anyhow::bail!(
-                "view_damping (--view-damping) {d} damps what the extra views change in the \
+                "view_damping {d} damps what the extra views change in the \
                  cached features: it needs frozen-pretrained mode and views.count \
-                 (--feature-views) or look_twins (--look-twins), got {} mode and {} views",
+                 or look_twins, got {} mode and {} views",
                 self.mode.name(),
                 views
             );
         }
         if self.look_twins.is_some() && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
-                "look_twins (--look-twins) adds cached views of the training set (the frozen and \
+                "look_twins adds cached views of the training set (the frozen and \
                  fine-tuned modes); from-scratch training augments every epoch instead"
             );
         }
@@ -243,26 +243,26 @@ impl TrainConfig {
 
     pub fn validate(&self) -> Result<()> {
         if self.data.as_os_str().is_empty() {
-            anyhow::bail!("no training data: set `data` in the config or pass --data");
+            anyhow::bail!("no training data: pass --data (or set `data` in the recipe)");
         }
         self.views.validate()?;
         if self.views.count > 0 && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
-                "views.count (--feature-views) augments cached features; from-scratch training \
+                "views.count augments cached features; from-scratch training \
                  augments every epoch instead (the `augment` settings)"
             );
         }
         if self.views.style > 0.0 {
             if self.views.count == 0 {
                 anyhow::bail!(
-                    "views.style (--view-style) {} restyles the extra views, but there are none: \
-                     set views.count (--feature-views)",
+                    "views.style {} restyles the extra views, but there are none: \
+                     set views.count",
                     self.views.style
                 );
             }
             if self.backbone == Some(grasp_model::backbone::Architecture::MobileNetV2) {
                 anyhow::bail!(
-                    "views.style (--view-style) needs an EfficientNet-Lite backbone, not \
+                    "views.style needs an EfficientNet-Lite backbone, not \
                      MobileNetV2"
                 );
             }
@@ -270,7 +270,7 @@ impl TrainConfig {
         self.validate_view_damping()?;
         if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
             anyhow::bail!(
-                "pooled_blocks (--pooled-blocks) {:?} are EfficientNet-Lite blocks, read in the \
+                "pooled_blocks {:?} are EfficientNet-Lite blocks, read in the \
                  frozen-pretrained and fine-tuned modes; from-scratch trains a MobileNetV2",
                 self.pooled_blocks
             );
@@ -313,13 +313,13 @@ impl TrainConfig {
         }
         if !(0.0..=1.0).contains(&self.lstm_start_crop) {
             anyhow::bail!(
-                "lstm_start_crop (--lstm-start-crop) must be a fraction in [0, 1], got {}",
+                "lstm_start_crop must be a fraction in [0, 1], got {}",
                 self.lstm_start_crop
             );
         }
         if self.lstm_start_crop > 0.0 && self.head != HeadKind::Lstm {
             anyhow::bail!(
-                "lstm_start_crop (--lstm-start-crop) {} crops training sequences for the LSTM \
+                "lstm_start_crop {} crops training sequences for the LSTM \
                  head; the {} head reads single frames",
                 self.lstm_start_crop,
                 self.head.name()
@@ -407,7 +407,7 @@ mod tests {
             ..styled.clone()
         };
         let err = format!("{:#}", scratch.validate().unwrap_err());
-        assert!(err.contains("--feature-views"), "{err}");
+        assert!(err.contains("views.count"), "{err}");
         let no_views = TrainConfig {
             views: ViewConfig {
                 count: 0,
@@ -417,7 +417,7 @@ mod tests {
         };
         let err = format!("{:#}", no_views.validate().unwrap_err());
         assert!(
-            err.contains("--view-style") && err.contains("views.count"),
+            err.contains("views.style") && err.contains("views.count"),
             "{err}"
         );
         let mnv2 = TrainConfig {
@@ -476,7 +476,7 @@ mod tests {
             },
         ] {
             let err = format!("{:#}", bad.validate().unwrap_err());
-            assert!(err.contains("--view-damping"), "{err}");
+            assert!(err.contains("view_damping"), "{err}");
         }
         // Look twins are views too, cached like them.
         let twins = TrainConfig {
@@ -492,7 +492,7 @@ mod tests {
         }
         .validate()
         .unwrap_err();
-        assert!(format!("{err:#}").contains("--look-twins"), "{err:#}");
+        assert!(format!("{err:#}").contains("look_twins"), "{err:#}");
     }
 
     #[test]
@@ -518,7 +518,7 @@ mod tests {
         };
         let err = format!("{:#}", fc.validate().unwrap_err());
         assert!(
-            err.contains("--lstm-start-crop") && err.contains("fc head"),
+            err.contains("lstm_start_crop") && err.contains("fc head"),
             "{err}"
         );
     }

@@ -13,6 +13,7 @@ pub mod init;
 pub mod loss;
 pub mod optim;
 pub mod progress;
+pub mod recipe;
 pub mod rng;
 pub mod stand_in;
 pub mod train;

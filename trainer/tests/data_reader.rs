@@ -268,7 +268,9 @@ fn set_center_region(json: &std::path::Path, value: serde_json::Value) {
 
 #[test]
 fn a_crop_wider_than_the_rendered_centre_is_refused_naming_the_file() {
-    let (dir, _) = generated();
+    // Frames large enough for a 0.42 crop to stay above the backbone's
+    // minimum square.
+    let (dir, _) = generated_at(64);
     let fail = BadData::new(OnBadData::Fail);
     let data = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
     let json = data.sequences[1].dir.join("sequence.json");

@@ -24,6 +24,18 @@ fn grasp_train(cwd: &Path, args: &[&str]) -> (bool, String) {
     (out.status.success(), text)
 }
 
+/// A tiny from-scratch model, as recipe overrides.
+const TINY_RECIPE: [&str; 8] = [
+    "--set",
+    "mode=from-scratch",
+    "--set",
+    "width_mult=0.25",
+    "--set",
+    "input_size=32",
+    "--set",
+    "max_epochs=1",
+];
+
 /// Trains one tiny from-scratch seed on `work/data`, with relative paths
 /// from `work` as a user would type them; returns the checkpoint.
 fn train_tiny(work: &Path) -> PathBuf {
@@ -35,8 +47,7 @@ fn train_tiny(work: &Path) -> PathBuf {
 /// flags.
 fn train_tiny_on_data(work: &Path, extra: &[&str]) -> PathBuf {
     let mut args = vec!["--threads", "2", "train", "--data", "data", "--out", "run"];
-    args.extend(["--mode", "from-scratch", "--width-mult", "0.25"]);
-    args.extend(["--input-size", "32", "--max-epochs", "1"]);
+    args.extend(TINY_RECIPE);
     args.extend(extra);
     let (ok, text) = grasp_train(work, &args);
     assert!(ok, "{text}");
@@ -162,7 +173,7 @@ fn eval_reads_the_camera_the_checkpoint_was_trained_on() {
     let work = dir.path();
     write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
     as_head_camera(&work.join("data"));
-    train_tiny_on_data(work, &["--camera", "Head_d435"]);
+    train_tiny_on_data(work, &["--set", "reader.camera=Head_d435"]);
     // No --camera: the checkpoint's own camera, so the head frames are found.
     let (ok, text) = grasp_train(
         work,
@@ -310,7 +321,8 @@ fn eval_reads_the_authors_layout_with_a_fixed_angle_checkpoint_given_the_lens() 
     let work = dir.path();
     write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
     let angle = half_frame_angle();
-    train_tiny_on_data(work, &["--crop-angle-deg", &angle]);
+    let crop = format!("reader.crop={{ angle_deg = {angle} }}");
+    train_tiny_on_data(work, &["--set", &crop]);
     write_synthetic(&work.join("real"), &SyntheticSpec::small(Layout::Authors)).unwrap();
     let eval = |out: &str, lens: &[&str]| {
         let mut args = vec![
@@ -333,7 +345,7 @@ fn eval_reads_the_authors_layout_with_a_fixed_angle_checkpoint_given_the_lens() 
         "{text}"
     );
     // A focal length in millimetres is not a camera.
-    let (ok, text) = eval("mm", &["--focal-px", "1.93", "--lens-size", "32x32"]);
+    let (ok, text) = eval("mm", &["--focal-px", "1.93", "--lens-size", "224x224"]);
     assert!(
         !ok && text.contains("focal_px") && text.contains("field of view"),
         "{text}"
@@ -385,15 +397,8 @@ fn eval_refuses_a_mix_of_inputs_and_records_a_replaced_crop() {
         "--out",
         "cropped",
     ];
-    args.extend(["--mode", "from-scratch", "--width-mult", "0.25"]);
-    args.extend([
-        "--input-size",
-        "32",
-        "--max-epochs",
-        "1",
-        "--center-crop",
-        "0.5",
-    ]);
+    args.extend(TINY_RECIPE);
+    args.extend(["--set", "reader.crop={ fraction = 0.5 }"]);
     let (ok, text) = grasp_train(work, &args);
     assert!(ok, "{text}");
     let args = [
@@ -440,7 +445,8 @@ fn eval_refuses_a_mix_of_inputs_and_records_a_replaced_crop() {
     let args = ["eval", "-c", "run/seed-0", "--data", "dots", "--out", "d"];
     let (ok, text) = grasp_train(work, &args);
     assert!(
-        !ok && text.contains("1x1") && text.contains(".png"),
+        !ok && text.contains("1x1") && text.contains("16 px minimum"),
         "{text}"
     );
+    assert!(text.contains("dots/can/010_can"), "{text}");
 }

@@ -39,7 +39,7 @@ fn a_split_without_some_pre_shapes_is_refused_naming_them() {
         text.contains("no training sequence of lateral, pinch, pinch3"),
         "{text}"
     );
-    assert!(text.contains("--allow-missing-classes"), "{text}");
+    assert!(text.contains("allow_missing_classes"), "{text}");
     assert!(!dir.path().join("refused/seed-0").exists());
 
     // Told otherwise, it trains (and its frames do hold two labels).

@@ -47,7 +47,7 @@ impl BadData {
         };
         match self.policy {
             OnBadData::Fail => anyhow::bail!(
-                "bad data: {}: {} (use --on-bad-data skip to leave it out)",
+                "bad data: {}: {} (to leave it out: eval --on-bad-data skip, train --set on_bad_data=skip)",
                 problem.path.display(),
                 problem.reason
             ),

@@ -57,9 +57,9 @@ pub fn check_training_classes(train: &Dataset, allow: bool) -> Result<Coverage> 
             if c.missing.len() == 1 { "it" } else { "them" }
         );
         if !allow {
-            bail!("{what}. Add sequences of every pre-shape, or pass --allow-missing-classes to train anyway");
+            bail!("{what}. Add sequences of every pre-shape, or train anyway with --set allow_missing_classes=true");
         }
-        tracing::warn!("{what} (--allow-missing-classes)");
+        tracing::warn!("{what} (allow_missing_classes)");
     }
     if c.no_grasp_frames == 0 && !train.sequences.is_empty() {
         tracing::warn!(
