@@ -185,7 +185,7 @@ pub fn progress_line(
     elapsed: std::time::Duration,
     message: &str,
 ) -> String {
-    let pct = if len == 0 { 100 } else { pos * 100 / len };
+    let pct = (pos * 100).checked_div(len).unwrap_or(100);
     let left = match pos {
         0 => "time left unknown".to_string(),
         _ if pos >= len => "done".to_string(),

@@ -1,6 +1,7 @@
 //! `hannes-run`: the pre-shape classifier driving the Hannes hand.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_cli::LensArgs;
 use grasp_model::checkpoint::Classifier;
 use grasp_model::input::{Crop, Lens};
 use grasp_schema::cli::Failure;
@@ -109,38 +110,6 @@ struct SourceArgs {
     fps: Option<f64>,
     #[command(flatten)]
     lens: LensArgs,
-}
-
-/// The camera's lens (default: the recording's sequence.json). A
-/// checkpoint trained with --crop-angle-deg needs it; a live camera's comes
-/// from its calibration.
-#[derive(Args, Clone)]
-struct LensArgs {
-    /// The camera's focal length in pixels, measured at --lens-size
-    /// (scaled when frames are another size).
-    #[arg(long, value_name = "PIXELS", requires = "lens_size")]
-    focal_px: Option<f64>,
-    /// The resolution --focal-px was measured at.
-    #[arg(long, value_name = "WxH", value_parser = grasp_model::input::parse_size)]
-    lens_size: Option<(u32, u32)>,
-    /// The angle the frames' width spans, in degrees.
-    #[arg(long, value_name = "DEGREES", conflicts_with_all = ["focal_px", "lens_file"])]
-    hfov_deg: Option<f64>,
-    /// A lens file kept with the prosthesis (TOML: focal_px, width and
-    /// height; or hfov_deg).
-    #[arg(long, value_name = "FILE", conflicts_with = "focal_px")]
-    lens_file: Option<PathBuf>,
-}
-
-impl LensArgs {
-    fn lens(&self) -> Result<Option<Lens>> {
-        Ok(Lens::from_options(
-            self.focal_px,
-            self.lens_size,
-            self.hfov_deg,
-            self.lens_file.as_deref(),
-        )?)
-    }
 }
 
 #[derive(Args)]
@@ -397,7 +366,11 @@ fn run(args: RunArgs) -> Result<()> {
         }
     };
     let approaches = args.approaches.unwrap_or(if live { usize::MAX } else { 1 });
-    let model = runtime::model::ModelRecord::of(&classifier, &args.source.checkpoint);
+    let model = runtime::model::ModelRecord::of(
+        &classifier,
+        &args.source.checkpoint,
+        args.source.lens.given(),
+    );
     let mut session = Session {
         hand: &hand,
         classifier: &mut classifier,
@@ -555,7 +528,11 @@ fn replay(args: ReplayArgs) -> Result<()> {
             window: &'a W,
         }
         let out = ReplayJson {
-            model: runtime::model::ModelRecord::of(&classifier, &args.source.checkpoint),
+            model: runtime::model::ModelRecord::of(
+                &classifier,
+                &args.source.checkpoint,
+                args.source.lens.given(),
+            ),
             window: &window,
         };
         println!("{}", serde_json::to_string_pretty(&out)?);

@@ -19,14 +19,21 @@ pub struct ModelRecord {
     pub input: InputSpec,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lens: Option<Lens>,
+    /// Where the lens came from: `sequence.json`, or the command line's
+    /// lens flags (which replace a recording's own).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens_from: Option<&'static str>,
 }
 
 impl ModelRecord {
-    pub fn of(classifier: &Classifier, checkpoint: &Path) -> ModelRecord {
+    /// `lens_flags`: whether the lens came from the command line.
+    pub fn of(classifier: &Classifier, checkpoint: &Path, lens_flags: bool) -> ModelRecord {
+        let lens = classifier.lens().copied();
         ModelRecord {
             checkpoint: checkpoint.to_path_buf(),
             input: classifier.input().clone(),
-            lens: classifier.lens().copied(),
+            lens,
+            lens_from: lens.map(|_| if lens_flags { "flags" } else { "sequence.json" }),
         }
     }
 }

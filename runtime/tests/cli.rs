@@ -755,6 +755,7 @@ fn a_recording_at_another_size_than_its_intrinsics_is_cut_at_the_same_angle() {
     assert_eq!(model["checkpoint"], ckpt.to_str().unwrap());
     assert_eq!(model["input"]["crop"]["angle_deg"], angle);
     assert_eq!(model["lens"]["focal"]["width"], 64);
+    assert_eq!(model["lens_from"], "sequence.json");
     assert!(json["decision"].is_object(), "{json}");
 
     // A focal length in millimetres is refused by name, not cut under a pixel.

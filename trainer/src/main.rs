@@ -2,6 +2,7 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use grasp_cli::LensArgs;
 use grasp_model::backbone::Architecture;
 use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
@@ -178,36 +179,6 @@ struct TrainArgs {
     cache_dir: Option<PathBuf>,
     #[command(flatten)]
     lens: LensArgs,
-}
-
-/// The camera's lens, for frames without a sequence.json (the authors'
-/// layout, a user's own recordings): a fixed-angle crop needs it.
-#[derive(Args, Clone, Default)]
-struct LensArgs {
-    /// The camera's focal length in pixels, measured at --lens-size
-    /// (scaled when frames are another size).
-    #[arg(long, value_name = "PIXELS", requires = "lens_size")]
-    focal_px: Option<f64>,
-    /// The resolution --focal-px was measured at.
-    #[arg(long, value_name = "WxH", value_parser = grasp_model::input::parse_size)]
-    lens_size: Option<(u32, u32)>,
-    /// The angle the frames' width spans, in degrees.
-    #[arg(long, value_name = "DEGREES", conflicts_with_all = ["focal_px", "lens_file"])]
-    hfov_deg: Option<f64>,
-    /// A lens file (TOML: focal_px, width and height; or hfov_deg).
-    #[arg(long, value_name = "FILE", conflicts_with = "focal_px")]
-    lens_file: Option<PathBuf>,
-}
-
-impl LensArgs {
-    fn lens(&self) -> Result<Option<grasp_model::input::Lens>> {
-        Ok(grasp_model::input::Lens::from_options(
-            self.focal_px,
-            self.lens_size,
-            self.hfov_deg,
-            self.lens_file.as_deref(),
-        )?)
-    }
 }
 
 #[derive(Args)]

@@ -146,7 +146,7 @@ fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
     let mut idle = cfg(root, &weights, "idle");
     idle.views.style = 0.3;
     let err = format!("{:#}", trainer::experiment::run(&idle, 1).err().unwrap());
-    assert!(err.contains("--feature-views"), "{err}");
+    assert!(err.contains("views.count"), "{err}");
 }
 
 #[test]

@@ -199,5 +199,5 @@ fn feature_views_are_cached_extra_sequences_that_do_not_count_as_data() {
     let mut bad = scratch_cfg(root);
     bad.views.count = 1;
     let err = format!("{:#}", trainer::experiment::run(&bad, 1).err().unwrap());
-    assert!(err.contains("--feature-views"), "{err}");
+    assert!(err.contains("views.count"), "{err}");
 }
