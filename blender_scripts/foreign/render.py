@@ -51,6 +51,8 @@ def configure(settings):
     c.use_guiding = True
     c.use_surface_guiding = True
     c.use_volume_guiding = False
+    # The same frames whatever the thread count.
+    c.use_deterministic_guiding = True
     c.max_bounces = 8
     c.diffuse_bounces = 4
     c.glossy_bounces = 4

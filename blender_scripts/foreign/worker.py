@@ -6,6 +6,7 @@ the stream seed its own draws come from (draw.py); the plan's appearance,
 distractors and sensor are training's and play no part here."""
 
 import os
+import struct
 import tempfile
 
 import bpy
@@ -16,6 +17,25 @@ from blender_scripts.foreign import camera, draw, lights, materials, render, roo
 
 def _reset():
     bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def _strip_render_times(png):
+    """Removes the text chunks Cycles' render statistics leave in a PNG that
+    went through the compositor (render and synchronisation times), so the
+    same inputs give the same bytes."""
+    with open(png, "rb") as f:
+        data = f.read()
+    out, i = [data[:8]], 8
+    while i < len(data):
+        n = struct.unpack(">I", data[i : i + 4])[0]
+        chunk = data[i : i + 12 + n]
+        if not (chunk[4:8] == b"tEXt" and chunk[8:15] == b"cycles."):
+            out.append(chunk)
+        i += 12 + n
+    stripped = b"".join(out)
+    if len(stripped) != len(data):
+        with open(png, "wb") as f:
+            f.write(stripped)
 
 
 class Worker:
@@ -130,6 +150,7 @@ class Worker:
             target = os.path.join(out_dir, name)
             if made != target:
                 os.replace(made, target)
+            _strip_render_times(target)
 
     @staticmethod
     def _clear(obj):

@@ -1,6 +1,7 @@
 //! `[render] world`: the foreign world renders the same plans and labels
 //! as the studio, records `render.world = "foreign"` in every
-//! `sequence.json`, and draws other pixels (lit, not black); a dataset of
+//! `sequence.json`, and draws other pixels (lit, not black, the same bytes
+//! with one worker or two); a dataset of
 //! one world is refused as the other's (`--resume`, `dataset verify
 //! --config`); and configs the foreign world cannot render are refused
 //! naming the field. Cycles, 1 sample, 48 px, the built-in mug's body and
@@ -64,7 +65,7 @@ fn ok(args: &[&str]) -> String {
     stdout
 }
 
-fn render(cfg: &Path, out: &Path) {
+fn render(cfg: &Path, out: &Path, workers: &str) {
     ok(&[
         "render",
         "--config",
@@ -72,7 +73,7 @@ fn render(cfg: &Path, out: &Path) {
         "--out",
         out.to_str().unwrap(),
         "--workers",
-        "1",
+        workers,
         "--no-progress",
     ]);
 }
@@ -101,8 +102,21 @@ fn the_foreign_world_draws_the_studios_plans_with_other_pixels() {
     let mut outs = Vec::new();
     for world in ["studio", "foreign"] {
         let (cfg, out) = (config(dir.path(), world), dir.path().join(world));
-        render(&cfg, &out);
+        render(&cfg, &out, "1");
         outs.push((cfg, out));
+    }
+    // Its draws and noise follow the sequence, not the worker: one and two
+    // workers give the same bytes.
+    let again = dir.path().join("foreign-2");
+    render(&outs[1].0, &again, "2");
+    let (one, two) = (tree(&outs[1].1), tree(&again));
+    let pngs: Vec<_> = one.keys().filter(|n| n.ends_with(".png")).collect();
+    assert_eq!(pngs.len(), 6, "two sequences of three frames");
+    for name in pngs {
+        assert!(
+            one[name] == two[name],
+            "{name} differs between 1 and 2 workers"
+        );
     }
     let (studio, foreign) = (records(&outs[0].1), records(&outs[1].1));
     assert_eq!(studio.len(), 2, "the mug's body and handle");
