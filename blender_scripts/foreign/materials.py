@@ -268,20 +268,6 @@ def plain(mat, rgb, roughness=0.5, metallic=0.0, coat=0.0):
     _value(g, "Coat Weight", coat)
 
 
-def emitter(mat, rgb, strength):
-    g = Graph(mat)
-    _color(g, "Base Color", rgb)
-    _color(g, "Emission Color", rgb)
-    _value(g, "Emission Strength", strength)
-
-
-def glass(mat):
-    g = Graph(mat)
-    _value(g, "Transmission Weight", 1.0)
-    _value(g, "Roughness", 0.02)
-    _value(g, "IOR", 1.5)
-
-
 def table_material(mat, t):
     kind = t["kind"]
     if kind == "wood":

@@ -13,6 +13,8 @@ import math
 
 import bpy
 
+from blender_scripts.foreign import materials as m
+
 WINDOW_HALF_WIDTH = 0.9
 WINDOW_SILL = 0.9
 WINDOW_TOP = 2.2
@@ -241,8 +243,6 @@ class Room:
 
     def apply(self, d):
         """Shows the drawn window wall and counter, and sets the materials."""
-        from blender_scripts.foreign import materials as m
-
         for wall, (parts, plain) in self.walls.items():
             opened = wall == d["window"]
             for p in parts:
