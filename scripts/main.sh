@@ -4,7 +4,8 @@
 # six test conditions (the paper's five and unseen_look, an appearance
 # training never draws) and looks B, C and D (unseen_look with the appearance
 # of configs/test-look-b.toml, -c.toml and -d.toml, held-out looks nothing
-# was tuned on),
+# was tuned on) and the default test set in the foreign world
+# (configs/test-world-foreign.toml, another scene builder and render path),
 # verify and preview them, train FC and LSTM heads on
 # frozen, cached EfficientNet-Lite0 ImageNet features and an FC head with
 # Lite0's last eight blocks fine-tuned after a linear probe (3 seeds each),
@@ -95,8 +96,11 @@ CONDITIONS=(default fast from_ground seated background unseen_look)
 # More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
 # (EXPERIMENTS-archive.md, sections 15, 16 and 18).
 LOOKS=(look_b look_c look_d)
-# Test sets scored: the conditions and the held-out looks.
-TEST_SETS=("${CONDITIONS[@]}" "${LOOKS[@]}")
+# Foreign worlds (issue 41): the default test set drawn by another scene
+# builder and render path, configs/test-world-*.toml (docs/rendering.md).
+WORLDS=(world_foreign)
+# Test sets scored: the conditions, the held-out looks and the foreign worlds.
+TEST_SETS=("${CONDITIONS[@]}" "${LOOKS[@]}" "${WORLDS[@]}")
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
@@ -112,7 +116,7 @@ $BIN/grasp-gen objects list | tail -6
 $BIN/grasp-gen objects check
 $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 
-echo "== render: train, validation, the six test conditions and looks B, C and D"
+echo "== render: train, validation, the six test conditions, looks B, C and D and the foreign world"
 derived_config() { # seed, sequences per pair, conditions, name
   sed -e "s/^seed = .*/seed = $1/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $2/" \
     -e "s/^conditions = .*/conditions = [$3]/" "$CONFIG" >"$OUT/$4.toml"
@@ -152,6 +156,18 @@ for look in "${LOOKS[@]}"; do
   fit_region "$OUT/test-$look.tmp"
   mv "$OUT/test-$look.tmp" "$OUT/test-$look.toml"
   render "test-$look"
+done
+# Each world: the default test config with its [render] table replaced by
+# configs/test-world-X.toml's (the last table there), keeping the config's
+# center_region (what the models' crops need).
+for world in "${WORLDS[@]}"; do
+  derived_config 3 "$TEST_SEQ" '"default"' "test-$world"
+  region=$(awk '/^\[/ { r = ($0 == "[render]") } r && /^center_region/ { print $3 }' "$OUT/test-$world.toml")
+  awk '/^\[/ { skip = ($0 == "[render]") } !skip' "$OUT/test-$world.toml" >"$OUT/test-$world.tmp"
+  sed -n '/^\[render\]/,$p' "configs/test-${world/_/-}.toml" >>"$OUT/test-$world.tmp"
+  sed -i "s/^center_region = .*/center_region = ${region:-1.0}/" "$OUT/test-$world.tmp"
+  mv "$OUT/test-$world.tmp" "$OUT/test-$world.toml"
+  render "test-$world"
 done
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$OUT/train.toml"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"

@@ -41,11 +41,25 @@ impl GeneratorConfig {
         self.appearance.validate()?;
         self.randomize.validate()?;
         self.render.validate()?;
+        self.check_world()?;
         self.appearance.unseen_look.check_disjoint(
             &self.appearance,
             &self.randomize,
             &self.render.view_transform,
         )
+    }
+
+    /// What `[render] world` needs of the other sections: the foreign
+    /// world draws the wrist camera only.
+    fn check_world(&self) -> Result<()> {
+        if self.render.world != crate::render::World::Studio && self.plan.head_camera.enabled {
+            anyhow::bail!(
+                "[render] world = \"{}\" renders the wrist camera only; \
+                 [plan.head_camera] enabled must be false",
+                self.render.world.name()
+            );
+        }
+        Ok(())
     }
 
     /// Every check before planning: each section's values, the selection
@@ -58,6 +72,7 @@ impl GeneratorConfig {
             .context("invalid [plan] section of the config")?;
         self.appearance.validate()?;
         self.render.validate()?;
+        self.check_world()?;
         crate::plan::selection::check_selection(self, catalog)?;
         crate::plan::budget::check_size(self, crate::plan::selection::pair_count(self, catalog))
     }

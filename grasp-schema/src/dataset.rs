@@ -92,6 +92,15 @@ pub const PART_LABELS_KEY: &str = "part_labels";
 /// (`[render] center_region`), present when it is below 1.
 pub const CENTER_REGION_KEY: &str = "center_region";
 
+/// Key of the world that drew the frames inside [`SequenceRecord::render`]
+/// (`[render] world`): `studio` is training's scene, anything else a
+/// test world no training set may draw from. Records written before the key
+/// existed are studio renders.
+pub const WORLD_KEY: &str = "world";
+
+/// The world of records that predate [`WORLD_KEY`], and the default.
+pub const STUDIO_WORLD: &str = "studio";
+
 /// The centred square whose side is `fraction` of the shorter side of a
 /// `width` x `height` image (at least one pixel), as `(x, y, side)`: what a
 /// model's centre crop sees and what a `center_region` render draws.
@@ -209,6 +218,16 @@ impl SequenceRecord {
         match self.render.get(CENTER_REGION_KEY) {
             None => Some(1.0),
             Some(v) => v.as_f64().filter(|f| *f > 0.0 && *f <= 1.0),
+        }
+    }
+
+    /// The world that drew the frames (`studio`, `foreign`, ...): `studio`
+    /// when the record predates the key, `None` when its value is not a
+    /// string. Only studio sequences may go into a training set.
+    pub fn world(&self) -> Option<String> {
+        match self.render.get(WORLD_KEY) {
+            None => Some(STUDIO_WORLD.to_string()),
+            Some(v) => v.as_str().map(str::to_string),
         }
     }
 

@@ -4,7 +4,7 @@
 
 use super::writer::visit_sequences;
 use anyhow::{Context, Result};
-use grasp_schema::dataset::SequenceRecord;
+use grasp_schema::dataset::{SequenceRecord, STUDIO_WORLD};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -143,7 +143,11 @@ fn setting_label(r: &SequenceRecord) -> String {
     let k = &r.plan.intrinsics;
     let engine = r.render["engine"].as_str().unwrap_or("?");
     let samples = r.render["samples"].as_u64().unwrap_or(0);
-    let label = format!("{engine}, {samples} samples, {}x{}", k.width, k.height);
+    let mut label = format!("{engine}, {samples} samples, {}x{}", k.width, k.height);
+    // A test world other than training's studio is named first.
+    if let Some(world) = r.world().filter(|w| w != STUDIO_WORLD) {
+        label = format!("{world} world, {label}");
+    }
     match r.render_device() {
         Some(device) => format!("{label}, {device}"),
         None => label,
@@ -217,6 +221,17 @@ mod tests {
         assert!((s.setup_seconds_per_frame - 2.0 / 40.0).abs() < 1e-12);
         assert_eq!(s.settings["workbench, 1 samples, 32x32"], 3);
         assert!(s.render_text().contains("1 sequences carry no render cost"));
+    }
+
+    #[test]
+    fn a_foreign_world_is_its_own_setting() {
+        let mut foreign = record(4, None);
+        foreign.render["world"] = "foreign".into();
+        let mut studio = record(4, None);
+        studio.render["world"] = "studio".into();
+        let s = DatasetStats::from_records(&[foreign, studio, record(4, None)]);
+        assert_eq!(s.settings["foreign world, workbench, 1 samples, 32x32"], 1);
+        assert_eq!(s.settings["workbench, 1 samples, 32x32"], 2);
     }
 
     #[test]

@@ -6,7 +6,9 @@
 //! --resume` refuses to add to it and `dataset verify --config` reports it.
 
 use super::RenderConfig;
-use grasp_schema::dataset::{CENTER_REGION_KEY, PART_LABELS_KEY, RENDER_COST_KEY};
+use grasp_schema::dataset::{
+    CENTER_REGION_KEY, PART_LABELS_KEY, RENDER_COST_KEY, STUDIO_WORLD, WORLD_KEY,
+};
 use serde_json::Value;
 use std::fmt;
 
@@ -76,9 +78,15 @@ pub fn changed_settings(config: &RenderConfig, recorded: &Value) -> Vec<SettingC
         .collect()
 }
 
-/// What an absent key means: `center_region` is recorded only when it crops.
+/// What an absent key means: `center_region` is recorded only when it
+/// crops; a record without `world` was drawn in the studio, the only world
+/// there was.
 fn implicit(field: &str) -> Option<Value> {
-    (field == CENTER_REGION_KEY).then(|| Value::from(1.0))
+    match field {
+        CENTER_REGION_KEY => Some(Value::from(1.0)),
+        WORLD_KEY => Some(Value::from(STUDIO_WORLD)),
+        _ => None,
+    }
 }
 
 /// `[render] a: ...; [render] b: ...` for messages.
@@ -157,5 +165,25 @@ mod tests {
         older.as_object_mut().unwrap().remove("samples");
         assert_eq!(changed_settings(&old, &older), vec![]);
         assert_eq!(changed_settings(&new, &serde_json::json!({})), vec![]);
+    }
+
+    #[test]
+    fn a_foreign_world_differs_from_a_studio_record_even_an_old_one() {
+        let studio = RenderConfig::default();
+        let foreign = RenderConfig {
+            world: crate::render::World::Foreign,
+            ..Default::default()
+        };
+        let mut old = recorded(&studio);
+        old.as_object_mut().unwrap().remove(WORLD_KEY);
+        assert_eq!(changed_settings(&studio, &old), vec![]);
+        for record in [old, recorded(&studio)] {
+            let text = describe(&changed_settings(&foreign, &record));
+            assert_eq!(
+                text,
+                "[render] world: rendered with \"studio\", the config has \"foreign\""
+            );
+        }
+        assert_eq!(changed_settings(&foreign, &recorded(&foreign)), vec![]);
     }
 }

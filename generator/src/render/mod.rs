@@ -19,7 +19,7 @@ pub mod source;
 pub mod worker;
 
 use anyhow::{bail, Result};
-use grasp_schema::dataset::CENTER_REGION_KEY;
+use grasp_schema::dataset::{CENTER_REGION_KEY, WORLD_KEY};
 use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
@@ -38,6 +38,47 @@ pub enum Engine {
     Workbench,
     /// Blender's real-time engine; meant for machines with a GPU.
     Eevee,
+}
+
+/// Which scene builder and render path draws the frames (`[render] world`).
+/// Only pixels depend on it: plans, labels and every random draw of the
+/// planner are the same in every world.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum World {
+    /// Training's scene (`blender_scripts/worker.py`): the room, looks and
+    /// levers every training set is drawn from.
+    #[default]
+    Studio,
+    /// A foreign test world (`blender_scripts/foreign/`): its own room,
+    /// table, materials, lights, camera model and Cycles integrator, which
+    /// no training set may draw from. It ignores the plan's appearance.
+    Foreign,
+}
+
+impl World {
+    /// The name in configs and records.
+    pub fn name(self) -> &'static str {
+        match self {
+            World::Studio => "studio",
+            World::Foreign => "foreign",
+        }
+    }
+
+    /// The Python module whose `Worker` builds this world's scene.
+    pub fn worker_module(self) -> &'static str {
+        match self {
+            World::Studio => "blender_scripts.worker",
+            World::Foreign => "blender_scripts.foreign.worker",
+        }
+    }
+
+    /// Whether a training set may be drawn from it: only the studio. The
+    /// world is recorded in every `sequence.json` (`render.world`,
+    /// [`grasp_schema::dataset::WORLD_KEY`]) so a trainer can refuse the others.
+    pub fn trainable(self) -> bool {
+        self == World::Studio
+    }
 }
 
 /// Image passes a sequence can carry.
@@ -81,6 +122,9 @@ impl Default for Bounces {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RenderConfig {
+    /// The scene builder and render path: `studio` (training's, the
+    /// default) or `foreign` (a test world training never draws from).
+    pub world: World,
     pub engine: Engine,
     /// Where Cycles renders: `auto` (a GPU backend Blender reports, else the
     /// CPU), `cpu`, or one GPU backend. It changes how pixels are computed,
@@ -129,6 +173,7 @@ pub struct RenderConfig {
 impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
+            world: World::Studio,
             engine: Engine::Cycles,
             device: Device::Auto,
             samples: 4,
@@ -203,6 +248,22 @@ impl RenderConfig {
                 self.center_region
             );
         }
+        if self.world == World::Foreign {
+            if self.engine != Engine::Cycles {
+                bail!(
+                    "[render] world = \"foreign\" renders with its own Cycles integrator; \
+                     engine must be \"cycles\", got \"{}\"",
+                    format!("{:?}", self.engine).to_lowercase()
+                );
+            }
+            if self.passes != [Pass::Rgb] {
+                bail!(
+                    "[render] world = \"foreign\" distorts its frames through a lens model, \
+                     so depth, instance and part images would not match them; use \
+                     passes = [\"rgb\"]"
+                );
+            }
+        }
         if self.workers == 0 || self.recycle_every == 0 {
             bail!("[render] workers and recycle_every must be at least 1");
         }
@@ -224,6 +285,7 @@ impl RenderConfig {
     pub fn blender_settings(&self) -> serde_json::Value {
         let prefilter = self.denoising_prefilter.to_ascii_uppercase();
         let mut settings = serde_json::json!({
+            WORLD_KEY: self.world,
             "engine": self.engine,
             "device": self.device,
             "samples": self.samples,

@@ -882,6 +882,7 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
     let request = RenderRequest {
         id: key.id(),
         object_color: ctx.source.object_color(&key.object),
+        object_color_range: ctx.source.object_color_range(&key.object),
         out_dir,
         head_out_dir,
         frame_files: frame_files(plan.frames.len()),

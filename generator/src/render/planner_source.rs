@@ -33,6 +33,10 @@ impl RenderSource for PlannerSource {
         scene_from_config(&self.config.plan.scene)
     }
 
+    fn object_color_range(&self, object: &str) -> Option<crate::catalog::ColorRange> {
+        self.catalog.object(object).and_then(|spec| spec.color)
+    }
+
     fn parts(&self, object: &str) -> Result<Vec<PartBox>> {
         let spec = self
             .catalog

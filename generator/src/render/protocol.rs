@@ -29,6 +29,10 @@ pub struct RenderRequest {
     pub mesh: MeshFiles,
     /// The object's own colour (linear RGB), used unless the plan randomizes it.
     pub object_color: [f64; 3],
+    /// The real object's plausible colours (the catalog's `color`), which
+    /// a foreign world draws from; the studio does not read it.
+    #[serde(default)]
+    pub object_color_range: Option<crate::catalog::ColorRange>,
     pub out_dir: PathBuf,
     /// Where the head camera's frames go, when the plan has head poses.
     #[serde(default)]

@@ -27,6 +27,11 @@ pub trait RenderSource: PlanSource {
     fn object_color(&self, object: &str) -> [f64; 3] {
         crate::appearance::default_object_color(object)
     }
+    /// The real object's plausible colours (the catalog's `color`), from
+    /// which a foreign world draws its own; `None` when unknown.
+    fn object_color_range(&self, _object: &str) -> Option<crate::catalog::ColorRange> {
+        None
+    }
 }
 
 /// Renders a fixed set of plans with given meshes (tests, re-renders).

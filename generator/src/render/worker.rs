@@ -5,10 +5,12 @@
 use super::device::{self, DeviceUnavailable, Resolved};
 use super::parts::{read_exr, write_labels, PartLabeler};
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
-use super::{Device, Engine};
+use super::{Device, Engine, World};
 use crate::catalog::TriMesh;
 use anyhow::{anyhow, bail, Context, Result};
-use grasp_schema::dataset::{part_file_name, RenderCost, HEAD_CAMERA_FOLDER, WRIST_CAMERA_FOLDER};
+use grasp_schema::dataset::{
+    part_file_name, RenderCost, HEAD_CAMERA_FOLDER, WORLD_KEY, WRIST_CAMERA_FOLDER,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::fs::File;
@@ -162,9 +164,10 @@ fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value, Resolved)> {
     else {
         bail!("the first message must be init");
     };
-    crate::python::init(&["bpy", "blender_scripts.worker"])?;
+    let world = world_of(&settings)?;
+    crate::python::init(&["bpy", world.worker_module()])?;
     Python::attach(|py| {
-        let module = py.import("blender_scripts.worker").map_err(py_err)?;
+        let module = py.import(world.worker_module()).map_err(py_err)?;
         let worker = module
             .getattr("Worker")
             .and_then(|cls| {
@@ -215,6 +218,14 @@ fn choose_device(py: Python<'_>, settings: &serde_json::Value) -> Result<Resolve
     Ok(chosen)
 }
 
+/// The world the render settings name (`studio` when they name none).
+fn world_of(settings: &serde_json::Value) -> Result<World> {
+    match settings.get(WORLD_KEY) {
+        None => Ok(World::Studio),
+        Some(w) => serde_json::from_value(w.clone()).context("the render settings' world"),
+    }
+}
+
 fn to_pyerr(e: anyhow::Error) -> PyErr {
     pyo3::exceptions::PyValueError::new_err(format!("{e:#}"))
 }
@@ -236,15 +247,23 @@ fn render(
         true => None,
         false => Some(part_labeler(settings, req)?),
     };
+    let world = world_of(settings)?;
     let cpu_start = process_cpu_seconds();
     let mut cost = Python::attach(|py| {
         let w = worker.bind(py);
         let start = Instant::now();
         ensure_mesh(py, w, &req.mesh)?;
         let plan = json_to_py(py, &req.plan)?;
-        w.call_method1("prepare", (plan.clone(), req.object_color.to_vec()))
-            .map_err(py_err)
-            .with_context(|| format!("preparing sequence {}", req.id))?;
+        let color = req.object_color.to_vec();
+        match world {
+            World::Studio => w.call_method1("prepare", (plan.clone(), color)),
+            World::Foreign => {
+                let range = json_to_py(py, &req.object_color_range)?;
+                w.call_method1("prepare", (plan.clone(), color, range))
+            }
+        }
+        .map_err(py_err)
+        .with_context(|| format!("preparing sequence {}", req.id))?;
         let mut cost = RenderCost {
             setup_seconds: start.elapsed().as_secs_f64(),
             ..Default::default()
@@ -268,7 +287,12 @@ fn render(
                 label_parts(l, settings, req, camera == "head", dir)
                     .with_context(|| format!("part labels of {} ({camera} camera)", req.id))?;
             }
-            let sensor = req.plan.appearance.as_ref().and_then(|a| a.sensor.as_ref());
+            // The plan's sensor (noise, white balance, JPEG) is training's
+            // camera; a foreign world's camera model is its own.
+            let sensor = match world {
+                World::Studio => req.plan.appearance.as_ref().and_then(|a| a.sensor.as_ref()),
+                World::Foreign => None,
+            };
             if let Some(e) = sensor.filter(|e| e.is_active()) {
                 cost.effects_seconds +=
                     super::effects::apply_to_frames(e, camera, dir, &req.frame_files)
