@@ -96,7 +96,7 @@ CONDITIONS=(default fast from_ground seated background unseen_look)
 # More held-out looks: unseen_look with the appearance of configs/test-look-*.toml
 # (EXPERIMENTS-archive.md, sections 15, 16 and 18).
 LOOKS=(look_b look_c look_d)
-# Foreign worlds (issue 41): the default test set drawn by another scene
+# Foreign worlds: the default test set drawn by another scene
 # builder and render path, configs/test-world-*.toml (docs/rendering.md).
 WORLDS=(world_foreign)
 # Test sets scored: the conditions, the held-out looks and the foreign worlds.

@@ -731,7 +731,7 @@ fn a_recording_at_another_size_than_its_intrinsics_is_cut_at_the_same_angle() {
                 } else {
                     (x * 7 + y * 3) as u8
                 };
-                image::Rgb([v as u8, (x * 8) as u8, (y * 8) as u8])
+                image::Rgb([v, (x * 8) as u8, (y * 8) as u8])
             })
         })
         .collect();
