@@ -339,6 +339,23 @@ impl TrainConfig {
     }
 }
 
+/// The camera folder a checkpoint was trained on (`Wrist_d435`, or
+/// `Head_d435` for an egocentric model), from its recorded training
+/// config; the default for checkpoints that did not record one.
+pub fn trained_camera_folder(meta: &grasp_model::checkpoint::CheckpointMeta) -> String {
+    #[derive(Deserialize)]
+    struct Recorded {
+        reader: RecordedReader,
+    }
+    #[derive(Deserialize)]
+    struct RecordedReader {
+        camera: String,
+    }
+    serde_json::from_value::<Recorded>(meta.train_config.clone())
+        .map(|r| r.reader.camera)
+        .unwrap_or_else(|_| ReaderOptions::default().camera)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -522,21 +539,4 @@ mod tests {
             "{err}"
         );
     }
-}
-
-/// The camera folder a checkpoint was trained on (`Wrist_d435`, or
-/// `Head_d435` for an egocentric model), from its recorded training
-/// config; the default for checkpoints that did not record one.
-pub fn trained_camera_folder(meta: &grasp_model::checkpoint::CheckpointMeta) -> String {
-    #[derive(Deserialize)]
-    struct Recorded {
-        reader: RecordedReader,
-    }
-    #[derive(Deserialize)]
-    struct RecordedReader {
-        camera: String,
-    }
-    serde_json::from_value::<Recorded>(meta.train_config.clone())
-        .map(|r| r.reader.camera)
-        .unwrap_or_else(|_| ReaderOptions::default().camera)
 }
