@@ -6,6 +6,7 @@ along local -Z, +Y up in the image.
 """
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
 from blender_scripts import materials, render
@@ -51,6 +52,31 @@ def mesh_object(name, verts, faces, material=None, uv=True):
     if material is not None:
         mesh.materials.append(material)
     return obj
+
+
+def mesh_from_bytes(name, vertices, faces, smooth_angle_deg):
+    """A smooth-shaded mesh from the Rust side's little-endian f64 xyz and u32
+    triangle bytes, sharp past `smooth_angle_deg`; both workers build their
+    target objects with it."""
+    v = np.frombuffer(vertices, dtype="<f8").astype(np.float32)
+    f = np.frombuffer(faces, dtype="<u4").astype(np.int32)
+    if v.size % 3 or f.size % 3:
+        raise ValueError(f"mesh '{name}': byte lengths are not whole triangles")
+    if f.size and f.max() >= v.size // 3:
+        raise ValueError(f"mesh '{name}': face index {f.max()} out of range")
+    mesh = bpy.data.meshes.new(name)
+    mesh.vertices.add(v.size // 3)
+    mesh.vertices.foreach_set("co", v)
+    n = f.size // 3
+    mesh.loops.add(f.size)
+    mesh.loops.foreach_set("vertex_index", f)
+    mesh.polygons.add(n)
+    mesh.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
+    mesh.polygons.foreach_set("use_smooth", np.ones(n, dtype=bool))
+    mesh.update(calc_edges=True)
+    mesh.validate()
+    mesh.set_sharp_from_angle(angle=np.radians(smooth_angle_deg))
+    return mesh
 
 
 def box(name, lo, hi, material=None):

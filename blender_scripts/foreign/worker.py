@@ -10,9 +10,9 @@ import struct
 import tempfile
 
 import bpy
-import numpy as np
 
 from blender_scripts.foreign import camera, draw, lights, materials, render, room
+from blender_scripts.scene import mesh_from_bytes
 
 
 def _reset():
@@ -60,24 +60,7 @@ class Worker:
 
     def add_mesh(self, object_id, vertices, faces, smooth_angle_deg=30.0):
         """Caches a mesh from little-endian f64 xyz and u32 triangle bytes."""
-        v = np.frombuffer(vertices, dtype="<f8").astype(np.float32)
-        f = np.frombuffer(faces, dtype="<u4").astype(np.int32)
-        if v.size % 3 or f.size % 3:
-            raise ValueError(f"mesh '{object_id}': byte lengths are not whole triangles")
-        if f.size and f.max() >= v.size // 3:
-            raise ValueError(f"mesh '{object_id}': face index {f.max()} out of range")
-        mesh = bpy.data.meshes.new(f"f_{object_id}")
-        mesh.vertices.add(v.size // 3)
-        mesh.vertices.foreach_set("co", v)
-        n = f.size // 3
-        mesh.loops.add(f.size)
-        mesh.loops.foreach_set("vertex_index", f)
-        mesh.polygons.add(n)
-        mesh.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
-        mesh.polygons.foreach_set("use_smooth", np.ones(n, dtype=bool))
-        mesh.update(calc_edges=True)
-        mesh.validate()
-        mesh.set_sharp_from_angle(angle=np.radians(smooth_angle_deg))
+        mesh = mesh_from_bytes(f"f_{object_id}", vertices, faces, smooth_angle_deg)
         mesh.materials.append(self.object_mat)
         self.meshes[object_id] = mesh
 
