@@ -39,7 +39,7 @@ pub enum InputError {
     NoLens { angle_deg: f64 },
     #[error(
         "{field} {value} is not a plausible camera: it gives a field of view of {fov_deg:.1} \
-         degrees across the frame (a lens spans {} to {} degrees; is it in pixels?)",
+         degrees across the frame (a camera spans {} to {} degrees; a focal length is in pixels)",
         FOV_RANGE_DEG.0,
         FOV_RANGE_DEG.1
     )]
