@@ -12,6 +12,10 @@
 
 use std::time::Instant;
 
+#[path = "../src/model/denoise_fixture.rs"]
+mod fixture;
+use fixture::{noisy, scene};
+
 use clap::Parser;
 use grasp_model::model::denoise::{denoise, nl_means, noise_sigma};
 use image::RgbImage;
@@ -35,7 +39,7 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let inputs = [
-        ("scene", noisy(&scene(args.size), args.noise, 7)),
+        ("scene", noisy(&scene(args.size, args.size), args.noise, 7)),
         ("bench_frame", bench_frame_crop(args.size)),
     ];
     for (name, img) in &inputs {
@@ -98,40 +102,6 @@ fn cpu_seconds() -> Option<f64> {
     let utime: f64 = fields.next()?.parse().ok()?;
     let stime: f64 = fields.next()?.parse().ok()?;
     Some((utime + stime) / 100.0)
-}
-
-/// A colour ramp with a sharp-edged square (as in the module's tests).
-fn scene(n: u32) -> RgbImage {
-    RgbImage::from_fn(n, n, |x, y| {
-        let third = n / 3..2 * n / 3;
-        let base = (40 + x * 120 / n) as u8;
-        if third.contains(&x) && third.contains(&y) {
-            image::Rgb([200, 60, base])
-        } else {
-            image::Rgb([base, (60 + y * 100 / n) as u8, 90])
-        }
-    })
-}
-
-/// `img` plus seeded Gaussian noise of `sigma` (full scale).
-fn noisy(img: &RgbImage, sigma: f32, seed: u64) -> RgbImage {
-    let mut state = seed;
-    let mut uniform = move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut out = img.clone();
-    for v in out.iter_mut() {
-        let (u1, u2) = (uniform().max(1e-12), uniform());
-        let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-        *v = (f64::from(*v) + 255.0 * f64::from(sigma) * n)
-            .round()
-            .clamp(0.0, 255.0) as u8;
-    }
-    out
 }
 
 /// The centre `n` x `n` of `hannes-run bench`'s first synthetic 224 px frame
