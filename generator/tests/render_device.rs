@@ -9,7 +9,6 @@ mod render_common;
 
 use generator::config::GeneratorConfig;
 use generator::render::{render, Device, Engine, RenderConfig};
-use grasp_schema::dataset::{SequenceRecord, SEQUENCE_FILE};
 use grasp_schema::prerequisite::{check, REQUIRE_GPU_ENV};
 use render_common::*;
 use std::path::{Path, PathBuf};
@@ -23,25 +22,6 @@ fn cycles(device: Device) -> RenderConfig {
         samples: 1,
         ..Default::default()
     }
-}
-
-/// Every `sequence.json` under `root`, by path relative to it.
-fn records(root: &Path) -> Vec<(PathBuf, SequenceRecord)> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() && !p.file_name().unwrap().to_string_lossy().starts_with('.') {
-                stack.push(p);
-            } else if p.file_name().is_some_and(|n| n == SEQUENCE_FILE) {
-                let r = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
-                out.push((p.strip_prefix(root).unwrap().to_path_buf(), r));
-            }
-        }
-    }
-    out.sort_by(|a, b| a.0.cmp(&b.0));
-    out
 }
 
 #[test]

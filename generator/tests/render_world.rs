@@ -10,29 +10,9 @@
 mod render_common;
 
 use generator::config::GeneratorConfig;
-use grasp_schema::dataset::{SequenceRecord, SEQUENCE_FILE};
 use render_common::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-/// Every `sequence.json` under `root`, by path relative to it.
-fn records(root: &Path) -> Vec<(PathBuf, SequenceRecord)> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() && !p.file_name().unwrap().to_string_lossy().starts_with('.') {
-                stack.push(p);
-            } else if p.file_name().is_some_and(|n| n == SEQUENCE_FILE) {
-                let r = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
-                out.push((p.strip_prefix(root).unwrap().to_path_buf(), r));
-            }
-        }
-    }
-    out.sort_by(|a, b| a.0.cmp(&b.0));
-    out
-}
 
 /// A tiny Cycles config of the mug's body and handle in `world`.
 fn config(dir: &Path, world: &str) -> PathBuf {

@@ -267,3 +267,25 @@ fn without_cost(bytes: &[u8]) -> Vec<u8> {
     assert!(cost.is_some(), "sequence.json without render.cost");
     serde_json::to_vec_pretty(&v).unwrap()
 }
+
+/// Every `sequence.json` under `root`, by path relative to it.
+pub fn records(root: &Path) -> Vec<(PathBuf, grasp_schema::dataset::SequenceRecord)> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() && !p.file_name().unwrap().to_string_lossy().starts_with('.') {
+                stack.push(p);
+            } else if p
+                .file_name()
+                .is_some_and(|n| n == grasp_schema::dataset::SEQUENCE_FILE)
+            {
+                let r = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
+                out.push((p.strip_prefix(root).unwrap().to_path_buf(), r));
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
