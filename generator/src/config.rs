@@ -4,7 +4,34 @@
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// The config flags of `plan`, `render` and `dataset verify`: files laid
+/// over each other, then single values.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct ConfigArgs {
+    /// Generator config (TOML); defaults apply to missing keys. Repeat to
+    /// lay files over each other, a later one winning key by key (a test
+    /// set: --config configs/main.toml --config configs/test-look-b.toml).
+    #[arg(long, value_name = "FILE")]
+    pub config: Vec<PathBuf>,
+    /// Overrides one config value after the files: a dotted KEY and a
+    /// TOML value, e.g. --set dataset.seed=3 --set 'dataset.conditions=["fast"]'.
+    #[arg(long, value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+impl ConfigArgs {
+    /// The resolved config.
+    pub fn load(&self) -> Result<GeneratorConfig> {
+        GeneratorConfig::load_layers(&self.config, &self.set)
+    }
+
+    /// Whether any file or value was given.
+    pub fn is_given(&self) -> bool {
+        !self.config.is_empty() || !self.set.is_empty()
+    }
+}
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -24,13 +51,23 @@ pub struct GeneratorConfig {
 impl GeneratorConfig {
     /// Reads a config file; errors name the file and the offending field.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read config file {}", path.display()))?;
-        let config: GeneratorConfig = toml::from_str(&text)
-            .with_context(|| format!("invalid config file {}", path.display()))?;
+        Self::load_layers(&[path], &[])
+    }
+
+    /// Reads config files laid over each other (a later file wins key by
+    /// key) with `--set KEY=VALUE` overrides on top
+    /// ([`grasp_schema::layers`]); no files give the defaults. Errors name
+    /// the files and the offending field.
+    pub fn load_layers<P: AsRef<Path>>(files: &[P], sets: &[String]) -> Result<Self> {
+        let source = grasp_schema::layers::describe(files, sets, "the default config");
+        let table = grasp_schema::layers::load(files, sets)
+            .with_context(|| format!("invalid config {source}"))?;
+        let config: GeneratorConfig = toml::Value::Table(table)
+            .try_into()
+            .with_context(|| format!("invalid config {source}"))?;
         config
             .validate()
-            .with_context(|| format!("invalid config file {}", path.display()))?;
+            .with_context(|| format!("invalid config {source}"))?;
         Ok(config)
     }
 

@@ -6,6 +6,7 @@ pub mod appearance;
 pub mod atomic;
 pub mod cli;
 pub mod dataset;
+pub mod layers;
 pub mod plan;
 pub mod prerequisite;
 pub mod taxonomy;

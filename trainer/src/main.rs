@@ -195,6 +195,10 @@ struct SummarizeArgs {
     /// Labels are MODEL/CONDITION: models as rows, conditions as columns.
     #[arg(long)]
     by_condition: bool,
+    /// With --by-condition: choose the model to ship, the one whose worst
+    /// test set scores best; its name goes to OUT/shipped.txt.
+    #[arg(long)]
+    ship_by_worst: bool,
     /// Logarithmic x axis on the error plot.
     #[arg(long)]
     log_x: bool,
@@ -448,11 +452,21 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
     }
     spec.by_condition |= args.by_condition;
     spec.log_x |= args.log_x;
+    spec.ship_by_worst |= args.ship_by_worst;
     spec.x_label = args.x_label.or(spec.x_label);
     spec.title = args.title.or(spec.title);
     let summary = Summary::load(spec)?;
     summary.write(&args.out)?;
     println!("summary: {}", args.out.join("summary.md").display());
+    if let Some(choice) = &summary.choice {
+        let best = &choice.standings[0];
+        println!(
+            "shipped: {} (worst test set {}: {:.1} %)",
+            choice.shipped,
+            best.worst_set,
+            best.worst_accuracy * 100.0
+        );
+    }
     if summary.has_x() {
         println!("plot: {}", args.out.join("error.png").display());
     }

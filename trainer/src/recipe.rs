@@ -7,24 +7,18 @@
 
 use crate::config::TrainConfig;
 use anyhow::{Context, Result};
+use grasp_schema::layers;
 use std::path::Path;
-use toml::{Table, Value};
+use toml::Value;
 
 /// Reads `recipe` (the defaults when None) with `sets` applied in order.
 /// Errors name the file, the `--set` or the field at fault.
 pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig> {
-    let mut table = match recipe {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read recipe {}", path.display()))?;
-            text.parse::<Table>()
-                .with_context(|| format!("recipe {} is not valid TOML", path.display()))?
-        }
-        None => Table::new(),
-    };
-    for set in sets {
-        apply(&mut table, set).with_context(|| format!("--set {set}"))?;
-    }
+    let files: Vec<&Path> = recipe.into_iter().collect();
+    let table = layers::load(&files, sets).map_err(|e| match recipe {
+        Some(path) => e.context(format!("recipe {}", path.display())),
+        None => e,
+    })?;
     let source = match recipe {
         Some(path) => format!("recipe {}", path.display()),
         None => "the default recipe".to_string(),
@@ -33,42 +27,6 @@ pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig> {
     Value::Table(table)
         .try_into()
         .with_context(|| format!("{source}{with_sets}"))
-}
-
-/// Applies one `KEY=VALUE`: a dotted key (`reader.denoise`,
-/// `optimizer.lr`) and a TOML value (`0.5`, `true`, `[7, 10]`,
-/// `{ angle_deg = 18.3 }`); a value that is no TOML is taken as a string
-/// (`head=lstm`, `weights=path/to/file.pth`).
-fn apply(table: &mut Table, set: &str) -> Result<()> {
-    let (key, value) = set
-        .split_once('=')
-        .context("expected KEY=VALUE, e.g. --set head=lstm or --set reader.denoise=false")?;
-    let path: Vec<&str> = key.trim().split('.').map(str::trim).collect();
-    anyhow::ensure!(
-        path.iter().all(|p| !p.is_empty()),
-        "'{}' is not a key",
-        key.trim()
-    );
-    let (last, parents) = path.split_last().context("empty key")?;
-    let mut at = table;
-    for (depth, part) in parents.iter().enumerate() {
-        let entry = at
-            .entry(part.to_string())
-            .or_insert_with(|| Value::Table(Table::new()));
-        at = entry
-            .as_table_mut()
-            .with_context(|| format!("{} is a value, not a table", path[..=depth].join(".")))?;
-    }
-    at.insert(last.to_string(), parse_value(value.trim()));
-    Ok(())
-}
-
-fn parse_value(text: &str) -> Value {
-    format!("v = {text}")
-        .parse::<Table>()
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| Value::String(text.to_string()))
 }
 
 #[cfg(test)]

@@ -168,6 +168,63 @@ fn conditions_as_columns() {
     assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("MODEL/CONDITION"));
 }
 
+/// The shipped model is the one whose worst test set is best, not the one
+/// best on its own conditions; ties go to the higher mean.
+#[test]
+fn the_shipped_model_is_chosen_by_its_worst_test_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = |name: &str, v: f64| write_report(&dir.path().join(name), &[(v, 0.5)]);
+    let spec = |reports| SummarySpec {
+        by_condition: true,
+        ship_by_worst: true,
+        reports,
+        ..Default::default()
+    };
+    // tuned: best at home (0.98) but 0.75 abroad; frozen: 0.9 and 0.8;
+    // even: 0.8 on both (the same worst as frozen, a lower mean).
+    let s = Summary::load(spec(vec![
+        entry("tuned/default", None, &r("td", 0.98)),
+        entry("tuned/world_foreign", None, &r("tw", 0.75)),
+        entry("even/default", None, &r("ed", 0.8)),
+        entry("even/world_foreign", None, &r("ew", 0.8)),
+        entry("frozen/default", None, &r("fd", 0.9)),
+        entry("frozen/world_foreign", None, &r("fw", 0.8)),
+    ]))
+    .unwrap();
+    let choice = s.choice.as_ref().unwrap();
+    assert_eq!(choice.shipped, "frozen");
+    let order: Vec<&str> = choice.standings.iter().map(|s| s.model.as_str()).collect();
+    assert_eq!(order, ["frozen", "even", "tuned"]);
+    assert_eq!(choice.standings[2].worst_set, "world_foreign");
+    assert!((choice.standings[2].worst_accuracy - 0.75).abs() < 1e-12);
+    let md = s.markdown();
+    assert!(
+        md.contains("| frozen (shipped) | world_foreign | 80.0 | 85.0 |"),
+        "{md}"
+    );
+    let out = dir.path().join("out");
+    s.write(&out).unwrap();
+    assert_eq!(
+        std::fs::read_to_string(out.join("shipped.txt")).unwrap(),
+        "frozen\n"
+    );
+
+    // A model missing a test set cannot be judged on it.
+    let err = Summary::load(spec(vec![
+        entry("a/default", None, &r("ad", 0.9)),
+        entry("a/world_foreign", None, &r("aw", 0.9)),
+        entry("b/default", None, &r("bd", 0.9)),
+    ]))
+    .unwrap_err();
+    assert!(
+        format!("{err:#}").contains("b has no report on test set world_foreign"),
+        "{err:#}"
+    );
+    let mut flat = spec(vec![entry("a/default", None, &r("x", 0.9))]);
+    flat.by_condition = false;
+    assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("--by-condition"));
+}
+
 /// The error of summarizing the one report `e`, with its causes.
 fn load_error(e: Entry) -> String {
     let spec = SummarySpec {

@@ -1,6 +1,6 @@
 //! The `dataset verify` and `dataset merge` subcommands.
 
-use crate::config::GeneratorConfig;
+use crate::config::ConfigArgs;
 use anyhow::{bail, Result};
 use clap::Subcommand;
 use std::path::PathBuf;
@@ -13,9 +13,10 @@ pub enum DatasetCommand {
     /// rendered with the config's render settings.
     Verify {
         dir: PathBuf,
-        /// The config the dataset was made with; enables the re-plan check.
-        #[arg(long)]
-        config: Option<PathBuf>,
+        /// The config the dataset was made with (the files and --set
+        /// values given to render); enables the re-plan check.
+        #[command(flatten)]
+        config: ConfigArgs,
         /// Also decode every image fully (by default each file's structure
         /// and checksums are checked: PNG chunk CRCs up to IEND, EXR chunks).
         #[arg(long)]
@@ -44,13 +45,13 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             decode,
             shard,
         } => {
-            let report = match config {
-                Some(p) => {
-                    let config = GeneratorConfig::load(p)?;
+            let report = match config.is_given() {
+                true => {
+                    let config = config.load()?;
                     let source = crate::plan::PlannerSource::new(&config)?;
                     super::verify::verify_config(dir, &source, &config.render, *decode, *shard)?
                 }
-                None => super::verify::verify_shard(dir, None, *decode, *shard)?,
+                false => super::verify::verify_shard(dir, None, *decode, *shard)?,
             };
             print!("{}", report.render_text());
             if !report.ok() {

@@ -11,8 +11,8 @@ use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
 pub struct BenchArgs {
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: crate::config::ConfigArgs,
     #[arg(long)]
     pub catalog: Option<PathBuf>,
     /// Sequences per pair and condition (the authors' 50 gives 1550 per condition).
@@ -28,7 +28,7 @@ pub struct BenchArgs {
 
 pub fn run(args: &BenchArgs) -> Result<()> {
     endpoint_table();
-    let (mut config, catalog) = load_inputs(args.config.as_deref(), args.catalog.as_deref())?;
+    let (mut config, catalog) = load_inputs(&args.config, args.catalog.as_deref())?;
     config.dataset.sequences_per_pair = args.sequences_per_pair;
     let conditions = if args.conditions.is_empty() {
         Condition::ALL.to_vec()

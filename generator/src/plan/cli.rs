@@ -2,7 +2,7 @@
 
 use super::{sequence_keys, Planner};
 use crate::catalog::Catalog;
-use crate::config::GeneratorConfig;
+use crate::config::{ConfigArgs, GeneratorConfig};
 use anyhow::{bail, Context, Result};
 use grasp_schema::atomic::AtomicFile;
 use grasp_schema::SequencePlan;
@@ -13,9 +13,8 @@ use std::time::Instant;
 /// Arguments of `grasp-gen plan`.
 #[derive(Debug, clap::Args)]
 pub struct PlanArgs {
-    /// Generator config (TOML); the built-in defaults when omitted.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: ConfigArgs,
     /// Object catalog folder; the built-in catalog when omitted.
     #[arg(long)]
     pub catalog: Option<PathBuf>,
@@ -34,13 +33,10 @@ pub struct PlanArgs {
 }
 
 pub fn load_inputs(
-    config: Option<&Path>,
+    config: &ConfigArgs,
     catalog: Option<&Path>,
 ) -> Result<(GeneratorConfig, Catalog)> {
-    let config = match config {
-        Some(p) => GeneratorConfig::load(p)?,
-        None => GeneratorConfig::default(),
-    };
+    let config = config.load()?;
     config
         .plan
         .validate()
@@ -58,7 +54,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     if args.out.is_none() && args.show.is_none() {
         bail!("nothing to do: give --out FILE.jsonl and/or --show FILE.png");
     }
-    let (config, catalog) = load_inputs(args.config.as_deref(), args.catalog.as_deref())?;
+    let (config, catalog) = load_inputs(&args.config, args.catalog.as_deref())?;
     let mut keys = sequence_keys(&config, &catalog);
     if keys.is_empty() {
         bail!("the config selects no sequences (check dataset.objects, dataset.parts and dataset.conditions)");

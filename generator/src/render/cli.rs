@@ -1,7 +1,7 @@
 //! The `render` and hidden `worker` subcommands.
 
 use super::{planner_source, render, RenderOptions, Shard};
-use crate::config::GeneratorConfig;
+use crate::config::ConfigArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -10,9 +10,8 @@ use std::sync::Arc;
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Generator config (TOML); defaults apply to missing keys.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: ConfigArgs,
     /// Dataset root to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -37,10 +36,7 @@ pub struct RenderArgs {
 }
 
 pub fn run_render(args: &RenderArgs) -> Result<()> {
-    let config = match &args.config {
-        Some(p) => GeneratorConfig::load(p)?,
-        None => GeneratorConfig::default(),
-    };
+    let config = args.config.load()?;
     config.appearance.validate()?;
     let mut render_cfg = config.render.clone();
     if let Some(w) = args.workers {

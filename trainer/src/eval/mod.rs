@@ -1,6 +1,7 @@
 //! Evaluation: per-frame and per-video metrics, the perfect-object-classifier
 //! baseline, accuracy against time, and the Markdown/JSON/PNG report.
 
+pub mod choice;
 pub mod metrics;
 pub mod plots;
 pub mod predict;

@@ -27,6 +27,9 @@ pub struct SummarySpec {
     pub log_x: bool,
     /// Labels are `MODEL/CONDITION`: one row per model, conditions as columns.
     pub by_condition: bool,
+    /// With `by_condition`: choose the model to ship by its worst test set
+    /// ([`super::choice`]); written to `shipped.txt` and the summary.
+    pub ship_by_worst: bool,
     #[serde(rename = "report")]
     pub reports: Vec<Entry>,
 }
@@ -193,6 +196,8 @@ impl Row {
 pub struct Summary {
     pub spec: SummarySpec,
     pub rows: Vec<Row>,
+    /// The model to ship, with `ship_by_worst`.
+    pub choice: Option<super::choice::Choice>,
 }
 
 impl Summary {
@@ -201,9 +206,19 @@ impl Summary {
             bail!("nothing to summarize: give --report LABEL[=X]:PATH or --list FILE.toml");
         }
         let rows = spec.reports.iter().map(Row::load).collect::<Result<_>>()?;
-        let s = Summary { spec, rows };
+        let mut s = Summary {
+            spec,
+            rows,
+            choice: None,
+        };
         if s.spec.by_condition {
             s.check_by_condition()?;
+        }
+        if s.spec.ship_by_worst {
+            if !s.spec.by_condition {
+                bail!("choosing the shipped model by its worst test set needs --by-condition");
+            }
+            s.choice = Some(super::choice::Choice::by_worst_set(&s)?);
         }
         Ok(s)
     }
@@ -235,6 +250,10 @@ impl Summary {
             let png = super::plots::error_against_x(&self.error_plot()?)?;
             grasp_schema::atomic::write_atomic(&dir.join("error.png"), &png)?;
         }
+        if let Some(choice) = &self.choice {
+            let line = format!("{}\n", choice.shipped);
+            grasp_schema::atomic::write_atomic(&dir.join("shipped.txt"), line.as_bytes())?;
+        }
         grasp_schema::atomic::write_atomic(
             &dir.join("summary.json"),
             serde_json::to_string_pretty(self)?.as_bytes(),
@@ -259,6 +278,9 @@ impl Summary {
         );
         if self.spec.by_condition {
             self.condition_table(&mut s);
+            if let Some(choice) = &self.choice {
+                s.push_str(&choice.markdown());
+            }
             self.condition_part_table(&mut s);
             let _ = writeln!(s, "\n## Every report\n");
         }

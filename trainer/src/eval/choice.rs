@@ -1,0 +1,98 @@
+//! Which model to ship: the one whose worst test set is best. A model
+//! chosen on its own conditions can lose most where it was never tuned
+//! (another renderer, real meshes, another reach), so the choice looks at
+//! every test set of a by-condition summary and ranks each model by its
+//! lowest per-video accuracy (mean over seeds); ties go to the higher
+//! mean over all sets, then to the model listed first.
+
+use super::summary::Summary;
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// One model's standing: its worst test set and its mean over all sets.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Standing {
+    pub model: String,
+    pub worst_set: String,
+    pub worst_accuracy: f64,
+    pub mean_accuracy: f64,
+}
+
+/// The choice and every model's standing, best first.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Choice {
+    pub shipped: String,
+    pub standings: Vec<Standing>,
+}
+
+impl Choice {
+    /// Ranks the summary's models; every model must have a report on every
+    /// test set that any model has, so that all are judged on the same worlds.
+    pub fn by_worst_set(summary: &Summary) -> Result<Choice> {
+        let sets = summary.conditions();
+        let mut standings = Vec::new();
+        for model in summary.models() {
+            let mut accuracies = Vec::new();
+            for set in &sets {
+                let Some(row) = summary
+                    .rows
+                    .iter()
+                    .find(|r| r.group_name() == (&model, set))
+                else {
+                    bail!("model {model} has no report on test set {set}: every model is judged on every set");
+                };
+                accuracies.push((set, row.video_accuracy.mean));
+            }
+            let (worst_set, worst_accuracy) = accuracies
+                .iter()
+                .fold(None, |acc: Option<(&String, f64)>, &(s, a)| match acc {
+                    Some((_, best)) if best <= a => acc,
+                    _ => Some((s, a)),
+                })
+                .expect("a summary has at least one report");
+            let mean_accuracy =
+                accuracies.iter().map(|(_, a)| a).sum::<f64>() / accuracies.len() as f64;
+            standings.push(Standing {
+                model,
+                worst_set: worst_set.clone(),
+                worst_accuracy,
+                mean_accuracy,
+            });
+        }
+        // Stable: equal standings keep the order given.
+        standings.sort_by(|a, b| {
+            b.worst_accuracy
+                .total_cmp(&a.worst_accuracy)
+                .then(b.mean_accuracy.total_cmp(&a.mean_accuracy))
+        });
+        Ok(Choice {
+            shipped: standings[0].model.clone(),
+            standings,
+        })
+    }
+
+    /// The Markdown section of summary.md.
+    pub fn markdown(&self) -> String {
+        let mut s = String::from(
+            "\n## The shipped model: the best worst test set\n\n\
+             | model | worst test set | its per-video accuracy | mean over the sets |\n|---|---|---|---|\n",
+        );
+        for st in &self.standings {
+            let mark = if st.model == self.shipped {
+                " (shipped)"
+            } else {
+                ""
+            };
+            let _ = writeln!(
+                s,
+                "| {}{mark} | {} | {:.1} | {:.1} |",
+                st.model,
+                st.worst_set,
+                st.worst_accuracy * 100.0,
+                st.mean_accuracy * 100.0
+            );
+        }
+        s
+    }
+}
