@@ -19,9 +19,10 @@
 #   --weights FILE   another frozen backbone (.pth): FC and LSTM heads only
 #
 # Test sets: the paper's five conditions, unseen_look, looks B-D
-# (configs/test-look-*.toml) and the foreign worlds (configs/test-world-*.toml),
-# each a layer over the render config. Re-running resumes. SKIP_SETUP=1 skips
-# scripts/setup.sh; BIN (target/release) picks the binaries.
+# (configs/test-look-*.toml) and the foreign worlds (configs/test-world-*.toml:
+# another scene and render path, another reach, and with ../shared/ycb the
+# real meshes in the foreign scene), each a layer over the render config.
+# Re-running resumes. SKIP_SETUP=1 skips setup; BIN (target/release).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -38,7 +39,7 @@ while [ $# -gt 0 ]; do
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
         --set views.style=0 --set view_damping=0) MODELS="fc lstm" && shift ;;
-    -h | --help) sed -n '2,24p' "$0" && exit 0 ;;
+    -h | --help) sed -n '2,25p' "$0" && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -46,7 +47,15 @@ while [ $# -gt 0 ]; do
 done
 CONDITIONS=(default fast from_ground seated background unseen_look)
 LOOKS=(look_b look_c look_d)
-WORLDS=(world_foreign)
+WORLDS=(world_foreign world_reach)
+# The real-mesh world: the authors' YCB meshes in the foreign scene, for
+# models trained on the built-in objects (never copied into the repository).
+SHARED_YCB=../shared/ycb
+if [ -z "$YCB" ] && [ -f "$SHARED_YCB/annotations.json" ]; then
+  WORLDS+=(world_foreign_ycb)
+else
+  echo "note: no world_foreign_ycb test set (it needs $SHARED_YCB and the built-in objects)"
+fi
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
@@ -73,9 +82,15 @@ TEST=(--set dataset.seed=3 --set dataset.sequences_per_pair="$TEST_SEQ")
 for condition in "${CONDITIONS[@]}"; do
   render "test-$condition" "${TEST[@]}" --set "dataset.conditions=[\"$condition\"]"
 done
-for set in "${LOOKS[@]}" "${WORLDS[@]}"; do
+for set in "${LOOKS[@]}" world_foreign world_reach; do
   render "test-$set" --config "configs/test-${set/_/-}.toml" "${TEST[@]}"
 done
+if [[ " ${WORLDS[*]} " == *" world_foreign_ycb "* ]]; then
+  [ -d "$OUT/ycb-objects" ] ||
+    $BIN/grasp-gen objects import-ycb --ycb "$SHARED_YCB" --out "$OUT/ycb-objects"
+  GRASP_OBJECTS="$OUT/ycb-objects" render test-world_foreign_ycb \
+    --config configs/test-world-foreign.toml "${TEST[@]}"
+fi
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$CONFIG" "${TRAIN[@]}"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$CONFIG" "${TRAIN[@]}" --show "$OUT/paths.png" --quiet

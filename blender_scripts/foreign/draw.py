@@ -1,7 +1,7 @@
 """What the foreign world draws per sequence: plain values, no bpy.
 
 The draws come from Python's own generator seeded with a string of the
-plan's `stream_seed` (and its `look_seed`, for look twins), so they depend
+plan's `stream_seed`, so they depend
 on the sequence and on nothing else, and no random stream of the planner
 sees them: plans and labels are the same in every world. They are a pure
 function of the plan, so a sequence re-renders to the same values.
@@ -37,8 +37,8 @@ HAND_SHELLS = ((0.62, 0.63, 0.65), (0.85, 0.84, 0.8), (0.2, 0.21, 0.23))
 
 
 def seed_string(plan):
-    look = plan.get("sampled", {}).get("look_seed")
-    return f"{SEED_TAG}/{plan['stream_seed']}/{look}"
+    # The "/None" suffix keeps the draws of the renders made so far.
+    return f"{SEED_TAG}/{plan['stream_seed']}/None"
 
 
 def _hsv(h, s, v):

@@ -27,6 +27,12 @@ fn imported_ycb_catalog_matches_the_builtin_and_touches_real_meshes() {
     let builtin = Catalog::load_dir_unchecked(&builtin_dir()).unwrap();
     compare_grasp_types(&builtin, &imported).unwrap();
     assert_eq!(imported.pairs().len(), 31);
+    // The real objects take the built-in objects' plausible colours.
+    for spec in &builtin.objects {
+        let real = imported.object(&spec.id).unwrap();
+        assert!(real.color.is_some() || spec.color.is_none(), "{}", spec.id);
+        assert_eq!(real.color, spec.color, "{}", spec.id);
+    }
 
     // Pairs follow the authors' scene order (scene_pair_order).
     let ann: serde_json::Value =

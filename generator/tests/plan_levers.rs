@@ -683,46 +683,41 @@ fn object_scale_resizes_the_object_that_the_plan_checks_and_records() {
     );
 }
 
-/// Look twins (`[dataset] look_seed`): every sequence keeps its reach, frame
-/// for frame, and draws its look and lens again, differently per look seed,
-/// within the condition's own ranges.
+/// A held-out test world (`[dataset] held_out`, configs/test-world-reach.toml)
+/// is recorded in every plan, so training can refuse it; without one the
+/// plans carry no such key, and the mark changes no other value.
 #[test]
-fn a_look_seed_keeps_the_reach_and_draws_the_look_again() {
-    let conditions = [Condition::Default, Condition::UnseenLook];
+fn a_held_out_world_is_recorded_in_every_plan_and_changes_nothing_else() {
     let base = GeneratorConfig::default();
-    let with_seed = |s| {
-        let mut c = base.clone();
-        c.dataset.look_seed = Some(s);
-        plans(&c, &conditions, 3)
-    };
-    let (own, twins, others) = (plans(&base, &conditions, 3), with_seed(1), with_seed(2));
-    assert_eq!(twins, with_seed(1), "twins reproduce from their seeds");
-    for ((p, t), o) in own.iter().zip(&twins).zip(&others) {
-        let id = p.key.id();
-        assert_eq!(p.key, t.key);
-        assert_eq!(p.object, t.object, "{id}: placement");
-        assert_eq!(p.frames, t.frames, "{id}: camera path and labels");
-        assert_eq!((p.target, p.other_end), (t.target, t.other_end), "{id}");
-        assert_eq!(p.distractors, t.distractors, "{id}");
-        assert_ne!(p.appearance, t.appearance, "{id}: the look is drawn again");
-        assert_ne!(t.appearance, o.appearance, "{id}: per look seed");
-        assert_ne!(p.intrinsics.fov_y_deg, t.intrinsics.fov_y_deg, "{id}: lens");
-        assert_eq!(t.sampled["look_seed"], 1);
-        assert!(!p.sampled.contains_key("look_seed"));
+    let mut marked = base.clone();
+    marked.dataset.held_out = Some("reach".into());
+    let own = plans(&base, &[Condition::Default], 2);
+    let held = plans(&marked, &[Condition::Default], 2);
+    for (p, mut h) in own.into_iter().zip(held) {
+        assert!(!p.sampled.contains_key("held_out"));
+        assert_eq!(
+            h.sampled.remove("held_out"),
+            Some(serde_json::json!("reach"))
+        );
+        assert_eq!(p, h);
     }
-    // A default twin stays in training's ranges, an unseen_look one in its own.
-    let fov = |ps: &[SequencePlan], c| {
+    // The reach world's own config: closer ends than any training reach.
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let reach = GeneratorConfig::load_layers(
+        &[dir.join("main.toml"), dir.join("test-world-reach.toml")],
+        &[],
+    )
+    .unwrap();
+    assert_eq!(reach.dataset.held_out.as_deref(), Some("reach"));
+    let standoff = |c: &GeneratorConfig| {
         range(
-            ps.iter()
-                .filter(|p| p.key.condition == c)
-                .map(|p| p.sampled["fov_scale"].as_f64().unwrap()),
+            plans(c, &[Condition::Default], 2)
+                .iter()
+                .map(|p| p.sampled["standoff_m"].as_f64().unwrap()),
         )
     };
-    let [lo, hi] = fov(&twins, Condition::Default);
-    assert!(lo >= base.randomize.fov.scale[0] && hi <= base.randomize.fov.scale[1]);
-    let [lo, hi] = fov(&twins, Condition::UnseenLook);
-    let unseen = base.appearance.unseen_look.fov_scale;
-    assert!(lo >= unseen[0] && hi <= unseen[1]);
+    let (train, test) = (standoff(&base), standoff(&reach));
+    assert!(test[1] < train[0], "reach {test:?} vs training {train:?}");
 }
 
 /// The fourth held-out look (`configs/test-look-d.toml`) has a lens and

@@ -231,6 +231,22 @@ impl SequenceRecord {
         }
     }
 
+    /// Why the sequence belongs to a test world no training set may draw
+    /// from: another render world (`render.world = "foreign"`, or an
+    /// unreadable one) or a held-out reach (`dataset.held_out`, recorded
+    /// as the plan's `sampled.held_out`). None for training's own world.
+    pub fn test_world(&self) -> Option<String> {
+        match self.world() {
+            Some(w) if w == STUDIO_WORLD => {}
+            Some(w) => return Some(format!("render.world = \"{w}\"")),
+            None => return Some(format!("render.{WORLD_KEY} is not a name")),
+        }
+        self.plan
+            .sampled
+            .get("held_out")
+            .map(|w| format!("dataset.held_out = {w}"))
+    }
+
     /// Whether the plan has an egocentric view (a `Head_d435` folder).
     pub fn has_head_camera(&self) -> bool {
         self.plan.frames.iter().any(|f| f.head_camera.is_some())

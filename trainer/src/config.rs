@@ -83,12 +83,6 @@ pub struct TrainConfig {
     /// mean variance), folded into the head's input weights when saved
     /// ([`crate::train::ViewDamping`]). 0: off.
     pub view_damping: f64,
-    /// Frozen and fine-tuned modes: a look-twin dataset of `data` (rendered
-    /// with grasp-gen's `[dataset] look_seed`: the same reaches in another
-    /// look). Each training sequence's twin joins the training set as one
-    /// more view, after the configured ones, so `view_damping` damps what
-    /// the look changes too.
-    pub look_twins: Option<PathBuf>,
     /// Fine-tuned mode: which blocks train, and their optimizer.
     pub fine_tune: FineTuneConfig,
     pub cache_dir: PathBuf,
@@ -132,7 +126,6 @@ impl Default for TrainConfig {
             augment: AugmentConfig::default(),
             views: ViewConfig::default(),
             view_damping: 0.0,
-            look_twins: None,
             fine_tune: FineTuneConfig::default(),
             cache_dir: PathBuf::from(".grasp-cache/features"),
             feature_batch: 32,
@@ -222,20 +215,14 @@ impl TrainConfig {
         if !d.is_finite() || d < 0.0 {
             anyhow::bail!("view_damping must be 0 or positive, got {d}");
         }
-        let views = self.views.count + usize::from(self.look_twins.is_some());
+        let views = self.views.count;
         if d > 0.0 && (self.mode != TrainMode::FrozenPretrained || views == 0) {
             anyhow::bail!(
                 "view_damping {d} damps what the extra views change in the \
-                 cached features: it needs frozen-pretrained mode and views.count \
-                 or look_twins, got {} mode and {} views",
+                 cached features: it needs frozen-pretrained mode and views.count, \
+                 got {} mode and {} views",
                 self.mode.name(),
                 views
-            );
-        }
-        if self.look_twins.is_some() && self.mode == TrainMode::FromScratch {
-            anyhow::bail!(
-                "look_twins adds cached views of the training set (the frozen and \
-                 fine-tuned modes); from-scratch training augments every epoch instead"
             );
         }
         Ok(())
@@ -495,21 +482,6 @@ mod tests {
             let err = format!("{:#}", bad.validate().unwrap_err());
             assert!(err.contains("view_damping"), "{err}");
         }
-        // Look twins are views too, cached like them.
-        let twins = TrainConfig {
-            views: ViewConfig::default(),
-            look_twins: Some("twins".into()),
-            ..damped.clone()
-        };
-        twins.validate().unwrap();
-        let err = TrainConfig {
-            mode: TrainMode::FromScratch,
-            view_damping: 0.0,
-            ..twins
-        }
-        .validate()
-        .unwrap_err();
-        assert!(format!("{err:#}").contains("look_twins"), "{err:#}");
     }
 
     #[test]

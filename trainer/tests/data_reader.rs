@@ -465,3 +465,66 @@ fn denoising_filters_the_crop_the_backbone_sees() {
         noise(&filtered)
     );
 }
+
+/// Sets one value of a sequence's record, by JSON pointer path.
+fn set_record(json: &std::path::Path, path: &[&str], value: serde_json::Value) {
+    let mut record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let mut at = &mut record;
+    for key in &path[..path.len() - 1] {
+        at = &mut at[*key];
+    }
+    at[path[path.len() - 1]] = value;
+    std::fs::write(json, record.to_string()).unwrap();
+}
+
+/// A test world's sequences (another render world, a held-out reach) are
+/// read and can be scored, but never go into a training or validation set.
+#[test]
+fn test_worlds_are_read_but_never_trained_or_validated_on() {
+    let (dir, _) = generated();
+    let fail = BadData::new(OnBadData::Fail);
+    let data = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
+    assert!(data.sequences.iter().all(|s| s.test_world.is_none()));
+    let cfg = trainer::config::TrainConfig {
+        data: dir.path().to_path_buf(),
+        ..Default::default()
+    };
+    trainer::train::load_splits(&cfg, &fail).unwrap();
+
+    let foreign = data.sequences[0].dir.join("sequence.json");
+    set_record(&foreign, &["render", "world"], serde_json::json!("foreign"));
+    let reach = data.sequences[1].dir.join("sequence.json");
+    set_record(
+        &reach,
+        &["plan", "sampled", "held_out"],
+        serde_json::json!("reach"),
+    );
+    let marked = read_dataset(dir.path(), &ReaderOptions::default(), &fail).unwrap();
+    assert_eq!(
+        marked.sequences[0].test_world.as_deref(),
+        Some("render.world = \"foreign\"")
+    );
+    assert_eq!(
+        marked.sequences[1].test_world.as_deref(),
+        Some("dataset.held_out = \"reach\"")
+    );
+    let err = format!(
+        "{:#}",
+        trainer::train::load_splits(&cfg, &fail).unwrap_err()
+    );
+    assert!(err.contains("belongs to a test world"), "{err}");
+    assert!(err.contains(&dir.path().display().to_string()), "{err}");
+    // As a separate validation set it is refused too.
+    let (train, _) = generated();
+    let as_val = trainer::config::TrainConfig {
+        data: train.path().to_path_buf(),
+        val_data: Some(dir.path().to_path_buf()),
+        ..Default::default()
+    };
+    let err = format!(
+        "{:#}",
+        trainer::train::load_splits(&as_val, &fail).unwrap_err()
+    );
+    assert!(err.contains("the validation set"), "{err}");
+}

@@ -111,8 +111,10 @@ fn import_object(ycb: &Path, out: &Path, id: &str, obj: &Value) -> Result<PathBu
         },
         parts,
         // The real objects' colours are not in the annotations: the
-        // plausible range is derived from the object's own colour.
-        color: None,
+        // built-in object of the same id gives its plausible range (what a
+        // scene draws the object's colour from), so that a real mesh is not
+        // drawn in a colour no such object has.
+        color: builtin_color(id),
     };
     let text = format!(
         "# Imported by `grasp-gen objects import-ycb` from the YCB annotations.\n{}",
@@ -121,6 +123,14 @@ fn import_object(ycb: &Path, out: &Path, id: &str, obj: &Value) -> Result<PathBu
     let path = out.join(format!("{id}.toml"));
     write_atomic(&path, text.as_bytes())?;
     Ok(path)
+}
+
+/// The plausible colours of the repository's built-in object `id` (None
+/// when there is none, or no range).
+fn builtin_color(id: &str) -> Option<super::ColorRange> {
+    super::Catalog::load_dir_unchecked(&crate::python::workspace_root().join("objects"))
+        .ok()
+        .and_then(|c| c.object(id).and_then(|spec| spec.color))
 }
 
 fn import_part(

@@ -45,11 +45,12 @@ pub struct DatasetConfig {
     pub objects: Option<Vec<String>>,
     /// Only these parts, as `part` or `object/part` (all when absent).
     pub parts: Option<Vec<String>>,
-    /// Look twins: with a look seed, every sequence keeps its path (object
-    /// placement, trajectory, wrist, distractors) and draws its look (the
-    /// appearance and lens levers) again from a sub-stream salted by the
-    /// seed. The same reaches in another look, frame for frame.
-    pub look_seed: Option<u64>,
+    /// A test world that training must never draw from (`"reach"` in
+    /// configs/test-world-reach.toml): recorded in every plan as
+    /// `sampled.held_out`; grasp-train refuses such sequences for training
+    /// and validation, as it refuses `unseen_look` and non-studio worlds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<String>,
 }
 
 impl Default for DatasetConfig {
@@ -60,7 +61,7 @@ impl Default for DatasetConfig {
             conditions: vec![Condition::Default],
             objects: None,
             parts: None,
-            look_seed: None,
+            held_out: None,
         }
     }
 }

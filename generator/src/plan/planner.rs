@@ -301,23 +301,7 @@ impl Planner {
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
             .with_context(|| format!("planning {}", key.id()))?;
-        let (look, draws) = match self.config.dataset.look_seed {
-            // The path was searched with the sequence's own lens; only the
-            // picture changes.
-            Some(seed) => {
-                let look = substream_seed(stream, &format!("look/{seed}"));
-                let (intrinsics, fov_scale, principal_point_shift) = self.lens(key.condition, look);
-                let draws = SequenceDraws {
-                    intrinsics,
-                    fov_scale,
-                    principal_point_shift,
-                    ..draws
-                };
-                (look, draws)
-            }
-            None => (stream, draws),
-        };
-        self.build_plan(key, geo, part_index, part, (stream, look), &draws, accepted)
+        self.build_plan(key, geo, part_index, part, stream, &draws, accepted)
     }
 
     /// The lens (`[randomize.fov]`, or `unseen_look`'s own, and the
@@ -527,7 +511,7 @@ impl Planner {
         geo: &ObjectGeometry,
         part_index: usize,
         part: &GraspPart,
-        (stream, look): (u64, u64),
+        stream: u64,
         draws: &SequenceDraws,
         accepted: Accepted,
     ) -> Result<SequencePlan> {
@@ -560,8 +544,8 @@ impl Planner {
         if head.is_some() {
             put("head_elbows", json!(elbows));
         }
-        if let Some(seed) = self.config.dataset.look_seed {
-            put("look_seed", json!(seed));
+        if let Some(world) = &self.config.dataset.held_out {
+            put("held_out", json!(world));
         }
 
         let (distractors, rejected) = self.distractors(geo, c, s, stream);
@@ -578,7 +562,7 @@ impl Planner {
             &self.config.appearance,
             &self.levers,
             key.condition,
-            look,
+            stream,
             &colors,
             c.placement.position.into(),
             &self.images,

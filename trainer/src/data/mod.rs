@@ -74,10 +74,11 @@ pub struct Sequence {
     /// (`ReaderOptions::denoise`, `grasp_model::model::denoise`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub denoise: bool,
-    /// The plan's stream seed (generated data): shared by a sequence and
-    /// its look twins (`[dataset] look_seed`), another for any other reach.
+    /// Why the sequence belongs to a test world that training never draws
+    /// from (`render.world = "foreign"`, `dataset.held_out = "reach"`);
+    /// None for training's own world and for real data.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reach_seed: Option<u64>,
+    pub test_world: Option<String>,
     /// An augmented view of the frames (frozen mode's training
     /// augmentation, [`view::with_views`]); None: the frames as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -160,7 +160,7 @@ mod tests {
                     first_frame: 0,
                     rendered_region: None,
                     denoise: false,
-                    reach_seed: None,
+                    test_world: None,
                     view: None,
                     probe: None,
                     style: None,

@@ -192,61 +192,6 @@ pub fn with_views(data: &Dataset, cfg: &ViewConfig, seed: u64) -> Dataset {
     }
 }
 
-/// `data` followed by the look twin of each of `originals` (the training
-/// set `data`'s views were drawn from), in their order: one more view of
-/// every sequence, rendered in another look (grasp-gen's `[dataset]
-/// look_seed`), the twin whose id is the original's. Every original needs
-/// a twin of the same reach: the same plan stream, frames and pre-shape.
-pub fn with_look_twins(
-    data: Dataset,
-    originals: &[super::Sequence],
-    twins: &Dataset,
-) -> anyhow::Result<Dataset> {
-    let by_id: std::collections::HashMap<&str, &super::Sequence> =
-        twins.sequences.iter().map(|s| (s.id.as_str(), s)).collect();
-    let mut sequences = data.sequences;
-    for seq in originals {
-        let Some(twin) = by_id.get(seq.id.as_str()) else {
-            anyhow::bail!(
-                "look twins {}: no twin of training sequence {} (render the twins with the \
-                 training set's config plus [dataset] look_seed)",
-                twins.root.display(),
-                seq.id
-            );
-        };
-        if twin.reach_seed.is_none() || twin.reach_seed != seq.reach_seed {
-            anyhow::bail!(
-                "look twins {}: sequence {} comes from another plan than its training original \
-                 (stream seed {:?} against {:?}): not a look twin of this training set (render \
-                 it with the training set's config plus [dataset] look_seed)",
-                twins.root.display(),
-                seq.id,
-                twin.reach_seed,
-                seq.reach_seed
-            );
-        }
-        if twin.frames.len() != seq.frames.len() || twin.preshape != seq.preshape {
-            anyhow::bail!(
-                "look twins {}: sequence {} has {} frames of {:?}, its training original {} of \
-                 {:?}: not the same reach",
-                twins.root.display(),
-                seq.id,
-                twin.frames.len(),
-                twin.preshape,
-                seq.frames.len(),
-                seq.preshape
-            );
-        }
-        let mut t = (*twin).clone();
-        t.id = format!("{}#twin", seq.id);
-        sequences.push(t);
-    }
-    Ok(Dataset {
-        root: data.root,
-        sequences,
-    })
-}
-
 /// A view's sensor: noise and defocus drawn from the config's ranges (None
 /// when both ranges are [0, 0]). Drawn after the [`ViewJitter`], so adding
 /// a sensor range leaves the views' crops and colours as they were.
@@ -394,7 +339,7 @@ mod tests {
             first_frame: 0,
             rendered_region: None,
             denoise: false,
-            reach_seed: Some(7),
+            test_world: None,
             view: None,
             probe: None,
             style: None,
@@ -424,79 +369,6 @@ mod tests {
         }
         assert_ne!(out.sequences[n].view, out.sequences[2 * n].view);
         assert_eq!(with_views(&data, &cfg, 1).sequences, out.sequences);
-    }
-
-    fn twin_of(seq: &crate::data::Sequence) -> crate::data::Sequence {
-        crate::data::Sequence {
-            dir: "twins".into(),
-            frames: vec!["twins/a.png".into(), "twins/b.png".into()],
-            ..seq.clone()
-        }
-    }
-
-    #[test]
-    fn look_twins_follow_the_views_in_the_originals_order() {
-        let originals: Vec<_> = ["s0", "s1", "s2"].map(one_sequence).to_vec();
-        let data = Dataset {
-            root: Default::default(),
-            sequences: originals.clone(),
-        };
-        let cfg = ViewConfig {
-            count: 1,
-            ..Default::default()
-        };
-        // The twin set lists them in another order, with one extra.
-        let twins = Dataset {
-            root: "twins".into(),
-            sequences: ["s2", "x", "s0", "s1"]
-                .map(|id| twin_of(&one_sequence(id)))
-                .to_vec(),
-        };
-        let out = with_look_twins(with_views(&data, &cfg, 1), &originals, &twins).unwrap();
-        let n = originals.len();
-        assert_eq!(out.sequences.len(), 3 * n);
-        for (seq, twin) in originals.iter().zip(&out.sequences[2 * n..]) {
-            assert_eq!(twin.id, format!("{}#twin", seq.id));
-            assert_eq!(twin.labels, seq.labels);
-            assert!(twin.frames.iter().all(|f| f.starts_with("twins")));
-            assert!(twin.view.is_none() && twin.style.is_none());
-        }
-    }
-
-    #[test]
-    fn a_missing_or_different_twin_is_refused_by_name() {
-        let originals: Vec<_> = ["s0", "s1"].map(one_sequence).to_vec();
-        // The error when s0 has its twin and s1 has `second` (or none).
-        let refusal = |second: Option<crate::data::Sequence>| {
-            let data = Dataset {
-                root: Default::default(),
-                sequences: originals.clone(),
-            };
-            let twins = Dataset {
-                root: "twins".into(),
-                sequences: std::iter::once(twin_of(&originals[0]))
-                    .chain(second)
-                    .collect(),
-            };
-            with_look_twins(data, &originals, &twins)
-                .unwrap_err()
-                .to_string()
-        };
-        let err = refusal(None);
-        assert!(err.contains("no twin of training sequence s1"), "{err}");
-        let mut short = twin_of(&originals[1]);
-        short.frames.pop();
-        let err = refusal(Some(short));
-        assert!(err.contains("sequence s1 has 1 frames"), "{err}");
-        let mut other = twin_of(&originals[1]);
-        other.preshape = grasp_schema::taxonomy::Preshape::Lateral;
-        let err = refusal(Some(other));
-        assert!(err.contains("not the same reach"), "{err}");
-        // Same ids, frames and pre-shape, but another plan: another dataset.
-        let mut elsewhere = twin_of(&originals[1]);
-        elsewhere.reach_seed = Some(8);
-        let err = refusal(Some(elsewhere));
-        assert!(err.contains("another plan"), "{err}");
     }
 
     #[test]

@@ -226,12 +226,7 @@ fn cached_frames(
         }
     }
     let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
-    let mut train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
-    if let Some(dir) = &cfg.look_twins {
-        let twins = crate::data::read_dataset(dir, &cfg.reader, bad)
-            .with_context(|| format!("reading the look twins {}", dir.display()))?;
-        train = crate::data::view::with_look_twins(train, &splits.train.sequences, &twins)?;
-    }
+    let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
     let tf = cache.dataset(extractor, &train, bad)?;
     let vf = cache.dataset(extractor, &splits.val, bad)?;
     Ok((

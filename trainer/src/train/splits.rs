@@ -61,6 +61,8 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
         }
         None => train,
     };
+    refuse_test_worlds(&train, "training")?;
+    refuse_test_worlds(&val, "validation")?;
     if val.sequences.is_empty() {
         anyhow::bail!(
             "the validation split is empty: add sequences, raise split.val_fraction or pass --val-data"
@@ -78,4 +80,20 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
         test,
         split,
     })
+}
+
+/// A test world (another render world, a held-out reach) measures how a
+/// model does where it was never trained or chosen: none of its sequences
+/// may train it or pick its checkpoint.
+fn refuse_test_worlds(data: &Dataset, split: &str) -> Result<()> {
+    match data.sequences.iter().find(|s| s.test_world.is_some()) {
+        Some(s) => anyhow::bail!(
+            "{}: sequence {} belongs to a test world ({}); the {split} set may only hold \
+             training's own world (render it without configs/test-world-*.toml)",
+            data.root.display(),
+            s.id,
+            s.test_world.as_deref().unwrap_or_default()
+        ),
+        None => Ok(()),
+    }
 }
