@@ -338,36 +338,10 @@ def _pattern(nodes, links, spec):
     return _BUILDERS[family](nodes, links, vec, spec)
 
 
-def _overlaid(nodes, links, base, overlay):
-    # A second pattern over the patches of a noise mask, cut where its
-    # values (spread around 0.5) exceed a threshold that falls as `coverage`
-    # rises: roughly, not exactly, that share of the surface.
-    top = _pattern(nodes, links, overlay["material"])
-    mask = nodes.new("ShaderNodeTexNoise")
-    mask.inputs["Scale"].default_value = 1.0  # the mapping sets it: mask_scale per metre
-    mask.inputs["Detail"].default_value = 2.0
-    links.new(_uv_vector(nodes, links, float(overlay["mask_scale"])), mask.inputs["Vector"])
-    cut = nodes.new("ShaderNodeMapRange")
-    edge = 0.5 + 0.25 * (0.5 - float(overlay["coverage"]))
-    cut.inputs["From Min"].default_value = edge - 0.01
-    cut.inputs["From Max"].default_value = edge + 0.01
-    links.new(mask.outputs["Fac"], cut.inputs["Value"])
-    mix = nodes.new("ShaderNodeMix")
-    mix.data_type = "RGBA"
-    links.new(cut.outputs["Result"], mix.inputs["Factor"])
-    links.new(base, mix.inputs["A"])
-    links.new(top, mix.inputs["B"])
-    return mix.outputs["Result"]
-
-
 def apply_surface(mat, spec):
     """Rebuilds `mat`'s node tree from a SurfaceMaterial dict."""
     nodes, links, bsdf = _clear(mat)
-    color = _pattern(nodes, links, spec)
-    overlay = spec.get("overlay")
-    if overlay:
-        color = _overlaid(nodes, links, color, overlay)
-    links.new(color, bsdf.inputs["Base Color"])
+    links.new(_pattern(nodes, links, spec), bsdf.inputs["Base Color"])
     bsdf.inputs["Roughness"].default_value = float(spec["roughness"])
     mean = [(a + b) / 2 for a, b in zip(spec["color_a"], spec["color_b"])]
     mat.diffuse_color = _rgba(mean)  # what Workbench shows

@@ -296,7 +296,6 @@ pub(crate) fn surface(
         roughness,
         detail,
         image,
-        overlay: None,
     }
 }
 

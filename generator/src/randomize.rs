@@ -13,7 +13,6 @@
 //! | `white_balance` | per-channel gains | Rust, after the render |
 //! | `jpeg` | JPEG round trip at a random quality | Rust, after the render |
 //! | `world_light` | a bundled studio-light HDRI, rotation, strength | Blender world |
-//! | `texture_mix` | room surfaces as two training families in noise-cut patches | surface materials |
 //! | `object_color` | the object's colour within its plausible range | object material |
 //! | `distractors` | primitives on the table, clear of the target and the reach | plan, Blender |
 //! | `object_scale` | the object's size (mesh and part boxes, uniformly) | plan, Blender, part labels |
@@ -29,7 +28,7 @@
 use crate::appearance::{hsv_to_linear_rgb, AppearanceConfig};
 use crate::catalog::ColorRange;
 use anyhow::{bail, Result};
-use grasp_schema::appearance::{Appearance, MotionBlur, SensorEffects, SurfaceOverlay, WorldLight};
+use grasp_schema::appearance::{Appearance, MotionBlur, SensorEffects, WorldLight};
 use grasp_schema::plan::{substream_seed, CameraIntrinsics};
 use grasp_schema::Condition;
 use rand::{Rng, SeedableRng};
@@ -69,7 +68,6 @@ pub struct RandomizeConfig {
     pub white_balance: WhiteBalanceLever,
     pub jpeg: JpegLever,
     pub world_light: WorldLightLever,
-    pub texture_mix: TextureMixLever,
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
     pub object_scale: ObjectScaleLever,
@@ -89,7 +87,6 @@ impl Default for RandomizeConfig {
             white_balance: Default::default(),
             jpeg: Default::default(),
             world_light: Default::default(),
-            texture_mix: Default::default(),
             object_color: Default::default(),
             distractors: Default::default(),
             object_scale: Default::default(),
@@ -260,34 +257,6 @@ impl Default for ObjectColorLever {
     }
 }
 
-/// Room surfaces (walls, floor, table) as a blend of two training materials:
-/// a second one, drawn like the first from `[appearance]`, covers the
-/// patches of a noise mask. Busier, less regular backgrounds than one
-/// family alone, from the same families.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TextureMixLever {
-    pub enabled: bool,
-    /// Chance that a surface gets an overlay.
-    pub probability: f64,
-    /// Mask noise frequency, per metre (log-uniform).
-    pub mask_scale: [f64; 2],
-    /// The overlay's nominal share of the surface (the mask's threshold;
-    /// the share covered is close to it, not exact).
-    pub coverage: [f64; 2],
-}
-
-impl Default for TextureMixLever {
-    fn default() -> Self {
-        TextureMixLever {
-            enabled: false,
-            probability: 0.5,
-            mask_scale: [2.5, 20.0],
-            coverage: [0.3, 0.7],
-        }
-    }
-}
-
 /// Primitives on the table that are never the target.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -450,15 +419,6 @@ impl RandomizeConfig {
         check_probability("[randomize.world_light] probability", w.probability)?;
         check_range("[randomize.world_light] strength", w.strength, 0.0, 100.0)?;
         check_hdris("[randomize.world_light] hdris", &w.hdris)?;
-        let t = &self.texture_mix;
-        check_probability("[randomize.texture_mix] probability", t.probability)?;
-        check_range(
-            "[randomize.texture_mix] mask_scale",
-            t.mask_scale,
-            1e-3,
-            1e3,
-        )?;
-        check_range("[randomize.texture_mix] coverage", t.coverage, 0.01, 0.99)?;
         let o = &self.object_color;
         if !(0.0..=0.5).contains(&o.derived_hue) {
             bail!(
@@ -525,7 +485,6 @@ impl RandomizeConfig {
             r.white_balance.enabled = false;
             r.jpeg.enabled = false;
             r.world_light.enabled = false;
-            r.texture_mix.enabled = false;
             r.object_color.enabled = false;
             r.distractors.enabled = false;
             r.object_scale.enabled = false;
@@ -785,42 +744,8 @@ pub fn sequence_appearance(
         apply_object_color(levers, &mut a, colors, stream);
         return a;
     }
-    let mut base = crate::appearance::sample_with_images(appearance, condition, seed, images);
-    mix_textures(
-        appearance,
-        &levers.effective().texture_mix,
-        &mut base,
-        stream,
-    );
+    let base = crate::appearance::sample_with_images(appearance, condition, seed, images);
     training_appearance(levers, base, colors, stream)
-}
-
-/// The `texture_mix` lever: overlays on the walls, floor and table (not on
-/// the `background` condition's held-out table, whose cloth stays whole).
-pub fn mix_textures(
-    config: &AppearanceConfig,
-    lever: &TextureMixLever,
-    a: &mut Appearance,
-    stream: u64,
-) {
-    if !lever.enabled {
-        return;
-    }
-    let mut rng = lever_rng(stream, "texture_mix");
-    for s in [&mut a.wall, &mut a.floor, &mut a.table] {
-        // Draw every value for every surface, so the stream never shifts.
-        let on = rng.gen_bool(lever.probability);
-        let material = crate::appearance::surface(config, &[], &mut rng, None);
-        let mask_scale = log_uniform(&mut rng, lever.mask_scale);
-        let coverage = uniform(&mut rng, lever.coverage);
-        if on && s.family != config.held_out_family {
-            s.overlay = Some(Box::new(SurfaceOverlay {
-                material,
-                mask_scale,
-                coverage,
-            }));
-        }
-    }
 }
 
 #[cfg(test)]

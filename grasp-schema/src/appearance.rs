@@ -25,21 +25,6 @@ pub struct SurfaceMaterial {
     /// For `image`: path of the image texture.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image: Option<String>,
-    /// A second material laid over this one in patches (the `texture_mix`
-    /// lever); `None`: this material alone.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub overlay: Option<Box<SurfaceOverlay>>,
-}
-
-/// Where a second material covers a surface: the patches of a noise mask.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SurfaceOverlay {
-    pub material: SurfaceMaterial,
-    /// Mask noise frequency, per metre.
-    pub mask_scale: f64,
-    /// The overlay's nominal share of the surface, in (0, 1): it sets the
-    /// mask's threshold, so the share covered is close to it, not exact.
-    pub coverage: f64,
 }
 
 /// One light source.

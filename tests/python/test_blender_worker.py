@@ -96,22 +96,6 @@ def test_families_match_the_generator():
     assert reserved == list(materials.UNSEEN_FAMILIES)
 
 
-def test_an_overlay_is_mixed_in_over_the_base_pattern():
-    # texture_mix: the base colour comes from a mix of the two patterns.
-    mat = bpy.data.materials.new("test_overlay")
-    spec = surface("brick")
-    spec["overlay"] = {"material": surface("wave"), "mask_scale": 2.0, "coverage": 0.4}
-    materials.apply_surface(mat, spec)
-    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    mix = bsdf.inputs["Base Color"].links[0].from_node
-    assert mix.type == "MIX"
-    assert mix.inputs["A"].links[0].from_node.type == "TEX_BRICK"
-    assert mix.inputs["B"].links[0].from_node.type == "VALTORGB"  # the wave's ramp
-    spec["overlay"]["material"]["family"] = "plaid"
-    with pytest.raises(ValueError, match="unknown texture family 'plaid'"):
-        materials.apply_surface(mat, spec)
-
-
 def test_unknown_family_is_refused():
     mat = bpy.data.materials.new("test_unknown")
     with pytest.raises(ValueError, match="unknown texture family 'plaid'"):
