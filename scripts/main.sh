@@ -59,8 +59,14 @@ fi
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
 mkdir -p "$OUT"
-START=$(date +%s)
-elapsed() { echo "   [$(($(date +%s) - START)) s]"; }
+START=$(date +%s) LAST=$(date +%s) PHASES=''
+# Ends a phase: prints its seconds and records them for OUT/timing.json.
+phase_done() { # name
+  local now took
+  now=$(date +%s) && took=$((now - LAST)) && LAST=$now
+  PHASES+="\"$1\": $took, "
+  echo "   [$1: $took s, $((now - START)) s after setup]"
+}
 
 echo "== catalog"
 if [ -n "$YCB" ]; then
@@ -94,7 +100,7 @@ fi
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$CONFIG" "${TRAIN[@]}"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
 $BIN/grasp-gen plan --config "$CONFIG" "${TRAIN[@]}" --show "$OUT/paths.png" --quiet
-elapsed
+phase_done render
 
 echo "== train and evaluate: models $MODELS, $SEEDS seed(s) each"
 REPORTS=()
@@ -117,7 +123,7 @@ done
 # The shipped model: the best accuracy on its worst test set (report/shipped.txt).
 $BIN/grasp-train summarize --by-condition --title "Per-video accuracy by test set" \
   --ship-by-worst --out "$OUT/report" "${REPORTS[@]}"
-elapsed
+phase_done train_evaluate
 
 echo "== runtime: replay one test sequence against the simulated hand"
 SHIPPED="$OUT/model-$(cat "$OUT/report/shipped.txt")/seed-0"
@@ -133,5 +139,7 @@ $BIN/hannes-run run --checkpoint "$SHIPPED" --source "$SEQUENCE" --port "$OUT/ha
 sleep 0.5 && kill $HAND 2>/dev/null || true
 wait $HAND 2>/dev/null || true
 echo "the simulated hand's events ($OUT/hand-events.jsonl):" && cat "$OUT/hand-events.jsonl"
-elapsed
-echo "== done: $OUT/report/summary.md, shipped $SHIPPED, preview $OUT/preview, replay $OUT/replay.jsonl"
+phase_done replay
+printf '{%s"total_after_setup": %d}\n' "$PHASES" $((LAST - START)) >"$OUT/timing.json.tmp"
+mv "$OUT/timing.json.tmp" "$OUT/timing.json"
+echo "== done: $OUT/report/summary.md, times $OUT/timing.json, shipped $SHIPPED, preview $OUT/preview, replay $OUT/replay.jsonl"

@@ -59,21 +59,32 @@ impl FeatureCache {
         bad: &BadData,
     ) -> Result<Vec<SequenceFeatures>> {
         let bar = crate::progress::bar(data.sequences.len() as u64, "features");
-        let mut out = Vec::with_capacity(data.sequences.len());
+        let mut out: Vec<Option<SequenceFeatures>> = vec![None; data.sequences.len()];
         let (mut hits, mut computed) = (0usize, 0usize);
-        for seq in &data.sequences {
-            let (f, hit) = self.sequence(ex, seq, bad)?;
+        // A sequence's views (style views restyle inside the backbone) come
+        // right after it, so each frame is prepared (decoded, cropped,
+        // denoised) once for all of them.
+        let mut order: Vec<usize> = (0..data.sequences.len()).collect();
+        order.sort_by(|&a, &b| data.sequences[a].dir.cmp(&data.sequences[b].dir));
+        let mut prepared = PreparedFrames::default();
+        for i in order {
+            let seq = &data.sequences[i];
+            prepared.keep_only(&seq.dir);
+            let (f, hit) = self.sequence_with(ex, seq, bad, &mut prepared)?;
             if hit {
                 hits += 1;
             } else {
                 computed += 1;
             }
-            out.push(f);
+            out[i] = Some(f);
             bar.set_message(format!("{hits} cached, {computed} computed"));
             bar.inc(1);
         }
         bar.finish();
-        Ok(out)
+        Ok(out
+            .into_iter()
+            .map(|f| f.expect("every sequence visited"))
+            .collect())
     }
 
     /// Features of one sequence and whether they came from the cache.
@@ -82,6 +93,16 @@ impl FeatureCache {
         ex: &dyn FeatureExtractor,
         seq: &Sequence,
         bad: &BadData,
+    ) -> Result<(SequenceFeatures, bool)> {
+        self.sequence_with(ex, seq, bad, &mut PreparedFrames::default())
+    }
+
+    fn sequence_with(
+        &self,
+        ex: &dyn FeatureExtractor,
+        seq: &Sequence,
+        bad: &BadData,
+        prepared: &mut PreparedFrames,
     ) -> Result<(SequenceFeatures, bool)> {
         let path = self.entry_path(ex, seq)?;
         if path.is_file() {
@@ -97,7 +118,7 @@ impl FeatureCache {
                 Err(e) => tracing::warn!("recomputing bad cache entry {}: {e:#}", path.display()),
             }
         }
-        let f = compute(ex, seq, bad, self.batch)?;
+        let f = compute(ex, seq, bad, self.batch, prepared)?;
         write_entry(&path, &f)?;
         Ok((f, false))
     }
@@ -163,11 +184,47 @@ fn sequence_hash(seq: &Sequence) -> Result<String> {
     Ok(hex(&h.finalize())[..32].to_string())
 }
 
+/// The backbone inputs of one sequence folder's frames, shared by the
+/// sequence and its views: a view that changes no pixel before the backbone
+/// (a style view) reads the frames its sequence prepared. The key holds
+/// everything [`Sequence::load_frame`] reads, so equal keys give equal
+/// images.
+#[derive(Default)]
+struct PreparedFrames {
+    dir: PathBuf,
+    images: HashMap<String, Option<image::RgbImage>>,
+}
+
+impl PreparedFrames {
+    /// Forgets the frames of any other folder.
+    fn keep_only(&mut self, dir: &Path) {
+        if self.dir != dir {
+            self.dir = dir.to_path_buf();
+            self.images.clear();
+        }
+    }
+
+    fn key(seq: &Sequence, frame: usize) -> String {
+        format!(
+            "{}|{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}",
+            seq.frames[frame].display(),
+            seq.probe,
+            seq.view,
+            seq.crop,
+            seq.lens,
+            seq.rendered_region,
+            seq.denoise,
+            seq.id.split('#').next().unwrap_or_default(),
+        )
+    }
+}
+
 fn compute(
     ex: &dyn FeatureExtractor,
     seq: &Sequence,
     bad: &BadData,
     batch: usize,
+    prepared: &mut PreparedFrames,
 ) -> Result<SequenceFeatures> {
     let dim = ex.feature_dim();
     let mut rows = Vec::with_capacity(seq.frames.len() * dim);
@@ -179,17 +236,26 @@ fn compute(
     for (c, chunk) in seq.frames.chunks(batch).enumerate() {
         let mut images = Vec::with_capacity(chunk.len());
         let mut styles = vec![];
-        // Decoding, cropping and denoising are per frame: on every core.
+        // Decoding, cropping and denoising are per frame: on every core,
+        // once per frame for a sequence and its views.
+        let keys: Vec<String> = (0..chunk.len())
+            .map(|i| PreparedFrames::key(seq, c * batch + i))
+            .collect();
         let loaded: Vec<Result<Option<image::RgbImage>>> = {
             use rayon::prelude::*;
+            let known = &prepared.images;
             (0..chunk.len())
                 .into_par_iter()
-                .map(|i| seq.load_frame(c * batch + i, bad))
+                .map(|i| match known.get(&keys[i]) {
+                    Some(img) => Ok(img.clone()),
+                    None => seq.load_frame(c * batch + i, bad),
+                })
                 .collect()
         };
         for (i, img) in loaded.into_iter().enumerate() {
             let frame = c * batch + i;
             let img = img?;
+            prepared.images.insert(keys[i].clone(), img.clone());
             valid.push(img.is_some());
             if let (Some(_), Some(style)) = (&img, &seq.style) {
                 styles.push(style.frame_styles(frame + seq.first_frame, &channels)?);

@@ -174,3 +174,47 @@ fn fine_tuned_style_views_restyle_the_frozen_blocks_only() {
         "{err}"
     );
 }
+
+/// A sequence and its style views, extracted together, prepare each frame
+/// once (decoded, cropped, denoised) and share it; their features are the
+/// ones each gets alone, bit for bit.
+#[test]
+fn views_extracted_together_equal_views_extracted_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let weights = data_and_weights(root);
+    let dev = candle_core::Device::Cpu;
+    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    let net =
+        Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(32), &dev)
+            .unwrap();
+    let options = trainer::data::ReaderOptions {
+        denoise: true,
+        ..Default::default()
+    };
+    let bad = BadData::new(OnBadData::Fail);
+    let mut data = trainer::data::reader::read_dataset(&root.join("data"), &options, &bad).unwrap();
+    data.sequences.truncate(2);
+    let cfg = trainer::data::view::ViewConfig {
+        count: 2,
+        scale: 0.0,
+        shift: 0.0,
+        color: 0.0,
+        style: 0.3,
+        style_blocks: vec![2, 4, 7],
+        ..Default::default()
+    };
+    let with_views = trainer::data::view::with_views(&data, &cfg, 1);
+    assert_eq!(with_views.sequences.len(), 3 * data.sequences.len());
+    let together = FeatureCache::new(root.join("together"), 8)
+        .dataset(&net, &with_views, &bad)
+        .unwrap();
+    for (seq, f) in with_views.sequences.iter().zip(&together) {
+        let (alone, hit) = FeatureCache::new(root.join("alone"), 8)
+            .sequence(&net, seq, &bad)
+            .unwrap();
+        assert!(!hit);
+        assert_eq!(alone.rows, f.rows, "{}", seq.id);
+        assert_eq!(alone.valid, f.valid, "{}", seq.id);
+    }
+}

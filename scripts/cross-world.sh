@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The lab's cross-world table (issue 41, EXPERIMENTS.md "Across worlds"):
+# the shipped recipes and variants of the FC recipe, each without one of
+# its levers, trained on a finished main job's training set (3 seeds) and
+# scored on every test set it rendered, with the choice by worst world.
+#
+#   scripts/cross-world.sh MAIN_OUT [VARIANT...]
+#
+# MAIN_OUT is a finished `scripts/main.sh` output (its data/, features/ and
+# model-*/ are reused). Variants: fc-no-damping, fc-no-views, fc-plain (no
+# pooled blocks either), fc-no-denoise, fc-crop-fraction (default: the first
+# three). Writes MAIN_OUT/lab/VARIANT and MAIN_OUT/cross-world/summary.md.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${1:?usage: scripts/cross-world.sh MAIN_OUT [VARIANT...]} && shift
+VARIANTS=("${@:-fc-no-damping fc-no-views fc-plain}")
+read -r -a VARIANTS <<<"${VARIANTS[*]}"
+BIN=${BIN:-target/release} SEEDS=${SEEDS:-3}
+NO_VIEWS=(--set views.count=0 --set views.style=0 --set view_damping=0)
+declare -A SETS=(
+  [fc-no-damping]="--set view_damping=0"
+  [fc-no-views]="${NO_VIEWS[*]}"
+  [fc-plain]="${NO_VIEWS[*]} --set pooled_blocks=[]"
+  [fc-no-denoise]="--set reader.denoise=false"
+  [fc-crop-fraction]="--set reader.crop={fraction=0.42}"
+)
+TEST_SETS=()
+for dir in "$OUT"/data/test-*; do TEST_SETS+=("${dir##*/test-}"); done
+REPORTS=()
+for model in fc fc-tuned lstm "${VARIANTS[@]}"; do
+  RUNS="$OUT/model-$model"
+  if [ ! -d "$RUNS" ]; then
+    RUNS="$OUT/lab/$model"
+    # shellcheck disable=SC2086 # the variant's flags are words
+    [ -f "$RUNS/.done" ] || { $BIN/grasp-train train --recipe configs/recipes/fc.toml \
+      ${SETS[$model]:?unknown variant $model} --data "$OUT/data/train" --val-data "$OUT/data/val" \
+      --seeds "$SEEDS" --cache-dir "$OUT/features" --out "$RUNS" && touch "$RUNS/.done"; }
+  fi
+  CHECKPOINTS=()
+  for ((s = 0; s < SEEDS; s++)); do CHECKPOINTS+=(-c "$RUNS/seed-$s"); done
+  for set in "${TEST_SETS[@]}"; do
+    REPORT="$OUT/report/$model/$set"
+    [ -f "$REPORT/report.json" ] || $BIN/grasp-train eval "${CHECKPOINTS[@]}" \
+      --data "$OUT/data/test-$set" --cache-dir "$OUT/features" --out "$REPORT"
+    REPORTS+=(--report "$model/$set:$REPORT")
+  done
+done
+$BIN/grasp-train summarize --by-condition --ship-by-worst --title "Across worlds" \
+  --out "$OUT/cross-world" "${REPORTS[@]}"
