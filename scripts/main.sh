@@ -1,28 +1,18 @@
 #!/usr/bin/env bash
-# The main job, the paper's protocol: set up, check the catalog, render a
-# training set, a validation set and the test sets, train the shipped models'
-# recipes (3 seeds each), evaluate them on every test set, ship the one whose
-# worst world is best, and replay one test sequence through the runtime
-# against the simulated hand.
+# The main job: set up, render a training, a validation and the test sets,
+# train the recipes of configs/recipes/ (3 seeds), score them on every test
+# set, ship the one whose worst test set is best (OUT/report/shipped.txt),
+# replay a test sequence with it against the simulated hand.
 #
-#   scripts/main.sh [OPTIONS] [OUT]        (OUT: runs/main)
+#   scripts/main.sh [--config FILE] [--train-seq N] [--test-seq N] [--seeds N]
+#                   [--models "fc lstm fc-tuned"] [--ycb DIR] [--weights FILE] [OUT]
 #
-#   --config FILE    render config (configs/main.toml: all 31 pairs, Cycles
-#                    1 sample + denoiser, 224 x 224, 2.5 frames/s)
-#   --train-seq N    training sequences per pair (24; the paper: 47)
-#   --test-seq N     test sequences per pair and set (2: 62 videos each)
-#   --seeds N        seeds per model (3)
-#   --models "..."   recipes of configs/recipes/ to train (fc lstm fc-tuned;
-#                    scratch trains a small network end to end)
-#   --ycb DIR        train on the authors' YCB meshes (DIR: annotations.json,
-#                    meshes/) instead of the built-in objects
-#   --weights FILE   another frozen backbone (.pth): FC and LSTM heads only
-#
-# Test sets: the paper's five conditions, unseen_look, looks B-D
-# (configs/test-look-*.toml) and the foreign worlds (configs/test-world-*.toml:
-# another scene and render path, another reach, and with ../shared/ycb the
-# real meshes in the foreign scene), each a layer over the render config.
-# Re-running resumes. SKIP_SETUP=1 skips setup; BIN (target/release).
+# --config: the render config (configs/main.toml); --train-seq/--test-seq:
+# sequences per pair (24, 2); --ycb DIR: train on the authors' YCB meshes;
+# --weights FILE: another frozen backbone (FC and LSTM heads). Test sets: the
+# paper's five conditions, unseen_look, looks B-D and the foreign worlds
+# (configs/test-*.toml laid over the render config; the real-mesh world needs
+# ../shared/ycb). OUT: runs/main; a re-run resumes; SKIP_SETUP=1, BIN.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -39,7 +29,7 @@ while [ $# -gt 0 ]; do
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
         --set views.style=0 --set view_damping=0) MODELS="fc lstm" && shift ;;
-    -h | --help) sed -n '2,25p' "$0" && exit 0 ;;
+    -h | --help) head -15 "$0" | tail -14 && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;
   esac
