@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod cli;
 pub mod load;
+pub mod mesh;
 pub mod meshio;
 pub mod model;
 pub mod procedural;
@@ -12,4 +13,5 @@ pub mod validate;
 pub mod ycb;
 
 pub use load::{builtin_dir, Catalog, ObjectFile, PartFile, OBJECTS_ENV_VAR};
+pub use mesh::TriMesh;
 pub use model::*;

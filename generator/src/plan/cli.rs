@@ -46,7 +46,7 @@ pub fn load_inputs(
             .with_context(|| format!("loading the catalog {}", dir.display()))?,
         None => Catalog::builtin().context("loading the built-in catalog")?,
     };
-    config.check(&catalog)?;
+    super::check::check(&config, &catalog)?;
     Ok((config, catalog))
 }
 

@@ -5,6 +5,7 @@
 pub mod bench;
 pub mod budget;
 pub mod camera;
+pub mod check;
 pub mod cli;
 pub mod conditions;
 pub mod distractors;

@@ -2,6 +2,7 @@
 
 use super::conditions::{sample_path, PathContext, PathSample};
 use super::scene::{sample_placement, Placement};
+use super::selection::selected_pairs;
 use super::trajectory::{frame_tau, linear_window, min_jerk, min_jerk_window, WristTiming};
 use super::validity::{
     aabb, check_batch, Acceptance, Obb, Obstacles, PolylineCheck, RayCaster, Rejection,
@@ -149,7 +150,7 @@ pub struct Planner {
 pub fn sequence_keys(config: &GeneratorConfig, catalog: &Catalog) -> Vec<SequenceKey> {
     let d = &config.dataset;
     let mut keys = Vec::new();
-    for (object, part) in selected_pairs(config, catalog) {
+    for (object, part) in selected_pairs(&config.dataset, catalog) {
         for &condition in &d.conditions {
             for index in 0..d.sequences_per_pair {
                 keys.push(SequenceKey {
@@ -162,30 +163,6 @@ pub fn sequence_keys(config: &GeneratorConfig, catalog: &Catalog) -> Vec<Sequenc
         }
     }
     keys
-}
-
-/// The catalog's (object, part) pairs that pass the dataset filters.
-pub fn selected_pairs<'a>(
-    config: &GeneratorConfig,
-    catalog: &'a Catalog,
-) -> Vec<(&'a ObjectSpec, &'a GraspPart)> {
-    let d = &config.dataset;
-    catalog
-        .pairs()
-        .into_iter()
-        .filter_map(|(id, index)| {
-            let object = catalog.object(&id)?;
-            Some((object, object.parts.get(index)?))
-        })
-        .filter(|(o, _)| d.objects.as_ref().is_none_or(|ids| ids.contains(&o.id)))
-        .filter(|(o, p)| {
-            d.parts.as_ref().is_none_or(|names| {
-                names
-                    .iter()
-                    .any(|n| *n == p.name || *n == format!("{}/{}", o.id, p.name))
-            })
-        })
-        .collect()
 }
 
 /// A drawn candidate scene.
@@ -221,7 +198,7 @@ impl Planner {
         config.plan.validate()?;
         let mut geometries = Vec::new();
         let mut seen = std::collections::BTreeSet::new();
-        for (object, _) in selected_pairs(config, catalog) {
+        for (object, _) in selected_pairs(&config.dataset, catalog) {
             if !seen.insert(object.id.clone()) {
                 continue;
             }
