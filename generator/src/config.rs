@@ -79,7 +79,8 @@ impl GeneratorConfig {
         self.randomize.validate()?;
         self.render.validate()?;
         self.check_world()?;
-        self.appearance.unseen_look.check_disjoint(
+        crate::randomize::check_unseen_disjoint(
+            &self.appearance.unseen_look,
             &self.appearance,
             &self.randomize,
             &self.render.view_transform,

@@ -7,6 +7,7 @@ pub mod config;
 pub mod dataset;
 pub mod draw;
 pub mod geometry;
+pub mod look;
 pub mod plan;
 pub mod preview;
 pub mod python;
