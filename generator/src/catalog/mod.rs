@@ -1,7 +1,6 @@
 //! The object catalog: one file per object in `objects/`, each with a mesh
 //! (built-in procedural or external file) and its grasp parts.
 
-pub mod bench;
 pub mod cli;
 pub mod load;
 pub mod mesh;

@@ -92,7 +92,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     }
     if let Some(png) = &args.show {
         let shown: Vec<&SequencePlan> = shown.iter().collect();
-        super::draw::draw_paths(&shown, &planner, png)?;
+        super::plot_paths::draw_paths(&shown, &planner, png)?;
         eprintln!("drew {} paths into {}", shown.len(), png.display());
     }
     Ok(())
