@@ -24,7 +24,7 @@ pub const BASE_FAMILIES: [&str; 8] = [
 ];
 /// The texture families the Blender side knows (`blender_scripts/materials.py`):
 /// the base families and those reserved for `unseen_look`.
-pub const FAMILIES: [&str; 15] = concat(BASE_FAMILIES, crate::unseen_look::UNSEEN_FAMILIES);
+pub const FAMILIES: [&str; 15] = concat(BASE_FAMILIES, crate::look::unseen_config::UNSEEN_FAMILIES);
 
 /// `a` followed by `b` (`N` must be their total length).
 const fn concat<const A: usize, const B: usize, const N: usize>(
@@ -76,7 +76,7 @@ pub struct AppearanceConfig {
     /// Probability that the hand is partly in view at the top of the frame.
     pub hand_visible: f64,
     /// The `unseen_look` test condition's own appearance.
-    pub unseen_look: crate::unseen_look::UnseenLookConfig,
+    pub unseen_look: crate::look::unseen_config::UnseenLookConfig,
 }
 
 impl Default for AppearanceConfig {
@@ -114,7 +114,7 @@ impl AppearanceConfig {
             bail!("[appearance] families: the list is empty");
         }
         for f in &self.families {
-            if crate::unseen_look::UNSEEN_FAMILIES.contains(&f.as_str()) {
+            if crate::look::unseen_config::UNSEEN_FAMILIES.contains(&f.as_str()) {
                 bail!("[appearance] families: '{f}' is reserved for the unseen_look condition and may not be drawn in training");
             }
             if !known(f) || f == "image" {
@@ -126,7 +126,7 @@ impl AppearanceConfig {
         }
         if !known(&self.held_out_family)
             || self.held_out_family == "image"
-            || crate::unseen_look::UNSEEN_FAMILIES.contains(&self.held_out_family.as_str())
+            || crate::look::unseen_config::UNSEEN_FAMILIES.contains(&self.held_out_family.as_str())
         {
             bail!(
                 "[appearance] held_out_family: unknown family '{}'",

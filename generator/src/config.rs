@@ -79,7 +79,8 @@ impl GeneratorConfig {
         self.randomize.validate()?;
         self.render.validate()?;
         self.check_world()?;
-        self.appearance.unseen_look.check_disjoint(
+        crate::randomize::check_unseen_disjoint(
+            &self.appearance.unseen_look,
             &self.appearance,
             &self.randomize,
             &self.render.view_transform,
@@ -88,7 +89,7 @@ impl GeneratorConfig {
 
     /// What `[render] world` needs of the other sections: the foreign
     /// world draws the wrist camera only.
-    fn check_world(&self) -> Result<()> {
+    pub fn check_world(&self) -> Result<()> {
         if self.render.world != crate::render::World::Studio && self.plan.head_camera.enabled {
             anyhow::bail!(
                 "[render] world = \"{}\" renders the wrist camera only; \
@@ -97,20 +98,5 @@ impl GeneratorConfig {
             );
         }
         Ok(())
-    }
-
-    /// Every check before planning: each section's values, the selection
-    /// against the catalog (unknown object ids and parts, with near
-    /// matches) and the size limits of [`crate::plan::budget`]. `plan`,
-    /// `render` and `dataset verify --config` all run it, so they agree.
-    pub fn check(&self, catalog: &crate::catalog::Catalog) -> Result<()> {
-        self.plan
-            .validate()
-            .context("invalid [plan] section of the config")?;
-        self.appearance.validate()?;
-        self.render.validate()?;
-        self.check_world()?;
-        crate::plan::selection::check_selection(self, catalog)?;
-        crate::plan::budget::check_size(self, crate::plan::selection::pair_count(self, catalog))
     }
 }

@@ -156,14 +156,14 @@ fn box_axes_are_proper_rotations() {
 fn the_drawing_shows_the_mesh_and_the_boxes_in_their_colours() {
     let c = catalog();
     let o = c.object("025_mug").unwrap();
-    let img = generator::draw::render_object(o, &o.mesh().unwrap());
+    let img = generator::raster::render_object(o, &o.mesh().unwrap());
     let count = |c: image::Rgb<u8>| img.pixels().filter(|p| **p == c).count();
-    let power = generator::draw::preshape_colour(Preshape::Power);
-    let pinch3 = generator::draw::preshape_colour(Preshape::Pinch3);
+    let power = generator::raster::preshape_colour(Preshape::Power);
+    let pinch3 = generator::raster::preshape_colour(Preshape::Pinch3);
     assert!(count(power) > 200);
     assert!(count(pinch3) > 50);
     assert_eq!(
-        count(generator::draw::preshape_colour(Preshape::Lateral)),
+        count(generator::raster::preshape_colour(Preshape::Lateral)),
         0
     );
     // Shaded mesh pixels: greys that are neither background nor a box colour.

@@ -16,21 +16,6 @@ pub enum ObjectsCommand {
     Show(ShowArgs),
     /// Build a catalog variant from YCB meshes and an annotations.json.
     ImportYcb(ImportArgs),
-    /// Time the mesh queries (rays, inside tests, closest points) per
-    /// object, for each ray backend, against trimesh's closest points.
-    BenchQueries(BenchArgs),
-}
-
-#[derive(Args, Debug)]
-pub struct BenchArgs {
-    #[command(flatten)]
-    pub catalog: CatalogArg,
-    /// Rays (and inside-test points) per object.
-    #[arg(long, default_value_t = 20_000)]
-    pub rays: usize,
-    /// Closest-point queries per object (trimesh's version is slow).
-    #[arg(long, default_value_t = 200)]
-    pub points: usize,
 }
 
 #[derive(Args, Debug)]
@@ -88,9 +73,6 @@ pub fn run(cmd: &ObjectsCommand) -> Result<()> {
         }
         ObjectsCommand::Check(a) => check(a),
         ObjectsCommand::Show(a) => show(a),
-        ObjectsCommand::BenchQueries(a) => {
-            super::bench::run(&load_unchecked(&a.catalog)?, a.rays, a.points)
-        }
         ObjectsCommand::ImportYcb(a) => {
             let files = ycb::import(&a.ycb, &a.out)?;
             let catalog = Catalog::load_dir(&a.out)
@@ -106,7 +88,8 @@ pub fn run(cmd: &ObjectsCommand) -> Result<()> {
     }
 }
 
-fn load_unchecked(a: &CatalogArg) -> Result<Catalog> {
+/// The catalog of `--catalog` (or the built-in one), its boxes unchecked.
+pub fn load_unchecked(a: &CatalogArg) -> Result<Catalog> {
     let dir = a.catalog.clone().unwrap_or_else(super::builtin_dir);
     Catalog::load_dir_unchecked(&dir)
 }
@@ -220,7 +203,7 @@ fn show(a: &ShowArgs) -> Result<()> {
         let out = a.out.as_ref().context("--all needs --out DIR")?;
         for o in &catalog.objects {
             let path = out.join(format!("{}.png", o.id));
-            crate::draw::write_object_png(o, &path)?;
+            crate::raster::write_object_png(o, &path)?;
             println!("{}", path.display());
         }
         return Ok(());
@@ -234,7 +217,7 @@ fn show(a: &ShowArgs) -> Result<()> {
         )
     })?;
     let png = a.png.as_ref().context("give --png FILE")?;
-    crate::draw::write_object_png(object, png)?;
+    crate::raster::write_object_png(object, png)?;
     println!("{}", png.display());
     Ok(())
 }

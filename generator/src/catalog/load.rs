@@ -1,6 +1,7 @@
 //! Reading a catalog folder: one TOML file per object, checked field by
 //! field, then geometrically (every box must touch its mesh).
 
+use super::mesh::TriMesh;
 use super::model::*;
 use super::{meshio, validate};
 use anyhow::{bail, Context, Result};

@@ -1,7 +1,7 @@
 //! Reading triangle meshes (PLY ASCII or binary, OBJ, STL; metres) and
 //! writing binary PLY.
 
-use super::model::TriMesh;
+use super::mesh::TriMesh;
 use anyhow::{bail, Context, Result};
 use std::io::{BufReader, Write};
 use std::path::Path;

@@ -11,6 +11,7 @@
 //! the reference for pronation-supination (the palm normal ends parallel to
 //! the face normal along X).
 
+use super::mesh::TriMesh;
 use grasp_schema::GraspType;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -153,11 +154,4 @@ pub struct ObjectSpec {
     /// The mesh in the object frame, built on first use.
     #[serde(skip)]
     pub(crate) mesh_cache: OnceLock<TriMesh>,
-}
-
-/// A triangle mesh in the object frame.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct TriMesh {
-    pub vertices: Vec<[f64; 3]>,
-    pub faces: Vec<[u32; 3]>,
 }

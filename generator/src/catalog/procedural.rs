@@ -3,7 +3,7 @@
 //! moves it into the object frame (bottom centre of the bounding box at the
 //! origin). Long objects lie along X.
 
-use super::model::TriMesh;
+use super::mesh::TriMesh;
 use super::shapes::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

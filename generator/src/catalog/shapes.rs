@@ -2,7 +2,7 @@
 //! swept tubes, extruded polygons and ellipsoids. Each returns one closed
 //! shell with outward-facing triangles; an object is a union of shells.
 
-use super::model::TriMesh;
+use super::mesh::TriMesh;
 use std::f64::consts::{PI, TAU};
 
 pub type V3 = [f64; 3];

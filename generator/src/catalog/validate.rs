@@ -9,7 +9,8 @@
 //!    opening, such as the mug's top grasp, which the hand reaches through
 //!    the opening).
 
-use super::model::{GraspPart, ObjectSpec, TriMesh};
+use super::mesh::TriMesh;
+use super::model::{GraspPart, ObjectSpec};
 use crate::geometry::{convex_hull, MeshQuery};
 use anyhow::{bail, Context, Result};
 

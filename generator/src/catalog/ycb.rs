@@ -8,8 +8,9 @@
 //! hull of `points.xyz` is written next to the object files.
 
 use super::load::{ObjectFile, PartFile};
+use super::mesh::TriMesh;
 use super::meshio;
-use super::model::{MeshSource, Pronation, TriMesh, UpsideDown};
+use super::model::{MeshSource, Pronation, UpsideDown};
 use anyhow::{bail, Context, Result};
 use grasp_schema::atomic::write_atomic;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};

@@ -5,7 +5,7 @@
 //! Blender worker fail. Such a config is refused at once, naming the field,
 //! the size it asks for and the limit.
 
-use crate::config::GeneratorConfig;
+use super::{DatasetConfig, PlanConfig};
 use anyhow::{bail, Result};
 use grasp_schema::Condition;
 
@@ -27,8 +27,7 @@ pub const MAX_SEQUENCE_PIXELS: u64 = 1 << 30;
 
 /// Fails when the config asks for more than the limits above; `pairs` is
 /// the number of (object, part) pairs it selects.
-pub fn check_size(config: &GeneratorConfig, pairs: usize) -> Result<()> {
-    let d = &config.dataset;
+pub fn check_size(d: &DatasetConfig, plan: &PlanConfig, pairs: usize) -> Result<()> {
     let sequences = pairs as u128 * d.conditions.len() as u128 * u128::from(d.sequences_per_pair);
     if sequences > u128::from(MAX_SEQUENCES) {
         bail!(
@@ -40,7 +39,7 @@ pub fn check_size(config: &GeneratorConfig, pairs: usize) -> Result<()> {
             d.sequences_per_pair
         );
     }
-    let [w, h] = config.plan.camera.resolution;
+    let [w, h] = plan.camera.resolution;
     let pixels = u64::from(w) * u64::from(h);
     if pixels > MAX_FRAME_PIXELS {
         bail!(
@@ -50,19 +49,15 @@ pub fn check_size(config: &GeneratorConfig, pairs: usize) -> Result<()> {
             pixels as f64 * 100.0 / 1e9
         );
     }
-    let cameras: u64 = if config.plan.head_camera.enabled {
-        2
-    } else {
-        1
-    };
+    let cameras: u64 = if plan.head_camera.enabled { 2 } else { 1 };
     for &c in &d.conditions {
-        let (field, seconds) = duration_field(config, c);
-        let frames = (seconds * config.plan.trajectory.fps).round();
+        let (field, seconds) = duration_field(plan, c);
+        let frames = (seconds * plan.trajectory.fps).round();
         if frames.is_nan() || frames > MAX_FRAMES_PER_SEQUENCE as f64 {
             bail!(
                 "{field} x plan.trajectory.fps = {seconds} s x {} fps = {frames} frames per {} \
                  sequence; the limit is {MAX_FRAMES_PER_SEQUENCE} frames per sequence",
-                config.plan.trajectory.fps,
+                plan.trajectory.fps,
                 c.name()
             );
         }
@@ -84,13 +79,12 @@ pub fn check_size(config: &GeneratorConfig, pairs: usize) -> Result<()> {
 }
 
 /// The config field that sets the length of `condition`'s sequences.
-fn duration_field(config: &GeneratorConfig, condition: Condition) -> (&'static str, f64) {
-    let c = &config.plan.conditions;
+fn duration_field(plan: &PlanConfig, condition: Condition) -> (&'static str, f64) {
+    let c = &plan.conditions;
     match condition {
-        Condition::Default | Condition::Background | Condition::UnseenLook => (
-            "plan.trajectory.duration_s",
-            config.plan.trajectory.duration_s,
-        ),
+        Condition::Default | Condition::Background | Condition::UnseenLook => {
+            ("plan.trajectory.duration_s", plan.trajectory.duration_s)
+        }
         Condition::Fast => ("plan.conditions.fast.duration_s", c.fast.duration_s),
         Condition::Seated => ("plan.conditions.seated.duration_s", c.seated.duration_s),
         Condition::FromGround => (
@@ -103,17 +97,21 @@ fn duration_field(config: &GeneratorConfig, condition: Condition) -> (&'static s
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::GeneratorConfig;
 
     fn err(config: &GeneratorConfig, pairs: usize) -> String {
-        format!("{:#}", check_size(config, pairs).unwrap_err())
+        format!(
+            "{:#}",
+            check_size(&config.dataset, &config.plan, pairs).unwrap_err()
+        )
     }
 
     #[test]
     fn the_defaults_and_the_paper_scale_fit() {
         let mut c = GeneratorConfig::default();
-        check_size(&c, 31).unwrap();
+        check_size(&c.dataset, &c.plan, 31).unwrap();
         c.dataset.conditions = Condition::ALL.to_vec();
-        check_size(&c, 31).unwrap();
+        check_size(&c.dataset, &c.plan, 31).unwrap();
     }
 
     #[test]

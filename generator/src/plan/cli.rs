@@ -46,7 +46,7 @@ pub fn load_inputs(
             .with_context(|| format!("loading the catalog {}", dir.display()))?,
         None => Catalog::builtin().context("loading the built-in catalog")?,
     };
-    config.check(&catalog)?;
+    super::check::check(&config, &catalog)?;
     Ok((config, catalog))
 }
 
@@ -92,7 +92,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     }
     if let Some(png) = &args.show {
         let shown: Vec<&SequencePlan> = shown.iter().collect();
-        super::draw::draw_paths(&shown, &planner, png)?;
+        super::plot_paths::draw_paths(&shown, &planner, png)?;
         eprintln!("drew {} paths into {}", shown.len(), png.display());
     }
     Ok(())

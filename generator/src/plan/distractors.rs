@@ -16,7 +16,8 @@
 
 use super::scene::SceneConfig;
 use super::validity::Obb;
-use crate::randomize::{lever_rng, DistractorLever};
+use crate::look::lever_rng;
+use crate::randomize::DistractorLever;
 use grasp_schema::plan::{Distractor, Pose};
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::Rng;

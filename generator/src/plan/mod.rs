@@ -2,15 +2,15 @@
 //! a [`SequencePlan`](grasp_schema::SequencePlan), with nothing left to
 //! chance at render time. See `docs/planning.md`.
 
-pub mod bench;
 pub mod budget;
 pub mod camera;
+pub mod check;
 pub mod cli;
 pub mod conditions;
 pub mod distractors;
-pub mod draw;
 pub mod head_camera;
 mod planner;
+pub mod plot_paths;
 pub mod scene;
 pub mod selection;
 pub mod source;

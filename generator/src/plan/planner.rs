@@ -2,13 +2,14 @@
 
 use super::conditions::{sample_path, PathContext, PathSample};
 use super::scene::{sample_placement, Placement};
-use super::trajectory::{frame_tau, linear_window, min_jerk, min_jerk_window, WristTiming};
+use super::selection::selected_pairs;
+use super::trajectory::frame_tau;
 use super::validity::{
     aabb, check_batch, Acceptance, Obb, Obstacles, PolylineCheck, RayCaster, Rejection,
     ScaledCaster,
 };
-use super::wrist::{self, look_at, RollRule};
-use crate::catalog::{Catalog, GraspPart, ObjectSpec, Pronation, TriMesh};
+use super::wrist::{self, WristAngles};
+use crate::catalog::{Catalog, GraspPart, ObjectSpec, TriMesh};
 use crate::config::GeneratorConfig;
 use crate::randomize::{self, ApproachDraw};
 use anyhow::{bail, Context, Result};
@@ -17,7 +18,7 @@ use grasp_schema::plan::{
     PLAN_SCHEMA_VERSION,
 };
 use grasp_schema::{Class, Condition};
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::json;
@@ -149,7 +150,7 @@ pub struct Planner {
 pub fn sequence_keys(config: &GeneratorConfig, catalog: &Catalog) -> Vec<SequenceKey> {
     let d = &config.dataset;
     let mut keys = Vec::new();
-    for (object, part) in selected_pairs(config, catalog) {
+    for (object, part) in selected_pairs(&config.dataset, catalog) {
         for &condition in &d.conditions {
             for index in 0..d.sequences_per_pair {
                 keys.push(SequenceKey {
@@ -162,30 +163,6 @@ pub fn sequence_keys(config: &GeneratorConfig, catalog: &Catalog) -> Vec<Sequenc
         }
     }
     keys
-}
-
-/// The catalog's (object, part) pairs that pass the dataset filters.
-pub fn selected_pairs<'a>(
-    config: &GeneratorConfig,
-    catalog: &'a Catalog,
-) -> Vec<(&'a ObjectSpec, &'a GraspPart)> {
-    let d = &config.dataset;
-    catalog
-        .pairs()
-        .into_iter()
-        .filter_map(|(id, index)| {
-            let object = catalog.object(&id)?;
-            Some((object, object.parts.get(index)?))
-        })
-        .filter(|(o, _)| d.objects.as_ref().is_none_or(|ids| ids.contains(&o.id)))
-        .filter(|(o, p)| {
-            d.parts.as_ref().is_none_or(|names| {
-                names
-                    .iter()
-                    .any(|n| *n == p.name || *n == format!("{}/{}", o.id, p.name))
-            })
-        })
-        .collect()
 }
 
 /// A drawn candidate scene.
@@ -221,7 +198,7 @@ impl Planner {
         config.plan.validate()?;
         let mut geometries = Vec::new();
         let mut seen = std::collections::BTreeSet::new();
-        for (object, _) in selected_pairs(config, catalog) {
+        for (object, _) in selected_pairs(&config.dataset, catalog) {
             if !seen.insert(object.id.clone()) {
                 continue;
             }
@@ -521,7 +498,17 @@ impl Planner {
         let n = traj.frame_count(duration)?;
         let c = &accepted.candidate;
         let s = c.sample.as_ref().expect("accepted candidates have a path");
-        let wrist = WristAngles::new(traj, geo, part_index, part, c, stream);
+        let bx = &geo.boxes[part_index];
+        let box_x = c.placement.rotation * (bx.rotation * Vector3::x());
+        let wrist = WristAngles::new(
+            traj,
+            s,
+            c.target,
+            c.other_end,
+            box_x,
+            part.pronation,
+            stream,
+        );
         let class = Class::from(part.grasp_type.preshape());
         let mut frames = frame_poses(traj, n, c, &wrist, class);
         let head = self.head_camera(key, geo, &c.placement, stream);
@@ -622,110 +609,6 @@ impl Planner {
     }
 }
 
-/// The wrist's two rotations of a sequence: pronation-supination turns the
-/// camera's X onto the target box's X axis, flexion-extension pitches it
-/// towards the part's other end; the schedule says how much of each is
-/// done at each moment.
-struct WristAngles {
-    schedule: WristSchedule,
-    /// Pronation-supination angle (radians, about the view direction).
-    ps_angle: f64,
-    /// Flexion-extension angle (radians, about the camera's X).
-    fe_angle: f64,
-    /// The approach direction at the end of the path.
-    final_dir: Vector3<f64>,
-    /// The path's end point.
-    end: Vector3<f64>,
-}
-
-impl WristAngles {
-    fn new(
-        traj: &super::TrajectoryConfig,
-        geo: &ObjectGeometry,
-        part_index: usize,
-        part: &GraspPart,
-        c: &Candidate,
-        stream: u64,
-    ) -> WristAngles {
-        let s = c.sample.as_ref().expect("accepted candidates have a path");
-        let mut wrist_rng = ChaCha8Rng::seed_from_u64(substream_seed(stream, "wrist"));
-        let schedule = WristSchedule::sample(traj, s.approach_tau, &mut wrist_rng);
-        let end = s.path.end();
-        let final_dir = (c.target - end)
-            .try_normalize(1e-12)
-            .unwrap_or_else(|| (c.target - s.path.position(1.0 - 1e-6)).normalize());
-        // Pronation-supination: turn the camera's X onto the box's X axis.
-        let q_end = look_toward(c.target, final_dir, &end);
-        let bx = &geo.boxes[part_index];
-        let box_x = c.placement.rotation * (bx.rotation * Vector3::x());
-        let ps_angle = match part.pronation {
-            Pronation::None => None,
-            rule => {
-                wrist::signed_angle_about(&final_dir, &wrist::right_axis(&q_end), &box_x).map(|a| {
-                    wrist::wrap_roll(
-                        a,
-                        if rule == Pronation::Supination {
-                            RollRule::Supination
-                        } else {
-                            RollRule::Shortest
-                        },
-                    )
-                })
-            }
-        }
-        .unwrap_or(0.0);
-        // Flexion-extension: pitch about the camera's X towards the other end.
-        let q_end_ps = wrist::roll(&q_end, ps_angle * schedule.pronation_fraction(1.0));
-        let fe_angle = wrist::signed_angle_about(
-            &wrist::right_axis(&q_end_ps),
-            &wrist::view_direction(&q_end_ps),
-            &(c.other_end - end),
-        )
-        .unwrap_or(0.0);
-        WristAngles {
-            schedule,
-            ps_angle,
-            fe_angle,
-            final_dir,
-            end,
-        }
-    }
-
-    /// The camera's orientation at `position` and normalised time `tau`:
-    /// looking at the target, risen from the floor-facing start, rolled and
-    /// pitched by the executed fractions of the wrist angles.
-    fn camera_rotation(
-        &self,
-        c: &Candidate,
-        sample: &PathSample,
-        position: &Vector3<f64>,
-        tau: f64,
-    ) -> UnitQuaternion<f64> {
-        let (up, forward) = (Vector3::z(), Vector3::x());
-        let mut q = look_toward(c.target, self.final_dir, position);
-        if let Some(t1) = sample.rise_until.filter(|t1| tau < *t1) {
-            let q_down = look_at(&-up, &up, &forward);
-            q = wrist::slerp(&q_down, &q, min_jerk(tau / t1));
-        }
-        wrist::pitch(
-            &wrist::roll(&q, self.ps_angle * self.schedule.pronation_fraction(tau)),
-            self.fe_angle * self.schedule.flexion_fraction(tau),
-        )
-    }
-}
-
-/// The camera at `position` looking at `target` (along `final_dir` when it
-/// is already there).
-fn look_toward(
-    target: Vector3<f64>,
-    final_dir: Vector3<f64>,
-    position: &Vector3<f64>,
-) -> UnitQuaternion<f64> {
-    let d = target - position;
-    let d = if d.norm() > 1e-9 { d } else { final_dir };
-    look_at(&d, &Vector3::z(), &Vector3::x())
-}
-
 /// The `n` frames' camera poses and labels: the part's class, then
 /// `no_grasp` for the tail.
 fn frame_poses(
@@ -741,7 +624,7 @@ fn frame_poses(
         .map(|i| {
             let tau = frame_tau(i, n);
             let p = s.path.position(tau);
-            let q = wrist.camera_rotation(c, s, &p, tau);
+            let q = wrist.camera_rotation(c.target, s, &p, tau);
             FramePlan {
                 index: i as u32,
                 time_s: i as f64 / traj.fps,
@@ -865,90 +748,5 @@ impl Planner {
             &center,
             &mut rng,
         ))
-    }
-}
-
-/// The sampled wrist-rotation timing, in normalised time.
-struct WristSchedule {
-    timing: WristTiming,
-    approach_tau: f64,
-    ps_onset_frame: f64,
-    ps_duration_frames: f64,
-    ps_fraction: f64,
-    fe_onset_frame: f64,
-    frames: f64,
-    fe_rate: f64,
-}
-
-impl WristSchedule {
-    fn sample(t: &super::TrajectoryConfig, approach_tau: f64, rng: &mut ChaCha8Rng) -> Self {
-        use super::scene::uniform;
-        // The authors round the frame draws to integers.
-        WristSchedule {
-            timing: t.wrist_timing,
-            approach_tau,
-            ps_onset_frame: uniform(rng, t.ps_onset_frames[0], t.ps_onset_frames[1]).round(),
-            ps_duration_frames: uniform(rng, t.ps_duration_frames[0], t.ps_duration_frames[1])
-                .round(),
-            ps_fraction: uniform(rng, t.ps_fraction[0], t.ps_fraction[1]),
-            fe_onset_frame: uniform(rng, t.fe_onset_frames[0], t.fe_onset_frames[1]).round(),
-            frames: t.authors_frames,
-            fe_rate: t.fe_rate_per_frame,
-        }
-    }
-
-    /// Authors' frame -> normalised time of the approach phase.
-    fn tau_of(&self, frame: f64) -> f64 {
-        self.approach_tau + (frame / self.frames).min(1.0) * (1.0 - self.approach_tau)
-    }
-
-    fn approach_frames(&self, tau: f64) -> f64 {
-        (tau - self.approach_tau) / (1.0 - self.approach_tau).max(1e-12) * self.frames
-    }
-
-    /// Executed fraction of the pronation-supination angle at `tau`.
-    fn pronation_fraction(&self, tau: f64) -> f64 {
-        let a = self.approach_tau;
-        self.ps_fraction
-            * match self.timing {
-                WristTiming::Authors => {
-                    let on = self.tau_of(self.ps_onset_frame);
-                    let len = self.tau_of(self.ps_onset_frame + self.ps_duration_frames) - on;
-                    linear_window(tau, on, len)
-                }
-                WristTiming::Human => min_jerk_window(tau, a, 1.0 - a),
-            }
-    }
-
-    /// Executed fraction of the flexion-extension angle at `tau`.
-    fn flexion_fraction(&self, tau: f64) -> f64 {
-        let keep = 1.0 - self.fe_rate;
-        let k = self.approach_frames(tau) - self.fe_onset_frame;
-        match self.timing {
-            WristTiming::Authors => {
-                if k <= 0.0 {
-                    0.0
-                } else {
-                    1.0 - keep.powf(k)
-                }
-            }
-            WristTiming::Human => {
-                let on = self.tau_of(self.fe_onset_frame);
-                let left = (self.frames - self.fe_onset_frame).max(0.0);
-                (1.0 - keep.powf(left)) * min_jerk_window(tau, on, 1.0 - on)
-            }
-        }
-    }
-
-    fn record(&self, put: &mut impl FnMut(&str, serde_json::Value)) {
-        put(
-            "wrist_timing",
-            json!(format!("{:?}", self.timing).to_lowercase()),
-        );
-        put("ps_onset_frame", json!(self.ps_onset_frame));
-        put("ps_duration_frames", json!(self.ps_duration_frames));
-        put("ps_fraction", json!(self.ps_fraction));
-        put("fe_onset_frame", json!(self.fe_onset_frame));
-        put("fe_final_fraction", json!(self.flexion_fraction(1.0)));
     }
 }

@@ -2,15 +2,13 @@
 //! planned or rendered: a typo in `objects` or `parts` would otherwise
 //! quietly select fewer sequences, or none.
 
-use super::planner::selected_pairs;
-use crate::catalog::Catalog;
-use crate::config::GeneratorConfig;
+use super::DatasetConfig;
+use crate::catalog::{Catalog, GraspPart, ObjectSpec};
 use anyhow::{bail, Result};
 
 /// Fails naming every unknown object id or part name (with near matches),
 /// or when the selection is empty.
-pub fn check_selection(config: &GeneratorConfig, catalog: &Catalog) -> Result<()> {
-    let d = &config.dataset;
+pub fn check_selection(d: &DatasetConfig, catalog: &Catalog) -> Result<()> {
     let ids: Vec<&str> = catalog.objects.iter().map(|o| o.id.as_str()).collect();
     let mut problems = Vec::new();
     for id in d.objects.iter().flatten() {
@@ -50,7 +48,7 @@ pub fn check_selection(config: &GeneratorConfig, catalog: &Catalog) -> Result<()
     if d.sequences_per_pair == 0 || d.conditions.is_empty() {
         bail!("the config selects no sequences: dataset.sequences_per_pair and dataset.conditions must not be 0 or empty");
     }
-    if selected_pairs(config, catalog).is_empty() {
+    if selected_pairs(d, catalog).is_empty() {
         bail!(
             "the config selects no (object, part) pair: no part named in dataset.parts belongs \
              to an object of dataset.objects"
@@ -60,8 +58,31 @@ pub fn check_selection(config: &GeneratorConfig, catalog: &Catalog) -> Result<()
 }
 
 /// The number of (object, part) pairs the config selects.
-pub fn pair_count(config: &GeneratorConfig, catalog: &Catalog) -> usize {
-    selected_pairs(config, catalog).len()
+pub fn pair_count(d: &DatasetConfig, catalog: &Catalog) -> usize {
+    selected_pairs(d, catalog).len()
+}
+
+/// The catalog's (object, part) pairs that pass the dataset filters.
+pub fn selected_pairs<'a>(
+    d: &DatasetConfig,
+    catalog: &'a Catalog,
+) -> Vec<(&'a ObjectSpec, &'a GraspPart)> {
+    catalog
+        .pairs()
+        .into_iter()
+        .filter_map(|(id, index)| {
+            let object = catalog.object(&id)?;
+            Some((object, object.parts.get(index)?))
+        })
+        .filter(|(o, _)| d.objects.as_ref().is_none_or(|ids| ids.contains(&o.id)))
+        .filter(|(o, p)| {
+            d.parts.as_ref().is_none_or(|names| {
+                names
+                    .iter()
+                    .any(|n| *n == p.name || *n == format!("{}/{}", o.id, p.name))
+            })
+        })
+        .collect()
 }
 
 /// ` (did you mean 'a' or 'b'?)` for the closest candidates, else empty.

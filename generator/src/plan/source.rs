@@ -43,7 +43,7 @@ pub struct PlannerSource {
 impl PlannerSource {
     pub fn new(config: &GeneratorConfig) -> Result<Self> {
         let catalog = Catalog::builtin().context("loading the built-in catalog")?;
-        config.check(&catalog)?;
+        super::check::check(config, &catalog)?;
         let (tx, rx) = channel::<(SequenceKey, PlanReply)>();
         let (ready_tx, ready_rx) = channel::<Result<()>>();
         let (cfg, cat) = (config.clone(), catalog.clone());

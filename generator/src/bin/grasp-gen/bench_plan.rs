@@ -1,10 +1,11 @@
 //! `grasp-gen bench-plan` (hidden): the numbers of BENCHMARKS.md's "Reach
-//! planning" section, printed as Markdown.
+//! planning" section, printed as Markdown. A benchmark of the binary, kept
+//! out of the library.
 
-use super::cli::{load_inputs, plan_all};
-use super::trajectory::{frame_tau, min_jerk, min_jerk_velocity};
-use super::{sequence_keys, Planner};
 use anyhow::Result;
+use generator::plan::cli::{load_inputs, plan_all};
+use generator::plan::trajectory::{frame_tau, min_jerk, min_jerk_velocity};
+use generator::plan::{sequence_keys, Planner};
 use grasp_schema::Condition;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -12,7 +13,7 @@ use std::time::Instant;
 #[derive(Debug, clap::Args)]
 pub struct BenchArgs {
     #[command(flatten)]
-    pub config: crate::config::ConfigArgs,
+    pub config: generator::config::ConfigArgs,
     #[arg(long)]
     pub catalog: Option<PathBuf>,
     /// Sequences per pair and condition (the authors' 50 gives 1550 per condition).

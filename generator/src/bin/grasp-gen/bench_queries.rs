@@ -1,12 +1,33 @@
-//! `grasp-gen objects bench-queries`: timings of the mesh queries the
+//! `grasp-gen objects bench-queries`, a benchmark of the binary (not the
+//! library): timings of the mesh queries the
 //! planner and the validation use, per object and ray backend.
 
-use super::Catalog;
-use crate::geometry::{MeshQuery, RayBackend};
 use anyhow::Result;
+use clap::Args;
+use generator::catalog::cli::{load_unchecked, CatalogArg};
+use generator::catalog::Catalog;
+use generator::geometry::{MeshQuery, RayBackend};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
+
+/// `objects bench-queries`: the catalog and the workload size.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub catalog: CatalogArg,
+    /// Rays (and inside-test points) per object.
+    #[arg(long, default_value_t = 20_000)]
+    pub rays: usize,
+    /// Closest-point queries per object (trimesh's version is slow).
+    #[arg(long, default_value_t = 200)]
+    pub points: usize,
+}
+
+/// Runs `objects bench-queries`.
+pub fn run_args(a: &BenchArgs) -> Result<()> {
+    run(&load_unchecked(&a.catalog)?, a.rays, a.points)
+}
 
 type Points = Vec<[f64; 3]>;
 

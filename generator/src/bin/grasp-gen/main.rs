@@ -1,3 +1,6 @@
+mod bench_plan;
+mod bench_queries;
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
@@ -15,7 +18,7 @@ enum Command {
     Doctor,
     /// The object catalog: list, check, show, import-ycb.
     #[command(subcommand)]
-    Objects(generator::catalog::cli::ObjectsCommand),
+    Objects(ObjectsCli),
     /// Render the configured sequences with headless Blender workers.
     Render(generator::render::cli::RenderArgs),
     /// Check a finished dataset, or merge shard outputs.
@@ -27,10 +30,20 @@ enum Command {
     Plan(generator::plan::cli::PlanArgs),
     /// Time the planner and print the BENCHMARKS.md tables.
     #[command(hide = true)]
-    BenchPlan(generator::plan::bench::BenchArgs),
+    BenchPlan(bench_plan::BenchArgs),
     /// A rendering worker process (started by `render`).
     #[command(hide = true)]
     Worker,
+}
+
+/// `objects`: the library's subcommands and the binary's benchmark.
+#[derive(Subcommand)]
+enum ObjectsCli {
+    #[command(flatten)]
+    Lib(generator::catalog::cli::ObjectsCommand),
+    /// Time the mesh queries (rays, inside tests, closest points) per
+    /// object, for each ray backend, against trimesh's closest points.
+    BenchQueries(bench_queries::BenchArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -39,13 +52,14 @@ fn main() -> std::process::ExitCode {
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),
-            Command::Objects(cmd) => generator::catalog::cli::run(&cmd),
+            Command::Objects(ObjectsCli::Lib(cmd)) => generator::catalog::cli::run(&cmd),
+            Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
             Command::Render(args) => generator::render::cli::run_render(&args),
             Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
             Command::Preview(args) => generator::preview::run(&args),
             Command::Worker => generator::render::cli::run_worker(),
             Command::Plan(args) => generator::plan::cli::run(&args),
-            Command::BenchPlan(args) => generator::plan::bench::run(&args),
+            Command::BenchPlan(args) => bench_plan::run(&args),
         }
     })
 }

@@ -130,7 +130,7 @@ impl Canvas {
     }
 
     fn text(&mut self, x: i64, y: i64, s: &str, c: Rgb<u8>) {
-        crate::draw::text(&mut self.img, x, y, s, c, 1);
+        crate::raster::text(&mut self.img, x, y, s, c, 1);
     }
 }
 
@@ -204,7 +204,7 @@ fn draw_header(c: &mut Canvas, count: usize) {
     );
     let mut x = i64::from(GAP);
     for p in Preshape::ALL {
-        c.rect((x, 22), (x + 10, 30), crate::draw::preshape_colour(p));
+        c.rect((x, 22), (x + 10, 30), crate::raster::preshape_colour(p));
         c.text(x + 14, 23, p.name(), INK);
         x += 14 + grasp_font::text_width(p.name(), 12.0).ceil() as i64 + 16;
     }
@@ -266,7 +266,7 @@ fn draw_object(c: &mut Canvas, view: &View, planner: &Planner, plan: &SequencePl
 }
 
 fn draw_path(c: &mut Canvas, view: &View, plan: &SequencePlan) {
-    let color = crate::draw::preshape_colour(plan.preshape);
+    let color = crate::raster::preshape_colour(plan.preshape);
     let pts: Vec<(i64, i64)> = plan
         .frames
         .iter()

@@ -9,6 +9,12 @@
 //! flexion-extension turns the view about the camera's +X axis towards the
 //! box's other end.
 
+mod angles;
+mod schedule;
+
+pub use angles::{look_toward, WristAngles};
+pub use schedule::WristSchedule;
+
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 
 /// Below this |forward x up| the up hint is treated as parallel to the view.
