@@ -24,7 +24,7 @@ trainer/tests/lite_imagenet.rs. With --check-timm it loads the same weights
 into timm's independent tf_efficientnet_lite0 and compares the logits.
 
 Needs the benchmark environment (CI does not run this):
-  P=$(scripts/bench-env.sh | tail -n1)
+  P=$(lab/bench-env.sh | tail -n1)
   $P scripts/make_lite_fixture.py
   $P scripts/make_lite_fixture.py --imagenet --check-timm
 """

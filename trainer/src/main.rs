@@ -77,7 +77,7 @@ enum Command {
     BenchHeads(BenchArgs),
     /// Benchmark backbone feature extraction: images/s at a batch size and
     /// batch-1 latency (median, p99); prints one JSON line (the PyTorch
-    /// peer is scripts/bench_torch.py).
+    /// peer is lab/bench_torch.py).
     BenchBackbone(BenchBackboneArgs),
     /// Say which backbones' pretrained weights are installed, and where.
     Doctor,

@@ -7,7 +7,7 @@
 # CPU (every thread: steadier when other jobs share the machine), each with
 # its ratio to "none"; the "none" run is repeated last to show the spread.
 #
-#   scripts/bench_levers.sh [OUT]        (default: runs/bench-levers)
+#   lab/bench_levers.sh [OUT]        (default: runs/bench-levers)
 #
 # About 10 minutes on 2 cores. Environment: BIN (target/release);
 # TABLE_ONLY=1 prints the table of an earlier run without rendering.

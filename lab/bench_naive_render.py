@@ -6,7 +6,7 @@ It re-renders the sequences of a dataset made by `grasp-gen render` (same
 plans, same meshes, same engine settings from each sequence.json), so the
 frames and settings match the measured run exactly.
 
-    .venv/bin/python scripts/bench_naive_render.py DATASET OUT
+    .venv/bin/python lab/bench_naive_render.py DATASET OUT
 """
 
 import json

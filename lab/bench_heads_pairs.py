@@ -1,13 +1,13 @@
 """Side-by-side runs of the heads' epoch benchmark: `grasp-train bench-heads`
-and its PyTorch peer (scripts/bench_torch_heads.py) alternately, `--rounds`
+and its PyTorch peer (lab/bench_torch_heads.py) alternately, `--rounds`
 times, with the same workload and threads. Prints every pair and the median
 of the per-pair ratios (PyTorch seconds / candle seconds; above 1 means candle
 is faster). Alternating pairs keeps a shared machine's drifting speed out of
 the ratio.
 
-Usage (the PyTorch side runs in the environment scripts/bench-env.sh makes):
-  P=$(scripts/bench-env.sh | tail -n1)
-  $P scripts/bench_heads_pairs.py --head lstm --rounds 5 \
+Usage (the PyTorch side runs in the environment lab/bench-env.sh makes):
+  P=$(lab/bench-env.sh | tail -n1)
+  $P lab/bench_heads_pairs.py --head lstm --rounds 5 \
       --candle target/release/grasp-train --torch-python $P
 """
 
@@ -35,7 +35,7 @@ def main():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--candle", default="target/release/grasp-train")
     p.add_argument(
-        "--torch-python", default=".venv-bench/bin/python", help="see scripts/bench-env.sh"
+        "--torch-python", default=".venv-bench/bin/python", help="see lab/bench-env.sh"
     )
     args = p.parse_args()
     work = ["--head", args.head, *WORKLOADS[args.head]]

@@ -13,9 +13,9 @@ candle faster, for latency PyTorch's time over candle's). This machine's
 speed drifts from minute to minute; alternating pairs keep the drift out of
 the ratio.
 
-  P=$(scripts/bench-env.sh | tail -n1)
+  P=$(lab/bench-env.sh | tail -n1)
   cargo build --release -p trainer
-  $P scripts/bench_torch.py --backbone efficientnet-lite0 --threads 2 --rounds 5 \\
+  $P lab/bench_torch.py --backbone efficientnet-lite0 --threads 2 --rounds 5 \\
       --candle target/release/grasp-train
 
 Needs the benchmark environment (CI does not run this).

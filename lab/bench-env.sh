@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Creates .venv-bench: the PyTorch environment of the parity-fixture scripts
 # and the PyTorch side of the benchmarks (scripts/make_*_fixture.py,
-# scripts/bench_torch*.py, scripts/bench_heads_pairs.py). It is separate from
+# lab/bench_torch*.py, lab/bench_heads_pairs.py). It is separate from
 # .venv (which setup.sh builds for Blender) because torch is large and only
 # developers regenerating fixtures or re-running benchmarks need it; CI does
 # not. Idempotent; prints the environment's python path on the last line.
 #
-#   P=$(scripts/bench-env.sh | tail -n1)
+#   P=$(lab/bench-env.sh | tail -n1)
 #   $P scripts/make_lite_fixture.py
 set -euo pipefail
 cd "$(dirname "$0")/.."

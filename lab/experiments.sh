@@ -2,7 +2,7 @@
 # The experiments of EXPERIMENTS.md, with the paper's protocol: FC (and LSTM)
 # heads on frozen, cached EfficientNet-Lite0 ImageNet features, 3 seeds each.
 #
-#   scripts/experiments.sh [STAGE...]      (default: every stage, in order)
+#   lab/experiments.sh [STAGE...]      (default: every stage, in order)
 #
 # Stages:
 #   fixed     the fixed validation and test sets of the studies: 224 x 224,

@@ -4,7 +4,7 @@
 # its levers, trained on a finished main job's training set (3 seeds) and
 # scored on every test set it rendered, with the choice by worst world.
 #
-#   scripts/cross-world.sh MAIN_OUT [VARIANT...]
+#   lab/cross-world.sh MAIN_OUT [VARIANT...]
 #
 # MAIN_OUT is a finished `scripts/main.sh` output (its data/, features/ and
 # model-*/ are reused). Variants: fc-no-damping, fc-no-views, fc-plain (no
@@ -12,7 +12,7 @@
 # three). Writes MAIN_OUT/lab/VARIANT and MAIN_OUT/cross-world/summary.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-OUT=${1:?usage: scripts/cross-world.sh MAIN_OUT [VARIANT...]} && shift
+OUT=${1:?usage: lab/cross-world.sh MAIN_OUT [VARIANT...]} && shift
 VARIANTS=("${@:-fc-no-damping fc-no-views fc-plain}")
 read -r -a VARIANTS <<<"${VARIANTS[*]}"
 BIN=${BIN:-target/release} SEEDS=${SEEDS:-3}

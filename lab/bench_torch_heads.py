@@ -3,9 +3,9 @@ LSTM head on generated cached features, with the same protocol (per-epoch
 class downsampling, Adam lr 5e-4 with coupled L2 5e-4, cross-entropy, then a
 validation pass over every frame).
 
-Usage (in the environment scripts/bench-env.sh makes):
-  P=$(scripts/bench-env.sh | tail -n1)
-  $P scripts/bench_torch_heads.py --head fc --threads 2
+Usage (in the environment lab/bench-env.sh makes):
+  P=$(lab/bench-env.sh | tail -n1)
+  $P lab/bench_torch_heads.py --head fc --threads 2
 """
 
 import argparse

@@ -14,7 +14,7 @@ skimage / ours, of CPU time (the work; the steadier measure on a shared
 machine) and of the minimum wall time (what two threads buy).
 
   cargo build --release -p grasp-model --example bench_denoise
-  .venv/bin/python scripts/bench_denoise.py --rust target/release/examples/bench_denoise
+  .venv/bin/python lab/bench_denoise.py --rust target/release/examples/bench_denoise
 
 Also prints the largest difference between the two filters' outputs, in
 grey levels (for the same sigma and h).

@@ -7,7 +7,7 @@
 # each setting's ratio to whole 160 px frames, measured in one run; the first
 # setting is rendered again last to show the spread.
 #
-#   scripts/bench_center_region.sh [OUT]     (default: runs/bench-region)
+#   lab/bench_center_region.sh [OUT]     (default: runs/bench-region)
 #
 # About 3 minutes on 2 idle cores. Environment: BIN (target/release).
 set -euo pipefail
