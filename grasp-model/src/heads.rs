@@ -14,7 +14,7 @@ use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum HeadKind {
     Fc,
@@ -22,6 +22,8 @@ pub enum HeadKind {
 }
 
 impl HeadKind {
+    pub const ALL: [HeadKind; 2] = [HeadKind::Fc, HeadKind::Lstm];
+
     pub fn name(self) -> &'static str {
         match self {
             HeadKind::Fc => "fc",

@@ -16,6 +16,8 @@ pub mod hashing;
 pub mod heads;
 pub mod input;
 pub mod model;
+pub mod names;
 pub mod softmax;
 
 pub use error::{ModelError, Result};
+pub use names::UnknownName;

@@ -55,18 +55,13 @@ const STAGES: [(usize, usize, usize, usize, usize); 7] = [
 ];
 
 /// The published EfficientNet-Lite sizes.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum LiteVariant {
     #[serde(rename = "lite0")]
-    #[value(name = "lite0")]
     Lite0,
     #[serde(rename = "lite1")]
-    #[value(name = "lite1")]
     Lite1,
     #[serde(rename = "lite2")]
-    #[value(name = "lite2")]
     Lite2,
 }
 
