@@ -6,17 +6,17 @@
 use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
-use crate::model::{
-    ChannelStyle, EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2,
-    MobileNetV2Config,
+use crate::networks::{
+    EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
 };
+use crate::style::ChannelStyle;
 use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-pub use crate::model::preprocess::{Preprocess, ResizeFilter};
+pub use crate::input::preprocess::{Preprocess, ResizeFilter};
 
 /// The `id` of torchvision's MobileNetV2 (the only backbone before
 /// EfficientNet-Lite; checkpoints without an `arch` field are this).
@@ -364,7 +364,7 @@ impl Backbone {
                 });
             }
         }
-        let vb = crate::model::weights::var_builder(&path, device)?;
+        let vb = crate::weights::var_builder(&path, device)?;
         let vb = match &info.weights_prefix {
             Some(prefix) => vb.pp(prefix),
             None => vb,
@@ -410,7 +410,7 @@ impl Backbone {
                 path.display()
             )));
         };
-        let vb = crate::model::weights::var_builder(&path, &self.device)?;
+        let vb = crate::weights::var_builder(&path, &self.device)?;
         net.load_tail(&vb.pp("tail"), from).map_err(|e| {
             ModelError::tensors(format!("{}: fine-tuned blocks {from}..", path.display()), e)
         })
@@ -455,7 +455,7 @@ impl Backbone {
     /// The normalized input batch of `images`, as the recorded
     /// preprocessing says.
     pub fn input(&self, images: &[RgbImage]) -> Result<Tensor> {
-        Ok(crate::model::preprocess::to_tensor(
+        Ok(crate::input::preprocess::to_tensor(
             images,
             &self.preprocess,
             &self.device,

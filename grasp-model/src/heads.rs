@@ -6,10 +6,10 @@
 //! Parameter names follow PyTorch (`fc.weight`, `lstm.weight_ih_l0`, ...,
 //! gate order i, f, g, o), so heads can be exchanged with the authors' code.
 //! The LSTM projects every input step in one matrix product, then runs the
-//! recurrence as one fused op (`model::lstm`).
+//! recurrence as one fused op (`ops::lstm`).
 
-use crate::model::linear::linear;
-use crate::model::lstm::lstm_recurrence;
+use crate::ops::linear::linear;
+use crate::ops::lstm::lstm_recurrence;
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};

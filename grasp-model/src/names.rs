@@ -8,7 +8,7 @@
 use crate::backbone::Architecture;
 use crate::checkpoint::TrainMode;
 use crate::heads::HeadKind;
-use crate::model::LiteVariant;
+use crate::networks::LiteVariant;
 
 /// A name that is none of a choice's spellings.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

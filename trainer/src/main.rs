@@ -531,7 +531,7 @@ fn doctor() -> Result<()> {
         match grasp_model::backbone::venv_weights(variant) {
             Ok(path) => println!("{:20} found: {}", arch.name(), path.display()),
             Err(e) => {
-                missing_default |= variant == grasp_model::model::LiteVariant::Lite0;
+                missing_default |= variant == grasp_model::networks::LiteVariant::Lite0;
                 println!("{:20} missing: {e:#}", arch.name());
             }
         }
