@@ -1,7 +1,13 @@
 //! Command-line pieces that more than one program defines the same way,
 //! each flag written once: the camera's lens, which `grasp-train train`,
 //! `grasp-train eval` and `hannes-run` take for frames without a
-//! `sequence.json`.
+//! `sequence.json`; and the model's named choices as clap values
+//! ([`ArchitectureArg`], [`HeadKindArg`]), since grasp-model does not
+//! link clap.
+
+mod choices;
+
+pub use choices::{ArchitectureArg, HeadKindArg};
 
 use clap::Args;
 use grasp_model::input::{parse_size, InputError, Lens};

@@ -12,12 +12,12 @@
 
 use std::time::Instant;
 
-#[path = "../src/model/denoise_fixture.rs"]
+#[path = "../src/input/denoise_fixture.rs"]
 mod fixture;
 use fixture::{noisy, scene};
 
 use clap::Parser;
-use grasp_model::model::denoise::{denoise, nl_means, noise_sigma};
+use grasp_model::input::denoise::{denoise, nl_means, noise_sigma};
 use image::RgbImage;
 
 #[derive(Parser)]

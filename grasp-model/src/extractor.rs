@@ -2,7 +2,7 @@
 //! feature vectors (a backbone; in tests, a stand-in).
 
 use crate::error::{ModelError, Result};
-use crate::model::ChannelStyle;
+use crate::style::ChannelStyle;
 use candle_core::Tensor;
 use image::RgbImage;
 

@@ -6,15 +6,15 @@
 //! Parameter names follow PyTorch (`fc.weight`, `lstm.weight_ih_l0`, ...,
 //! gate order i, f, g, o), so heads can be exchanged with the authors' code.
 //! The LSTM projects every input step in one matrix product, then runs the
-//! recurrence as one fused op (`model::lstm`).
+//! recurrence as one fused op (`ops::lstm`).
 
-use crate::model::linear::linear;
-use crate::model::lstm::lstm_recurrence;
+use crate::ops::linear::linear;
+use crate::ops::lstm::lstm_recurrence;
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 use serde::{Deserialize, Serialize};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum HeadKind {
     Fc,
@@ -22,6 +22,8 @@ pub enum HeadKind {
 }
 
 impl HeadKind {
+    pub const ALL: [HeadKind; 2] = [HeadKind::Fc, HeadKind::Lstm];
+
     pub fn name(self) -> &'static str {
         match self {
             HeadKind::Fc => "fc",

@@ -15,7 +15,25 @@ pub mod extractor;
 pub mod hashing;
 pub mod heads;
 pub mod input;
-pub mod model;
+pub mod names;
+pub mod networks;
+pub mod ops;
 pub mod softmax;
+pub mod style;
+pub mod weights;
 
 pub use error::{ModelError, Result};
+pub use names::UnknownName;
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    use candle_core::Tensor;
+
+    /// The largest absolute difference between two tensors of one shape.
+    pub fn max_diff(a: &Tensor, b: &Tensor) -> f32 {
+        assert_eq!(a.dims(), b.dims());
+        (a - b)
+            .and_then(|d| d.abs()?.flatten_all()?.max(0)?.to_scalar::<f32>())
+            .expect("difference of two f32 tensors")
+    }
+}

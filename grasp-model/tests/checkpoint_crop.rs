@@ -9,8 +9,8 @@ use candle_core::{Device, Tensor};
 use grasp_model::backbone::{Architecture, BackboneInfo};
 use grasp_model::checkpoint::{save, CheckpointMeta, Classifier, TrainMode, FORMAT_VERSION};
 use grasp_model::heads::{HeadConfig, HeadKind};
+use grasp_model::input::preprocess::center_crop;
 use grasp_model::input::{Crop, InputSpec, Lens};
-use grasp_model::model::preprocess::center_crop;
 use grasp_schema::taxonomy::Class;
 use image::{Rgb, RgbImage};
 use std::path::{Path, PathBuf};
@@ -256,7 +256,7 @@ fn a_denoising_checkpoint_denoises_the_crop_it_reads() {
         *v = (f32::from(*v) + 40.0 * n).round().clamp(0.0, 255.0) as u8;
     }
     let prepared = denoising.prepare(&noisy).unwrap();
-    let expected = grasp_model::model::denoise::denoise(&center_crop(&noisy, 0.5));
+    let expected = grasp_model::input::denoise::denoise(&center_crop(&noisy, 0.5));
     assert_eq!(prepared, expected);
     assert_ne!(prepared, center_crop(&noisy, 0.5));
     let whole = checkpoint(dir.path(), "whole", spec(Crop::Whole, false));

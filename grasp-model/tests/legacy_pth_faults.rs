@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
-use grasp_model::model::weights;
+use grasp_model::weights;
 
 /// One tensor of a written file: a view of storage `key`.
 #[derive(Clone)]

@@ -10,7 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
-use grasp_model::model::{weights, EfficientNetLite, EfficientNetLiteConfig};
+use grasp_model::networks::{EfficientNetLite, EfficientNetLiteConfig};
+use grasp_model::weights;
 
 const TOL: f32 = 1e-4;
 

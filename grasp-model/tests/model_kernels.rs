@@ -2,10 +2,10 @@
 //! convolution, on random shapes including odd sizes and tiny planes.
 
 use candle_core::{Device, Tensor, Var};
-use grasp_model::model::depthwise::{
+use grasp_model::ops::depthwise::{
     depthwise_conv3x3, depthwise_conv3x3_bias_act, depthwise_conv_bias_act, Padding,
 };
-use grasp_model::model::pointwise::{im2col, pointwise_conv, pointwise_conv_bias_act};
+use grasp_model::ops::pointwise::{im2col, pointwise_conv, pointwise_conv_bias_act};
 
 fn max_abs_diff(a: &Tensor, b: &Tensor) -> f32 {
     assert_eq!(a.dims(), b.dims());

@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use grasp_model::model::{weights, MobileNetV2, MobileNetV2Config};
+use grasp_model::networks::{MobileNetV2, MobileNetV2Config};
+use grasp_model::weights;
 
 const TOL: f32 = 1e-4;
 

@@ -4,7 +4,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
-use grasp_model::model::{weights, MobileNetV2, MobileNetV2Config};
+use grasp_model::networks::{MobileNetV2, MobileNetV2Config};
+use grasp_model::weights;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -17,7 +17,8 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
     spec.no_grasp_frames = 1;
     write_synthetic(&root.join("data"), &spec).unwrap();
     let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, grasp_model::model::LiteVariant::Lite0, 3).unwrap();
+    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
+        .unwrap();
     let mut cfg = trainer::config::TrainConfig {
         data: root.join("data"),
         out: root.join("run"),

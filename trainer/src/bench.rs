@@ -105,7 +105,7 @@ pub fn backbone(workload: &BackboneWorkload) -> Result<serde_json::Value> {
     let pre = workload.arch.preprocess(workload.size as u32);
     let bb = match &weights {
         Some(p) => {
-            let vb = grasp_model::model::weights::var_builder(p, &dev)?;
+            let vb = grasp_model::weights::var_builder(p, &dev)?;
             Backbone::from_vb(info, pre, vb, &dev)?
         }
         None => {

@@ -97,7 +97,7 @@ pub fn write_random_backbone(
     calibration: &[image::RgbImage],
     seed: u64,
 ) -> Result<()> {
-    use grasp_model::model::{MobileNetV2, MobileNetV2Config};
+    use grasp_model::networks::{MobileNetV2, MobileNetV2Config};
     let vm = VarMap::new();
     let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
     let cfg = MobileNetV2Config {
@@ -108,12 +108,12 @@ pub fn write_random_backbone(
     let net = MobileNetV2::new(vb, &cfg)?;
     reinit_backbone(&vm, seed)?;
     let mut rng = crate::rng::stream(seed, "init/calibration");
-    let pre = grasp_model::model::preprocess::Preprocess::imagenet(input_size);
+    let pre = grasp_model::input::preprocess::Preprocess::imagenet(input_size);
     for _ in 0..if calibration.len() < 2 { 0 } else { 40 } {
         let batch: Vec<image::RgbImage> = (0..16)
             .map(|_| calibration[rng.gen_range(0..calibration.len())].clone())
             .collect();
-        let x = grasp_model::model::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
+        let x = grasp_model::input::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
         net.features(&x, true)?;
     }
     grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
@@ -129,10 +129,10 @@ pub fn write_random_backbone(
 /// features would pass on zeros.
 pub fn write_random_lite(
     path: &std::path::Path,
-    variant: grasp_model::model::LiteVariant,
+    variant: grasp_model::networks::LiteVariant,
     seed: u64,
 ) -> Result<()> {
-    use grasp_model::model::{EfficientNetLite, EfficientNetLiteConfig};
+    use grasp_model::networks::{EfficientNetLite, EfficientNetLiteConfig};
     let vm = VarMap::new();
     let vb = candle_nn::VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu);
     EfficientNetLite::new(vb, &EfficientNetLiteConfig::variant(variant, Some(1000)))?;

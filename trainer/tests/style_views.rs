@@ -20,7 +20,8 @@ use trainer::features::FeatureCache;
 fn data_and_weights(root: &Path) -> PathBuf {
     write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
     let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, grasp_model::model::LiteVariant::Lite0, 3).unwrap();
+    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
+        .unwrap();
     weights
 }
 

@@ -8,7 +8,7 @@ use candle_nn::VarBuilder;
 use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
 use grasp_model::checkpoint::{Classifier, TrainMode};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::model::{LiteTail, LiteVariant};
+use grasp_model::networks::{LiteTail, LiteVariant};
 use std::path::Path;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};

@@ -18,7 +18,7 @@ fn cfg(root: &Path, damping: f64, out: &str) -> TrainConfig {
         write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
         trainer::init::write_random_lite(
             &root.join("lite0.safetensors"),
-            grasp_model::model::LiteVariant::Lite0,
+            grasp_model::networks::LiteVariant::Lite0,
             3,
         )
         .unwrap();

@@ -3,8 +3,8 @@
 //! in the trainer's options (`train_config.reader`). This maps them onto an
 //! [`InputSpec`] once, at load; nothing else reads those fields.
 
+use crate::input::preprocess::Preprocess;
 use crate::input::{Crop, InputSpec};
-use crate::model::preprocess::Preprocess;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
 use serde_json::{Map, Value};

@@ -31,7 +31,7 @@ pub const META_FILE: &str = "best.json";
 pub const WEIGHTS_FILE: &str = "best.safetensors";
 
 /// How the backbone of a model was obtained. Every report states it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TrainMode {
     /// The paper's: a pretrained backbone, frozen; only the head is trained,
@@ -46,6 +46,12 @@ pub enum TrainMode {
 }
 
 impl TrainMode {
+    pub const ALL: [TrainMode; 3] = [
+        TrainMode::FrozenPretrained,
+        TrainMode::FromScratch,
+        TrainMode::FineTuned,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             TrainMode::FrozenPretrained => "frozen-pretrained",

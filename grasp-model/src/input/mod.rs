@@ -11,12 +11,14 @@
 //! A fixed-angle crop needs the camera's [`Lens`]: its fraction of a frame
 //! follows from the focal length at the frame's own size.
 
+pub mod denoise;
 mod lens;
+pub mod preprocess;
 
 pub use lens::{parse_size, Lens, FOV_RANGE_DEG};
 
-use crate::model::preprocess::{center_crop, Preprocess};
 use image::RgbImage;
+use preprocess::{center_crop, Preprocess};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -243,7 +245,7 @@ impl InputSpec {
 /// The filter after the crop: denoising when `denoise`.
 pub fn filter(square: RgbImage, denoise: bool) -> RgbImage {
     if denoise {
-        crate::model::denoise::denoise(&square)
+        denoise::denoise(&square)
     } else {
         square
     }

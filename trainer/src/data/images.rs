@@ -17,4 +17,4 @@ pub fn load_frame(path: &Path, bad: &BadData) -> Result<Option<RgbImage>> {
     }
 }
 
-pub use grasp_model::model::preprocess::center_crop;
+pub use grasp_model::input::preprocess::center_crop;

@@ -71,7 +71,7 @@ pub struct Sequence {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rendered_region: Option<f64>,
     /// The backbone's input square is denoised first
-    /// (`ReaderOptions::denoise`, `grasp_model::model::denoise`).
+    /// (`ReaderOptions::denoise`, `grasp_model::input::denoise`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub denoise: bool,
     /// Why the sequence belongs to a test world that training never draws

@@ -6,7 +6,7 @@
 //! once.
 
 use anyhow::Context;
-use grasp_model::model::ChannelStyle;
+use grasp_model::style::ChannelStyle;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 

@@ -322,7 +322,7 @@ fn batch_name(
 }
 
 fn check_finite(t: &Tensor, what: &str, name: &dyn Fn() -> String) -> Result<()> {
-    if let Some(bad) = grasp_model::model::first_non_finite(t)? {
+    if let Some(bad) = grasp_model::ops::first_non_finite(t)? {
         anyhow::bail!("non-finite {what} value ({bad}) in {}", name());
     }
     Ok(())

@@ -9,7 +9,7 @@ use candle_core::{Device, Tensor, D};
 use candle_nn::VarMap;
 use grasp_model::backbone::Backbone;
 use grasp_model::heads::{Head, HeadKind};
-use grasp_model::model::gather::gather_rows;
+use grasp_model::ops::gather::gather_rows;
 use image::RgbImage;
 use rand::Rng;
 

@@ -87,7 +87,7 @@ fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
 
 /// The architecture of a pretrained weights file, from its tensor names.
 pub fn detect_architecture(path: &Path) -> Result<Architecture> {
-    let vb = grasp_model::model::weights::var_builder(path, &Device::Cpu)?;
+    let vb = grasp_model::weights::var_builder(path, &Device::Cpu)?;
     Architecture::detect(&vb).with_context(|| {
         format!(
             "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \

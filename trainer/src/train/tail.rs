@@ -7,7 +7,8 @@ use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{Backbone, Network};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::model::{tail_pooling, BlockSpec, ChannelStyle, EfficientNetLite, LiteTail};
+use grasp_model::networks::{tail_pooling, BlockSpec, EfficientNetLite, LiteTail};
+use grasp_model::style::ChannelStyle;
 use image::RgbImage;
 
 /// The pretrained EfficientNet-Lite of a backbone, or why there is none.

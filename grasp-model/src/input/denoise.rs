@@ -13,7 +13,7 @@
 
 use image::RgbImage;
 
-use super::cpu::simd_dispatch;
+use crate::ops::cpu::simd_dispatch;
 
 /// Half side of the compared patches (5 x 5).
 const PATCH_RADIUS: usize = 2;

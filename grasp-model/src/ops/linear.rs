@@ -129,7 +129,7 @@ impl CustomOp3 for Linear {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::test_util::max_diff;
+    use crate::test_util::max_diff;
     use candle_core::{Device, Var};
 
     /// Forward and all three gradients against candle's matmul, for a

@@ -6,6 +6,8 @@
 //! checks names and shapes itself, so that every load error names the file
 //! and the tensor.
 
+pub mod legacy_pth;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -67,8 +69,8 @@ pub fn load_tensors(path: &Path, device: &Device) -> Result<HashMap<String, Tens
 }
 
 fn load_pth(path: &Path, device: &Device) -> Result<HashMap<String, Tensor>> {
-    if super::legacy_pth::is_legacy(path) {
-        return super::legacy_pth::load(path, device).map_err(|source| ModelError::LegacyPth {
+    if legacy_pth::is_legacy(path) {
+        return legacy_pth::load(path, device).map_err(|source| ModelError::LegacyPth {
             path: path.to_path_buf(),
             source,
         });

@@ -16,8 +16,8 @@ use candle_nn::{Init, Linear, VarBuilder};
 use rayon::prelude::*;
 
 use super::batch_norm::BatchNorm2d;
-use super::depthwise::{depthwise_conv3x3, depthwise_conv3x3_bias_act};
-use super::pointwise::{im2col3x3, pointwise_conv, pointwise_conv_bias_act};
+use crate::ops::depthwise::{depthwise_conv3x3, depthwise_conv3x3_bias_act};
+use crate::ops::pointwise::{im2col3x3, pointwise_conv, pointwise_conv_bias_act};
 
 /// Architecture options, as torchvision's `mobilenet_v2(width_mult=..., num_classes=..., dropout=...)`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -338,7 +338,7 @@ pub struct MobileNetV2 {
 }
 
 impl MobileNetV2 {
-    /// Builds the network from `vb`: a checkpoint (see [`super::weights`]) or
+    /// Builds the network from `vb`: a checkpoint (see [`crate::weights`]) or
     /// a `VarMap` for training from scratch (torchvision's initialization).
     pub fn new(vb: VarBuilder, cfg: &MobileNetV2Config) -> Result<Self> {
         if !(cfg.width_mult > 0.0 && cfg.width_mult.is_finite()) {

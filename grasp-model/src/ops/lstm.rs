@@ -583,7 +583,7 @@ fn tanh(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::test_util::max_diff;
+    use crate::test_util::max_diff;
     use candle_core::{Device, Var, D};
 
     /// The LSTM written step by step with candle's tensor ops, as the head

@@ -7,8 +7,8 @@
 //! [`EfficientNetLite::load_tail`](super::EfficientNetLite::load_tail) puts
 //! the tuned tensors back into the fused inference kernels.
 
-use super::depthwise::{depthwise_conv, Padding};
 use super::efficientnet_lite::{head_then_blocks, BlockSpec};
+use crate::ops::depthwise::{depthwise_conv, Padding};
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;
 
@@ -220,9 +220,9 @@ fn relu6(x: Pixels) -> Result<Pixels> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::depthwise::depthwise_conv_bias_act;
-    use crate::model::test_util::max_diff;
-    use crate::model::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
+    use crate::networks::{EfficientNetLite, EfficientNetLiteConfig, LiteVariant};
+    use crate::ops::depthwise::depthwise_conv_bias_act;
+    use crate::test_util::max_diff;
     use candle_core::{DType, Device, Var};
     use candle_nn::VarMap;
 

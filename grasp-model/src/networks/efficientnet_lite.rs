@@ -33,10 +33,10 @@ use candle_nn::{Init, Linear, VarBuilder};
 use rayon::prelude::*;
 
 use super::batch_norm::BatchNorm2d;
-use super::depthwise::{depthwise_conv_bias_act, Padding};
 use super::mobilenet_v2::make_divisible;
-use super::pointwise::{im2col, pointwise_conv_bias_act};
-use super::style::{restyle, ChannelStyle};
+use crate::ops::depthwise::{depthwise_conv_bias_act, Padding};
+use crate::ops::pointwise::{im2col, pointwise_conv_bias_act};
+use crate::style::{restyle, ChannelStyle};
 
 /// Batch-norm epsilon of the TensorFlow-trained files.
 pub const BN_EPS: f64 = 1e-3;
@@ -55,18 +55,13 @@ const STAGES: [(usize, usize, usize, usize, usize); 7] = [
 ];
 
 /// The published EfficientNet-Lite sizes.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum LiteVariant {
     #[serde(rename = "lite0")]
-    #[value(name = "lite0")]
     Lite0,
     #[serde(rename = "lite1")]
-    #[value(name = "lite1")]
     Lite1,
     #[serde(rename = "lite2")]
-    #[value(name = "lite2")]
     Lite2,
 }
 
@@ -311,7 +306,7 @@ pub struct EfficientNetLite {
 }
 
 impl EfficientNetLite {
-    /// Builds the network from `vb`: a checkpoint (see [`super::weights`])
+    /// Builds the network from `vb`: a checkpoint (see [`crate::weights`])
     /// or a `VarMap` (random weights, for benchmarks).
     pub fn new(vb: VarBuilder, cfg: &EfficientNetLiteConfig) -> Result<Self> {
         cfg.validate()?;

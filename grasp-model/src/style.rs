@@ -114,14 +114,14 @@ mod tests {
             scale: vec![1.0; 2],
         };
         let same = identity.apply(&y).unwrap();
-        assert!(crate::model::test_util::max_diff(&y, &same) < 1e-5);
+        assert!(crate::test_util::max_diff(&y, &same) < 1e-5);
         let elsewhere = ChannelStyle {
             block: 4,
             shift: vec![3.0; 2],
             scale: vec![3.0; 2],
         };
         let out = restyle(y.clone(), 3, &[elsewhere]).unwrap();
-        assert_eq!(crate::model::test_util::max_diff(&y, &out), 0.0);
+        assert_eq!(crate::test_util::max_diff(&y, &out), 0.0);
     }
 
     #[test]
