@@ -1,4 +1,4 @@
-//! Time of the crop denoiser alone (`model::denoise`), per call, on the
+//! Time of the crop denoiser alone (`input::denoise`), per call, on the
 //! crop the shipped checkpoint denoises: 94 x 94 px (18.3 degrees of a 224
 //! px frame). Two inputs: a smooth scene with camera-like Gaussian noise,
 //! and a crop of `hannes-run bench`'s synthetic frames (noise-like, the
