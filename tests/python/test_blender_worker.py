@@ -91,7 +91,7 @@ def _rust_families(path, name):
 def test_families_match_the_generator():
     # The planner draws families by name; each must have a builder here.
     base = _rust_families("generator/src/appearance.rs", "BASE_FAMILIES")
-    reserved = _rust_families("generator/src/unseen_look.rs", "UNSEEN_FAMILIES")
+    reserved = _rust_families("generator/src/look/unseen_config.rs", "UNSEEN_FAMILIES")
     assert set(base + reserved) == set(materials.FAMILIES)
     assert reserved == list(materials.UNSEEN_FAMILIES)
 
@@ -174,7 +174,7 @@ def test_depth_and_instance_passes_write_an_exr(tmp_path):
 
 
 # The bundled studio-light worlds the generator's config may name
-# (generator/src/randomize.rs, BUNDLED_HDRIS).
+# (generator/src/look/checks.rs, BUNDLED_HDRIS).
 BUNDLED_HDRIS = ["city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"]
 
 
