@@ -58,16 +58,19 @@ fn train_sequences(cfg: &TrainConfig) -> usize {
         .unwrap()
 }
 
+/// The frozen EfficientNet-Lite0 of `weights` at the tests' 32 px input.
+fn lite0(weights: &Path) -> Backbone {
+    let dev = candle_core::Device::Cpu;
+    let info = BackboneInfo::pretrained(weights, Architecture::EfficientNetLite0, 1.0).unwrap();
+    Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(32), &dev).unwrap()
+}
+
 #[test]
 fn styled_features_differ_repeat_and_vanish_at_zero_strength() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
     let weights = data_and_weights(root);
-    let dev = candle_core::Device::Cpu;
-    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
-    let net =
-        Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(32), &dev)
-            .unwrap();
+    let net = lite0(&weights);
     assert_eq!(net.block_channels().len(), 16);
 
     let data = trainer::data::reader::read_dataset(
@@ -184,11 +187,7 @@ fn views_extracted_together_equal_views_extracted_alone() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
     let weights = data_and_weights(root);
-    let dev = candle_core::Device::Cpu;
-    let info = BackboneInfo::pretrained(&weights, Architecture::EfficientNetLite0, 1.0).unwrap();
-    let net =
-        Backbone::load_pretrained(&info, Architecture::EfficientNetLite0.preprocess(32), &dev)
-            .unwrap();
+    let net = lite0(&weights);
     let options = trainer::data::ReaderOptions {
         denoise: true,
         ..Default::default()
