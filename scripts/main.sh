@@ -42,9 +42,9 @@ WORLDS=(world_foreign world_reach)
 # models trained on the built-in objects (never copied into the repository).
 SHARED_YCB=../shared/ycb
 if [ -z "$YCB" ] && [ -f "$SHARED_YCB/annotations.json" ]; then
-  WORLDS+=(world_foreign_ycb)
+  WORLDS+=(world_foreign_ycb world_foreign_ycb_reach)
 else
-  echo "note: no world_foreign_ycb test set (it needs $SHARED_YCB and the built-in objects)"
+  echo "note: no real-mesh test worlds (they need $SHARED_YCB and the built-in objects)"
 fi
 [ -n "${SKIP_SETUP:-}" ] || scripts/setup.sh
 BIN=${BIN:-target/release}
@@ -86,6 +86,9 @@ if [[ " ${WORLDS[*]} " == *" world_foreign_ycb "* ]]; then
     $BIN/grasp-gen objects import-ycb --ycb "$SHARED_YCB" --out "$OUT/ycb-objects"
   GRASP_OBJECTS="$OUT/ycb-objects" render test-world_foreign_ycb \
     --config configs/test-world-foreign.toml "${TEST[@]}"
+  # All three at once: the real meshes in the foreign scene, reached closer.
+  GRASP_OBJECTS="$OUT/ycb-objects" render test-world_foreign_ycb_reach \
+    --config configs/test-world-foreign.toml --config configs/test-world-reach.toml "${TEST[@]}"
 fi
 $BIN/grasp-gen dataset verify "$OUT/data/train" --config "$CONFIG" "${TRAIN[@]}"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
