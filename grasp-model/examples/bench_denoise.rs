@@ -105,7 +105,7 @@ fn cpu_seconds() -> Option<f64> {
 }
 
 /// The centre `n` x `n` of `hannes-run bench`'s first synthetic 224 px frame
-/// (the pattern of `runtime::bench::synthetic_frames`).
+/// (the pattern of `hannes-run bench`'s synthetic frames).
 fn bench_frame_crop(n: u32) -> RgbImage {
     let off = (224 - n.min(224)) / 2;
     RgbImage::from_fn(n, n, |x, y| {

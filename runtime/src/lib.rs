@@ -11,10 +11,8 @@
 //! - [`session`]: the `run` loop (approach after approach) and its
 //!   outcome, [`signals`]: stopping on SIGINT, SIGTERM and SIGHUP;
 //! - [`model`]: the trained checkpoint as a [`classifier::FrameClassifier`];
-//! - [`bench`]: latency measurements.
 
 pub mod approach;
-pub mod bench;
 #[cfg(feature = "camera")]
 pub mod camera;
 pub mod classifier;

@@ -3,7 +3,6 @@
 //! (a MobileNetV2 or EfficientNet-Lite backbone with an FC or LSTM head),
 //! and the evaluation report.
 
-pub mod bench;
 pub mod config;
 pub mod data;
 pub mod eval;

@@ -1,4 +1,6 @@
 //! `hannes-run`: the pre-shape classifier driving the Hannes hand.
+mod bench;
+
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use grasp_cli::LensArgs;
@@ -644,7 +646,6 @@ fn print_event(started: Instant, e: &HandEvent) {
 }
 
 fn bench(args: BenchArgs) -> Result<()> {
-    use runtime::bench;
     let mut classifier = runtime::model::load(&args.checkpoint)?;
     // A fixed-angle crop is timed through the default lens (42 degrees
     // across the square frame, the generator's d435 preset).

@@ -1,5 +1,7 @@
 //! grasp-train: trains and evaluates pre-shape classifiers on generated or
 //! real reach-to-grasp sequences.
+mod bench;
+
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use grasp_cli::{ArchitectureArg, HeadKindArg, LensArgs};
@@ -476,7 +478,7 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
 
 fn bench(args: BenchArgs) -> Result<()> {
     let head: HeadKind = args.head.into();
-    let w = trainer::bench::Workload {
+    let w = bench::Workload {
         head,
         sequences: args.sequences,
         val_sequences: args.val_sequences,
@@ -485,7 +487,7 @@ fn bench(args: BenchArgs) -> Result<()> {
         batch: args.batch,
         epochs: args.epochs,
     };
-    let mut secs = trainer::bench::heads_epoch_seconds(&w)?;
+    let mut secs = bench::heads_epoch_seconds(&w)?;
     // The first epoch includes one-off allocation: report the median of the rest.
     let all = secs.clone();
     if secs.len() > 1 {
@@ -502,7 +504,7 @@ fn bench(args: BenchArgs) -> Result<()> {
 }
 
 fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
-    let w = trainer::bench::BackboneWorkload {
+    let w = bench::BackboneWorkload {
         arch: args.backbone.into(),
         weights: args.weights,
         batch: args.batch,
@@ -511,7 +513,7 @@ fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
         iters: args.iters,
         latency_iters: args.latency_iters,
     };
-    println!("{}", trainer::bench::backbone(&w)?);
+    println!("{}", bench::backbone(&w)?);
     Ok(())
 }
 

@@ -1,14 +1,14 @@
 //! The heads' training-epoch benchmark on generated cached features (the
 //! PyTorch peer is lab/bench_torch_heads.py, same workload).
 
-use crate::config::TrainConfig;
-use crate::train::{FrameSource, Prepared, SplitFrames};
 use anyhow::Result;
 use candle_core::{Device, Tensor};
 use grasp_model::backbone::BackboneInfo;
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use rand::Rng;
+use trainer::config::TrainConfig;
+use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 /// The workload: `sequences` sequences of `frames` frames of `dim`-d
 /// features (labels cycle through the five classes by sequence, last two
@@ -24,7 +24,7 @@ pub struct Workload {
 }
 
 fn split(sequences: usize, frames: usize, dim: usize, seed: u64) -> Result<SplitFrames> {
-    let mut rng = crate::rng::stream(seed, "bench");
+    let mut rng = trainer::rng::stream(seed, "bench");
     let n = sequences * frames;
     let x: Vec<f32> = (0..n * dim).map(|_| rng.gen_range(0.0f32..1.0)).collect();
     let mut labels = Vec::with_capacity(n);
@@ -68,7 +68,7 @@ pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
         // writes after the first: compare the training work only.
         ..Default::default()
     };
-    let out = crate::train::train(&cfg, &prep, 0, &dir)?;
+    let out = trainer::train::train(&cfg, &prep, 0, &dir)?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok(out.history.iter().map(|e| e.seconds).collect())
 }

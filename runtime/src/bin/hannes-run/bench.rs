@@ -2,18 +2,18 @@
 //! host-to-hand link round trip, and trigger-to-command for whole approaches
 //! against a simulated hand on a pseudo-terminal.
 
-use crate::approach::{actuate, classify_window};
-use crate::classifier::FrameClassifier;
-use crate::feed::FeedMode;
-use crate::link::{Hand, HandLink, LinkConfig};
-use crate::policy::PolicyConfig;
-use crate::protocol::preshape_command;
-use crate::simhand::PtyHand;
-use crate::source::{FrameSource, MemorySource, Pacing};
-use crate::transport::SerialConnector;
 use anyhow::Result;
 use grasp_schema::taxonomy::Preshape;
 use image::RgbImage;
+use runtime::approach::{actuate, classify_window};
+use runtime::classifier::FrameClassifier;
+use runtime::feed::FeedMode;
+use runtime::link::{Hand, HandLink, LinkConfig};
+use runtime::policy::PolicyConfig;
+use runtime::protocol::preshape_command;
+use runtime::simhand::PtyHand;
+use runtime::source::{FrameSource, MemorySource, Pacing};
+use runtime::transport::SerialConnector;
 use serde::Serialize;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
