@@ -56,11 +56,11 @@ impl GeneratorConfig {
 
     /// Reads config files laid over each other (a later file wins key by
     /// key) with `--set KEY=VALUE` overrides on top
-    /// ([`grasp_schema::layers`]); no files give the defaults. Errors name
+    /// ([`grasp_support::layers`]); no files give the defaults. Errors name
     /// the files and the offending field.
     pub fn load_layers<P: AsRef<Path>>(files: &[P], sets: &[String]) -> Result<Self> {
-        let source = grasp_schema::layers::describe(files, sets, "the default config");
-        let table = grasp_schema::layers::load(files, sets)
+        let source = grasp_support::layers::describe(files, sets, "the default config");
+        let table = grasp_support::layers::load(files, sets)
             .with_context(|| format!("invalid config {source}"))?;
         let config: GeneratorConfig = toml::Value::Table(table)
             .try_into()

@@ -76,13 +76,13 @@ pub fn preview(dataset: &Path, out: &Path, opts: &PreviewOptions) -> Result<Vec<
     let chosen: Vec<&(String, SequenceRecord)> = sheet_records.iter().collect();
     let (sheet, legend) = contact_sheet(dataset, &chosen, opts)?;
     let sheet_path = out.join("contact_sheet.png");
-    grasp_schema::atomic::write_atomic_with(&sheet_path, |tmp| -> Result<()> {
+    grasp_support::atomic::write_atomic_with(&sheet_path, |tmp| -> Result<()> {
         sheet
             .save_with_format(tmp, image::ImageFormat::Png)
             .with_context(|| format!("cannot write {}", sheet_path.display()))
     })?;
     let legend_path = out.join("contact_sheet.txt");
-    grasp_schema::atomic::write_atomic(&legend_path, legend.as_bytes())?;
+    grasp_support::atomic::write_atomic(&legend_path, legend.as_bytes())?;
     let gif_path = out.join("preview.gif");
     let gif_records = load(opts.gif_sequences)?;
     let chosen: Vec<&(String, SequenceRecord)> = gif_records.iter().collect();
@@ -182,7 +182,7 @@ fn write_gif(
         .map(|(_, r)| r.plan.fps)
         .unwrap_or(10.0)
         .clamp(1.0, 50.0);
-    let mut file = grasp_schema::atomic::AtomicFile::create(path)?;
+    let mut file = grasp_support::atomic::AtomicFile::create(path)?;
     let mut enc = GifEncoder::new_with_speed(&mut file, 10);
     enc.set_repeat(Repeat::Infinite)?;
     let w = chosen.len() as u32 * (opts.thumb + GAP);

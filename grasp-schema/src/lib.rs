@@ -1,16 +1,12 @@
 //! Shared vocabulary of the toolkit: the grasp taxonomy of Vasile et al.
-//! (IROS 2022, Table 1), sequence plans, the dataset layout, and where the
-//! project's Python environment is.
+//! (IROS 2022, Table 1), sequence plans, appearances and the dataset
+//! layout. Data types only: the programs' process support (logging, atomic
+//! writes, config layers, the Python environment) is `grasp-support`.
 
 pub mod appearance;
-pub mod atomic;
-pub mod cli;
 pub mod dataset;
-pub mod layers;
 pub mod plan;
-pub mod prerequisite;
 pub mod taxonomy;
-pub mod venv;
 
 pub use plan::{Condition, SequenceKey, SequencePlan};
 pub use taxonomy::{Class, GraspType, HandConfiguration, Preshape, Thumb};

@@ -79,7 +79,10 @@ impl PtyLink {
         let target = PathBuf::from(target);
         // The record first: a host never sees the link without it.
         let owner = LinkOwner::this_process(&target);
-        grasp_schema::atomic::write_atomic(&owner_path(link), &serde_json::to_vec_pretty(&owner)?)?;
+        grasp_support::atomic::write_atomic(
+            &owner_path(link),
+            &serde_json::to_vec_pretty(&owner)?,
+        )?;
         let made = PtyLink {
             link: link.to_path_buf(),
             target,
@@ -121,7 +124,7 @@ pub fn pty_pair(link_path: &Path) -> anyhow::Result<(serialport::TTYPort, PtyLin
 
 /// Points `link` at `target`, atomically (temp link + rename).
 pub fn replace_symlink(target: &Path, link: &Path) -> anyhow::Result<()> {
-    let tmp = grasp_schema::atomic::temp_path(link);
+    let tmp = grasp_support::atomic::temp_path(link);
     std::os::unix::fs::symlink(target, &tmp)
         .with_context(|| format!("cannot create symlink {}", tmp.display()))?;
     std::fs::rename(&tmp, link)

@@ -36,7 +36,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("cannot create {}", cfg.out.display()))?;
     splits.split.save(&cfg.out.join("split.json"))?;
-    grasp_schema::atomic::write_atomic(
+    grasp_support::atomic::write_atomic(
         &cfg.out.join("config.toml"),
         toml::to_string(cfg)?.as_bytes(),
     )?;
@@ -274,7 +274,7 @@ pub fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
             out.join("problems.json").display()
         );
         std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-        grasp_schema::atomic::write_atomic(
+        grasp_support::atomic::write_atomic(
             &out.join("problems.json"),
             serde_json::to_string_pretty(&problems)?.as_bytes(),
         )?;

@@ -325,7 +325,7 @@ fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<()> {
         "valid".to_string(),
         Tensor::from_vec(valid, f.valid.len(), &dev)?,
     );
-    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> {
+    grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> {
         candle_core::safetensors::save(&map, tmp)
             .with_context(|| format!("cannot write {}", path.display()))
     })

@@ -116,7 +116,7 @@ pub fn write_random_backbone(
         let x = grasp_model::input::preprocess::to_tensor(&batch, &pre, &Device::Cpu)?;
         net.features(&x, true)?;
     }
-    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
+    grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
 }
 
 /// Writes a randomly initialised EfficientNet-Lite (ImageNet-sized `_fc`)
@@ -146,5 +146,5 @@ pub fn write_random_lite(
             }
         }
     }
-    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
+    grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> { Ok(vm.save(tmp)?) })
 }

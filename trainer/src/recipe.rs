@@ -7,7 +7,7 @@
 
 use crate::config::TrainConfig;
 use anyhow::{Context, Result};
-use grasp_schema::layers;
+use grasp_support::layers;
 use std::path::Path;
 use toml::Value;
 

@@ -31,8 +31,8 @@ fn arch_default() -> Architecture {
 
 /// The weights file and scikit-image's data folder, or why not.
 fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
-    let venv = grasp_schema::venv::venv_dir();
-    let site = grasp_schema::venv::site_packages(&venv).map_err(|e| e.to_string())?;
+    let venv = grasp_support::venv::venv_dir();
+    let site = grasp_support::venv::site_packages(&venv).map_err(|e| e.to_string())?;
     let weights = grasp_model::backbone::venv_weights(grasp_model::networks::LiteVariant::Lite0)
         .map_err(|e| format!("{e:#}"))?;
     let data = site.join("skimage").join("data");
@@ -49,7 +49,7 @@ fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
 /// [`prerequisites`], or `None` when `test` is skipped (it fails instead
 /// under GRASP_REQUIRE_BLENDER=1).
 fn prerequisites_or_skip(test: &str) -> Option<(PathBuf, PathBuf)> {
-    use grasp_schema::prerequisite::{check, REQUIRE_BLENDER_ENV};
+    use grasp_support::prerequisite::{check, REQUIRE_BLENDER_ENV};
     match prerequisites() {
         Ok(found) => Some(found),
         Err(why) => {

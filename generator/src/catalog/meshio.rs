@@ -171,5 +171,5 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<()> {
             bytes.extend(i.to_le_bytes());
         }
     }
-    Ok(grasp_schema::atomic::write_atomic(path, &bytes)?)
+    Ok(grasp_support::atomic::write_atomic(path, &bytes)?)
 }

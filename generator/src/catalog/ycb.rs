@@ -12,7 +12,7 @@ use super::mesh::TriMesh;
 use super::meshio;
 use super::model::{MeshSource, Pronation, UpsideDown};
 use anyhow::{bail, Context, Result};
-use grasp_schema::atomic::write_atomic;
+use grasp_support::atomic::write_atomic;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;
 use std::path::{Path, PathBuf};

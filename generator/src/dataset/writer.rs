@@ -10,12 +10,12 @@
 use super::shard::Shard;
 use crate::plan::PlannedKey;
 use anyhow::{bail, Context, Result};
-use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{
     camera_dir, frame_file_name, head_sequence_dir, padding_for, part_file_name, sequence_dir_name,
     ManifestEntry, SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE,
     WRIST_CAMERA_FOLDER,
 };
+use grasp_support::atomic::write_atomic;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};

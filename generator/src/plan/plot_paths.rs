@@ -187,7 +187,7 @@ pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Res
             draw_panel(&mut canvas, &view, planner, group);
         }
     }
-    grasp_schema::atomic::write_atomic_with(out, |tmp| -> Result<()> {
+    grasp_support::atomic::write_atomic_with(out, |tmp| -> Result<()> {
         canvas
             .img
             .save_with_format(tmp, image::ImageFormat::Png)

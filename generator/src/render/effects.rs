@@ -82,7 +82,7 @@ pub fn apply_to_frames(
             .to_rgb8();
         let out = apply(effects, camera, k as u64, &img)?;
         let bytes = png_bytes(&out)?;
-        grasp_schema::atomic::write_atomic(&path, &bytes)?;
+        grasp_support::atomic::write_atomic(&path, &bytes)?;
     }
     Ok(start.elapsed().as_secs_f64())
 }

@@ -11,9 +11,9 @@ use crate::dataset::storage;
 use crate::dataset::writer::frame_files;
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use anyhow::{anyhow, bail, Context, Result};
-use grasp_schema::atomic::write_atomic;
 use grasp_schema::dataset::{RenderCost, SequenceRecord, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_schema::SequencePlan;
+use grasp_support::atomic::write_atomic;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::io::{BufRead, BufReader, Write};
@@ -524,7 +524,7 @@ fn run_pool(
                     let done = summary.rendered + summary.failed.len();
                     tracing::info!(
                         "{}",
-                        grasp_schema::cli::progress_line(
+                        grasp_support::cli::progress_line(
                             "render",
                             done as u64,
                             total as u64,

@@ -215,7 +215,7 @@ impl PartLabeler {
 pub fn write_labels(path: &Path, width: u32, height: u32, labels: Vec<u8>) -> Result<()> {
     let img = image::GrayImage::from_raw(width, height, labels)
         .context("label buffer does not match the image size")?;
-    grasp_schema::atomic::write_atomic_with(path, |tmp| -> Result<()> {
+    grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> {
         img.save_with_format(tmp, image::ImageFormat::Png)
             .with_context(|| format!("cannot write {}", path.display()))
     })

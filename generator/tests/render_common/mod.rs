@@ -22,7 +22,7 @@ pub fn exe() -> PathBuf {
 
 /// Whether the Python environment with bpy exists. Without it the calling
 /// test is reported as skipped, or fails under `GRASP_REQUIRE_BLENDER=1`
-/// (`scripts/test.sh`): see `grasp_schema::prerequisite`.
+/// (`scripts/test.sh`): see `grasp_support::prerequisite`.
 pub fn have_blender() -> bool {
     let missing = generator::python::site_packages(&generator::python::venv_dir())
         .err()
@@ -36,9 +36,9 @@ pub fn have_blender() -> bool {
         .name()
         .unwrap_or("a Blender test")
         .to_string();
-    grasp_schema::prerequisite::check(
+    grasp_support::prerequisite::check(
         &test,
-        grasp_schema::prerequisite::REQUIRE_BLENDER_ENV,
+        grasp_support::prerequisite::REQUIRE_BLENDER_ENV,
         missing,
     )
 }

@@ -41,7 +41,7 @@ pub struct Split {
 impl Split {
     pub fn save(&self, path: &Path) -> Result<()> {
         let json = serde_json::to_string_pretty(self)?;
-        Ok(grasp_schema::atomic::write_atomic(path, json.as_bytes())?)
+        Ok(grasp_support::atomic::write_atomic(path, json.as_bytes())?)
     }
 
     pub fn load(path: &Path) -> Result<Split> {

@@ -237,7 +237,7 @@ fn add_curve(acc: &mut Curve, c: &Curve) {
 /// Writes the report's files into `dir`.
 pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    grasp_schema::atomic::write_atomic(
+    grasp_support::atomic::write_atomic(
         &dir.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),
     )?;
@@ -247,12 +247,12 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
         single: &report.time_single.accuracy(),
         multi: &report.time_multi.accuracy(),
     })?;
-    grasp_schema::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
+    grasp_support::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
     let confusion =
         super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
-    grasp_schema::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
-    grasp_schema::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
-    Ok(grasp_schema::atomic::write_atomic(
+    grasp_support::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
+    grasp_support::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
+    Ok(grasp_support::atomic::write_atomic(
         &dir.join("report.md"),
         markdown(report).as_bytes(),
     )?)

@@ -248,17 +248,17 @@ impl Summary {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         if self.has_x() {
             let png = super::plots::error_against_x(&self.error_plot()?)?;
-            grasp_schema::atomic::write_atomic(&dir.join("error.png"), &png)?;
+            grasp_support::atomic::write_atomic(&dir.join("error.png"), &png)?;
         }
         if let Some(choice) = &self.choice {
             let line = format!("{}\n", choice.shipped);
-            grasp_schema::atomic::write_atomic(&dir.join("shipped.txt"), line.as_bytes())?;
+            grasp_support::atomic::write_atomic(&dir.join("shipped.txt"), line.as_bytes())?;
         }
-        grasp_schema::atomic::write_atomic(
+        grasp_support::atomic::write_atomic(
             &dir.join("summary.json"),
             serde_json::to_string_pretty(self)?.as_bytes(),
         )?;
-        Ok(grasp_schema::atomic::write_atomic(
+        Ok(grasp_support::atomic::write_atomic(
             &dir.join("summary.md"),
             self.markdown().as_bytes(),
         )?)

@@ -158,7 +158,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             };
             checkpoint::save(out, &meta, &tensors)?;
         }
-        grasp_schema::atomic::write_atomic(
+        grasp_support::atomic::write_atomic(
             &out.join("history.json"),
             serde_json::to_string_pretty(&history)?.as_bytes(),
         )?;

@@ -47,8 +47,8 @@ enum ObjectsCli {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_schema::cli::main(|| {
-        grasp_schema::cli::init_logging();
+    grasp_support::cli::main(|| {
+        grasp_support::cli::init_logging();
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),

@@ -6,8 +6,8 @@ use clap::{Args, Parser, Subcommand};
 use grasp_cli::LensArgs;
 use grasp_model::checkpoint::Classifier;
 use grasp_model::input::{Crop, Lens};
-use grasp_schema::cli::Failure;
 use grasp_schema::taxonomy::{Class, Preshape};
+use grasp_support::cli::Failure;
 use runtime::approach::{classify_window, ApproachReport, FramePrediction};
 use runtime::config::RuntimeConfig;
 use runtime::feed::FeedMode;
@@ -211,8 +211,8 @@ struct BenchArgs {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_schema::cli::main(|| {
-        grasp_schema::cli::init_logging();
+    grasp_support::cli::main(|| {
+        grasp_support::cli::init_logging();
         dispatch(Cli::parse())
     })
 }

@@ -277,8 +277,8 @@ fn stand_in(args: StandInArgs) -> Result<()> {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_schema::cli::main(|| {
-        grasp_schema::cli::init_logging();
+    grasp_support::cli::main(|| {
+        grasp_support::cli::init_logging();
         let cli = Cli::parse();
         if let Some(n) = cli.threads {
             std::env::set_var("RAYON_NUM_THREADS", n.to_string());
@@ -518,7 +518,7 @@ fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
 }
 
 fn doctor() -> Result<()> {
-    let venv = grasp_schema::venv::venv_dir();
+    let venv = grasp_support::venv::venv_dir();
     println!("Python venv: {}", venv.display());
     let mut missing_default = false;
     for arch in Architecture::ALL {

@@ -78,7 +78,7 @@ pub fn init_logging() {
 }
 
 /// Runs a program's body with the conventions above:
-/// `fn main() -> ExitCode { grasp_schema::cli::main(|| { ... }) }`.
+/// `fn main() -> ExitCode { grasp_support::cli::main(|| { ... }) }`.
 pub fn main(body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
     install_panic_hook();
     match panic::catch_unwind(AssertUnwindSafe(body)) {
