@@ -9,7 +9,7 @@ use std::path::PathBuf;
 /// `../shared/ycb`; without it the test is skipped, or fails under
 /// `GRASP_REQUIRE_SHARED=1` (`scripts/test.sh`).
 fn ycb_dir(test: &str) -> Option<PathBuf> {
-    grasp_support::prerequisite::require_ycb(test, &generator::python::workspace_root())
+    grasp_test_support::prerequisite::require_ycb(test, &generator::python::workspace_root())
 }
 
 #[test]

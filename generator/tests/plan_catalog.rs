@@ -91,7 +91,7 @@ fn builtin_catalog_with_the_authors_camera() {
 
 #[test]
 fn ycb_catalog_every_pair_every_preset() {
-    let Some(ycb) = grasp_support::prerequisite::require_ycb(
+    let Some(ycb) = grasp_test_support::prerequisite::require_ycb(
         "ycb_catalog_every_pair_every_preset",
         &generator::python::workspace_root(),
     ) else {

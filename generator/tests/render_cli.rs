@@ -4,7 +4,7 @@
 
 mod render_common;
 
-use render_common::{exe, have_blender, tree};
+use render_common::{exe, grasp_gen, have_blender, tree};
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -23,17 +23,6 @@ fn config(dir: &Path, objects: Option<&str>) -> std::path::PathBuf {
     path
 }
 
-fn grasp_gen(args: &[&str]) -> std::process::Output {
-    let out = Command::new(exe()).args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "grasp-gen {args:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
 /// About 10 to 30 seconds on 2 cores (31 sequences of 3 frames at 32 px).
 #[test]
 fn all_31_pairs_render_and_verify() {
@@ -44,7 +33,7 @@ fn all_31_pairs_render_and_verify() {
     let cfg = config(dir.path(), None);
     let (cfg, out) = (cfg.to_str().unwrap(), dir.path().join("data"));
     let out = out.to_str().unwrap();
-    grasp_gen(&[
+    grasp_gen().ok([
         "render",
         "--config",
         cfg,
@@ -54,11 +43,11 @@ fn all_31_pairs_render_and_verify() {
         "2",
         "--no-progress",
     ]);
-    let v = grasp_gen(&["dataset", "verify", out, "--config", cfg, "--decode"]);
-    let text = String::from_utf8_lossy(&v.stdout);
+    let v = grasp_gen().ok(["dataset", "verify", out, "--config", cfg, "--decode"]);
+    let text = &v.stdout;
     assert!(text.contains("31 pairs, 31 sequences"), "{text}");
     let prev = dir.path().join("preview");
-    grasp_gen(&["preview", out, "--out", prev.to_str().unwrap()]);
+    grasp_gen().ok(["preview", out, "--out", prev.to_str().unwrap()]);
     assert!(image::open(prev.join("contact_sheet.png")).is_ok());
     assert!(prev.join("preview.gif").metadata().unwrap().len() > 0);
 }
@@ -73,7 +62,7 @@ fn killed_then_resumed_equals_uninterrupted() {
     let cfg = cfg.to_str().unwrap();
     let whole = dir.path().join("whole");
     let killed = dir.path().join("killed");
-    grasp_gen(&[
+    grasp_gen().ok([
         "render",
         "--config",
         cfg,
@@ -109,7 +98,7 @@ fn killed_then_resumed_equals_uninterrupted() {
     child.kill().unwrap(); // SIGKILL: no cleanup at all
     child.wait().unwrap();
 
-    grasp_gen(&[
+    grasp_gen().ok([
         "render",
         "--config",
         cfg,
@@ -123,7 +112,7 @@ fn killed_then_resumed_equals_uninterrupted() {
     for (name, bytes) in &a {
         assert!(bytes == &b[name], "{name} differs");
     }
-    grasp_gen(&[
+    grasp_gen().ok([
         "dataset",
         "verify",
         killed.to_str().unwrap(),

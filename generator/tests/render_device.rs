@@ -9,10 +9,10 @@ mod render_common;
 
 use generator::config::GeneratorConfig;
 use generator::render::{render, Device, Engine, RenderConfig};
-use grasp_support::prerequisite::{check, REQUIRE_GPU_ENV};
+use grasp_test_support::prerequisite::{check, REQUIRE_GPU_ENV};
+use grasp_test_support::program::Finished;
 use render_common::*;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 
 fn cycles(device: Device) -> RenderConfig {
@@ -60,19 +60,6 @@ fn config(dir: &Path, device: &str) -> PathBuf {
     path
 }
 
-fn grasp_gen(args: &[&str]) -> (String, String) {
-    let out = Command::new(exe()).args(args).output().unwrap();
-    let (stdout, stderr) = (
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    );
-    assert!(
-        out.status.success(),
-        "grasp-gen {args:?} failed:\n{stdout}\n{stderr}"
-    );
-    (stdout, stderr)
-}
-
 /// `device = "cpu"` and `"auto"` plan the same sequences with the same
 /// labels; without a GPU, `auto` logs its fallback once, records `cpu`, and
 /// gives the very frames `cpu` does. Each dataset verifies against the
@@ -87,7 +74,7 @@ fn cpu_and_auto_give_the_same_plans_and_labels() {
     let mut logs = Vec::new();
     for device in ["cpu", "auto"] {
         let (cfg, out) = (config(dir.path(), device), dir.path().join(device));
-        let (stdout, stderr) = grasp_gen(&[
+        let Finished { stdout, stderr, .. } = grasp_gen().ok([
             "render",
             "--config",
             cfg.to_str().unwrap(),
@@ -130,13 +117,15 @@ fn cpu_and_auto_give_the_same_plans_and_labels() {
     }
     assert!(!logs[0].1.contains(fallback), "cpu asks for no GPU");
     for ((_, data), (cfg, _)) in outs.iter().zip(outs.iter().rev()) {
-        let (stdout, _) = grasp_gen(&[
-            "dataset",
-            "verify",
-            data.to_str().unwrap(),
-            "--config",
-            cfg.to_str().unwrap(),
-        ]);
+        let stdout = grasp_gen()
+            .ok([
+                "dataset",
+                "verify",
+                data.to_str().unwrap(),
+                "--config",
+                cfg.to_str().unwrap(),
+            ])
+            .stdout;
         assert!(stdout.trim_end().ends_with("ok"), "{stdout}");
     }
 }

@@ -9,7 +9,7 @@ use grasp_schema::dataset::{
     head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,
 };
 use nalgebra::{UnitQuaternion, Vector3};
-use render_common::{exe, have_blender};
+use render_common::{exe, grasp_gen, have_blender};
 use std::path::Path;
 use std::process::Command;
 
@@ -25,17 +25,6 @@ fn config(dir: &Path, head: bool) -> std::path::PathBuf {
     let path = dir.join(format!("head-{head}.toml"));
     std::fs::write(&path, text).unwrap();
     path
-}
-
-fn grasp_gen(args: &[&str]) -> String {
-    let out = Command::new(exe()).args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "grasp-gen {args:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn read_record(dir: &Path) -> SequenceRecord {
@@ -70,8 +59,12 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
     let cfg = config(dir.path(), true);
     let out = dir.path().join("data");
     let (cfg_s, out_s) = (cfg.to_str().unwrap(), out.to_str().unwrap());
-    grasp_gen(&["render", "--config", cfg_s, "--out", out_s, "--no-progress"]);
-    let text = grasp_gen(&["dataset", "verify", out_s, "--config", cfg_s, "--decode"]);
+    grasp_gen()
+        .ok(["render", "--config", cfg_s, "--out", out_s, "--no-progress"])
+        .stdout;
+    let text = grasp_gen()
+        .ok(["dataset", "verify", out_s, "--config", cfg_s, "--decode"])
+        .stdout;
     assert!(
         text.contains("head camera: 4 sequences, 12 frames"),
         "{text}"
@@ -132,7 +125,8 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
 
     // The stats read both cameras' cost.
     let stats: serde_json::Value =
-        serde_json::from_str(&grasp_gen(&["dataset", "stats", out_s, "--json"])).unwrap();
+        serde_json::from_str(&grasp_gen().ok(["dataset", "stats", out_s, "--json"]).stdout)
+            .unwrap();
     for camera in ["Wrist_d435", "Head_d435"] {
         assert_eq!(stats["cameras"][camera]["frames"], 12, "{stats}");
         assert!(
@@ -152,16 +146,20 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stdout).contains(&format!("{victim}: missing")));
-    grasp_gen(&[
-        "render",
-        "--config",
-        cfg_s,
-        "--out",
-        out_s,
-        "--resume",
-        "--no-progress",
-    ]);
-    grasp_gen(&["dataset", "verify", out_s, "--config", cfg_s]);
+    grasp_gen()
+        .ok([
+            "render",
+            "--config",
+            cfg_s,
+            "--out",
+            out_s,
+            "--resume",
+            "--no-progress",
+        ])
+        .stdout;
+    grasp_gen()
+        .ok(["dataset", "verify", out_s, "--config", cfg_s])
+        .stdout;
 }
 
 #[test]
@@ -173,13 +171,15 @@ fn the_head_camera_changes_nothing_else_in_the_plan() {
     let plans = |head: bool| -> Vec<grasp_schema::SequencePlan> {
         let cfg = config(dir.path(), head);
         let out = dir.path().join(format!("plans-{head}.jsonl"));
-        grasp_gen(&[
-            "plan",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        grasp_gen()
+            .ok([
+                "plan",
+                "--config",
+                cfg.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .stdout;
         std::fs::read_to_string(&out)
             .unwrap()
             .lines()

@@ -12,7 +12,6 @@ mod render_common;
 use generator::config::GeneratorConfig;
 use render_common::*;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// A tiny Cycles config of the mug's body and handle in `world`.
 fn config(dir: &Path, world: &str) -> PathBuf {
@@ -28,34 +27,19 @@ fn config(dir: &Path, world: &str) -> PathBuf {
     path
 }
 
-fn grasp_gen(args: &[&str]) -> std::process::Output {
-    Command::new(exe()).args(args).output().unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = grasp_gen(args);
-    let (stdout, stderr) = (
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    );
-    assert!(
-        out.status.success(),
-        "grasp-gen {args:?} failed:\n{stdout}\n{stderr}"
-    );
-    stdout
-}
-
 fn render(cfg: &Path, out: &Path, workers: &str) {
-    ok(&[
-        "render",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--workers",
-        workers,
-        "--no-progress",
-    ]);
+    grasp_gen()
+        .ok([
+            "render",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--workers",
+            workers,
+            "--no-progress",
+        ])
+        .stdout;
 }
 
 /// Mean of a frame's 8-bit values, and the mean absolute difference of two.
@@ -132,16 +116,18 @@ fn the_foreign_world_draws_the_studios_plans_with_other_pixels() {
     // Each dataset verifies against its own config, and the other world's
     // config names the difference; --resume refuses to mix the worlds.
     for (i, (cfg, data)) in outs.iter().enumerate() {
-        let stdout = ok(&[
-            "dataset",
-            "verify",
-            data.to_str().unwrap(),
-            "--config",
-            cfg.to_str().unwrap(),
-        ]);
+        let stdout = grasp_gen()
+            .ok([
+                "dataset",
+                "verify",
+                data.to_str().unwrap(),
+                "--config",
+                cfg.to_str().unwrap(),
+            ])
+            .stdout;
         assert!(stdout.trim_end().ends_with("ok"), "{stdout}");
         let other = &outs[1 - i].0;
-        let out = grasp_gen(&[
+        let out = grasp_gen().run([
             "render",
             "--config",
             other.to_str().unwrap(),
@@ -150,8 +136,7 @@ fn the_foreign_world_draws_the_studios_plans_with_other_pixels() {
             "--resume",
             "--no-progress",
         ]);
-        let text = String::from_utf8_lossy(&out.stderr).into_owned()
-            + &String::from_utf8_lossy(&out.stdout);
+        let text = out.stderr + &out.stdout;
         assert!(!out.status.success(), "{text}");
         assert!(text.contains("[render] world"), "{text}");
     }

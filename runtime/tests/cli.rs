@@ -3,9 +3,9 @@
 //! a killed simulated hand, a closed stdout and errors under
 //! `RUST_BACKTRACE=1`.
 
+use grasp_test_support::program::{assert_no_colour_codes, Program};
 use runtime::simhand::{FaultSpec, HandEvent, PtyHand};
 use std::io::Read;
-use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
@@ -289,20 +289,8 @@ fn run_refuses_a_link_left_by_a_killed_simulated_hand() {
     drop(slave);
 }
 
-/// Runs `args` with stdout a pipe whose reading end is already closed, as
-/// in `hannes-run replay ... | head -0`.
-pub fn run_into_closed_pipe(bin: &str, args: &[&str]) -> (std::process::ExitStatus, String) {
-    let (reader, writer) = std::io::pipe().unwrap();
-    drop(reader);
-    let out = Command::new(bin)
-        .args(args)
-        .env("RUST_BACKTRACE", "1")
-        .stdin(Stdio::null())
-        .stdout(writer)
-        .stderr(Stdio::piped())
-        .output()
-        .unwrap();
-    (out.status, text(&out.stderr))
+fn program() -> Program {
+    Program::new(BIN)
 }
 
 #[test]
@@ -310,40 +298,27 @@ fn replay_into_a_closed_pipe_ends_quietly() {
     let dir = tempfile::tempdir().unwrap();
     let seq = sequence(dir.path(), 4, None);
     let ckpt = checkpoint().to_string_lossy().into_owned();
-    let (status, stderr) = run_into_closed_pipe(
-        BIN,
-        &[
-            "replay",
-            "--checkpoint",
-            &ckpt,
-            "--source",
-            seq.to_str().unwrap(),
-        ],
-    );
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    assert_eq!(status.signal(), Some(libc::SIGPIPE), "{status:?} {stderr}");
+    program().assert_quiet_in_closed_pipe([
+        "replay",
+        "--checkpoint",
+        &ckpt,
+        "--source",
+        seq.to_str().unwrap(),
+    ]);
 }
 
 #[test]
 fn user_errors_show_the_message_without_a_backtrace() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("missing-checkpoint");
-    let out = Command::new(BIN)
-        .args(["replay", "--checkpoint"])
-        .arg(&missing)
-        .args(["--source"])
-        .arg(dir.path())
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(!stderr.to_lowercase().contains("backtrace"), "{stderr}");
-    let reason = last_line(&out.stderr);
-    assert!(
-        reason.starts_with("Error: ") && reason.contains("missing-checkpoint"),
-        "{stderr}"
-    );
+    let reason = program().user_error([
+        "replay".as_ref(),
+        "--checkpoint".as_ref(),
+        missing.as_os_str(),
+        "--source".as_ref(),
+        dir.path().as_os_str(),
+    ]);
+    assert!(reason.contains("missing-checkpoint"), "{reason}");
 }
 
 #[test]
@@ -375,10 +350,7 @@ fn logs_carry_no_colour_codes_when_stderr_is_not_a_terminal() {
         text.contains("WARN") && text.contains("waiting for"),
         "{text}"
     );
-    assert!(
-        !text.contains('\x1b'),
-        "ANSI escape codes in a pipe: {text:?}"
-    );
+    assert_no_colour_codes(&text);
 }
 
 #[test]

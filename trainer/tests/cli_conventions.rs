@@ -1,15 +1,32 @@
-//! Conventions shared by every program (grasp_support::cli): a closed stdout
-//! ends `grasp-train` quietly, and a user error prints its message, not a
-//! backtrace, even under `RUST_BACKTRACE=1`.
+//! Conventions shared by every program (grasp_support::cli,
+//! grasp_test_support::program): a closed stdout ends `grasp-train` quietly,
+//! a user error prints its message, not a backtrace, even under
+//! `RUST_BACKTRACE=1`, and logs into a pipe carry no colour codes.
 
-use std::os::unix::process::ExitStatusExt;
+use grasp_test_support::program::{assert_no_colour_codes, Program};
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use trainer::eval::metrics::Metrics;
 use trainer::eval::report::RunReport;
 use trainer::eval::Report;
 
-const BIN: &str = env!("CARGO_BIN_EXE_grasp-train");
+fn grasp_train() -> Program {
+    Program::new(env!("CARGO_BIN_EXE_grasp-train"))
+}
+
+/// `summarize --out DIR/summary --report fc:REPORT`.
+fn summarize(dir: &Path, report: &Path) -> Vec<OsString> {
+    let summary = dir.join("summary");
+    let report = format!("fc:{}", report.display());
+    [
+        "summarize".into(),
+        "--out".into(),
+        summary.into_os_string(),
+        "--report".into(),
+        report.into(),
+    ]
+    .to_vec()
+}
 
 fn write_report(dir: &Path) -> PathBuf {
     let runs = vec![RunReport {
@@ -39,26 +56,7 @@ fn printing_into_a_closed_pipe_ends_quietly() {
     let report = write_report(&dir.path().join("report"));
     // `grasp-train summarize ... | head -0`: the reader is gone before the
     // first line is printed.
-    let (reader, writer) = std::io::pipe().unwrap();
-    drop(reader);
-    let out = Command::new(BIN)
-        .args(["summarize", "--out"])
-        .arg(dir.path().join("summary"))
-        .arg("--report")
-        .arg(format!("fc:{}", report.display()))
-        .env("RUST_BACKTRACE", "1")
-        .stdin(Stdio::null())
-        .stdout(writer)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    assert_eq!(
-        out.status.signal(),
-        Some(13),
-        "SIGPIPE: {:?} {stderr}",
-        out.status
-    );
+    grasp_train().assert_quiet_in_closed_pipe(summarize(dir.path(), &report));
     assert!(
         dir.path().join("summary/summary.md").is_file(),
         "the work before the print is done"
@@ -68,51 +66,31 @@ fn printing_into_a_closed_pipe_ends_quietly() {
 #[test]
 fn a_user_error_prints_its_message_without_a_backtrace() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(BIN)
-        .args(["summarize", "--out"])
-        .arg(dir.path().join("summary"))
-        .arg("--report")
-        .arg(format!(
-            "fc:{}",
-            dir.path().join("missing-report").display()
-        ))
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(!stderr.to_lowercase().contains("backtrace"), "{stderr}");
-    let last = stderr.lines().last().unwrap_or_default();
-    assert!(
-        last.starts_with("Error: ") && last.contains("missing-report"),
-        "{stderr}"
-    );
+    let line = grasp_train().user_error(summarize(dir.path(), &dir.path().join("missing-report")));
+    assert!(line.contains("missing-report"), "{line}");
 }
 
 #[test]
 fn stand_in_logs_without_colour_codes_into_a_pipe_and_prints_its_checkpoint() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(BIN)
-        .args([
-            "stand-in",
-            "--backbone",
-            "mobilenet-v2",
-            "--size",
-            "32",
-            "--out",
-        ])
-        .arg(dir.path().join("stand-in"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(stderr.contains("INFO"), "{stderr}");
+    let out = dir.path().join("stand-in");
+    let done = grasp_train().run([
+        "stand-in".as_ref(),
+        "--backbone".as_ref(),
+        "mobilenet-v2".as_ref(),
+        "--size".as_ref(),
+        "32".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(done.status.success(), "{}", done.stderr);
+    assert!(done.stderr.contains("INFO"), "{}", done.stderr);
+    assert_no_colour_codes(&done.stderr);
+    let checkpoint = Path::new(done.stdout.trim());
+    assert!(checkpoint.join("best.json").is_file(), "{}", done.stdout);
     assert!(
-        !stderr.contains('\x1b'),
-        "ANSI escape codes in a pipe: {stderr:?}"
+        checkpoint.join("best.safetensors").is_file(),
+        "{}",
+        done.stdout
     );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let checkpoint = Path::new(stdout.trim());
-    assert!(checkpoint.join("best.json").is_file(), "{stdout}");
-    assert!(checkpoint.join("best.safetensors").is_file(), "{stdout}");
 }

@@ -49,7 +49,7 @@ fn prerequisites() -> Result<(PathBuf, PathBuf), String> {
 /// [`prerequisites`], or `None` when `test` is skipped (it fails instead
 /// under GRASP_REQUIRE_BLENDER=1).
 fn prerequisites_or_skip(test: &str) -> Option<(PathBuf, PathBuf)> {
-    use grasp_support::prerequisite::{check, REQUIRE_BLENDER_ENV};
+    use grasp_test_support::prerequisite::{check, REQUIRE_BLENDER_ENV};
     match prerequisites() {
         Ok(found) => Some(found),
         Err(why) => {

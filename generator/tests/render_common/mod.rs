@@ -20,9 +20,14 @@ pub fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_grasp-gen"))
 }
 
+/// `grasp-gen` as a user runs it.
+pub fn grasp_gen() -> grasp_test_support::Program {
+    grasp_test_support::Program::new(exe())
+}
+
 /// Whether the Python environment with bpy exists. Without it the calling
 /// test is reported as skipped, or fails under `GRASP_REQUIRE_BLENDER=1`
-/// (`scripts/test.sh`): see `grasp_support::prerequisite`.
+/// (`scripts/test.sh`): see `grasp_test_support::prerequisite`.
 pub fn have_blender() -> bool {
     let missing = generator::python::site_packages(&generator::python::venv_dir())
         .err()
@@ -36,9 +41,9 @@ pub fn have_blender() -> bool {
         .name()
         .unwrap_or("a Blender test")
         .to_string();
-    grasp_support::prerequisite::check(
+    grasp_test_support::prerequisite::check(
         &test,
-        grasp_support::prerequisite::REQUIRE_BLENDER_ENV,
+        grasp_test_support::prerequisite::REQUIRE_BLENDER_ENV,
         missing,
     )
 }
