@@ -12,11 +12,52 @@ mod bvh;
 pub use bvh::{closest_on_triangle, TriangleTree};
 
 use crate::catalog::TriMesh;
-use anyhow::{bail, Context, Result};
+use crate::python::PythonError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 const PY_MODULE: &str = "blender_scripts.geometry";
+
+/// Why a mesh query cannot be built or answered.
+#[derive(Debug, thiserror::Error)]
+pub enum GeometryError {
+    /// The embedded Python (trimesh) is not usable.
+    #[error(transparent)]
+    Python(#[from] PythonError),
+    #[error("the mesh has no triangles")]
+    NoTriangles,
+    #[error("face {face:?} indexes past the {vertices} vertices")]
+    FacePastVertices { face: [u32; 3], vertices: usize },
+    #[error("the mesh has a non-finite vertex coordinate")]
+    NonFinite,
+    /// A trimesh call raised; `what` is the call, `reason` Python's
+    /// exception as text (a `PyErr` needs the interpreter to print).
+    #[error("{what}: {reason}")]
+    Trimesh { what: String, reason: String },
+    #[error("first_hits: {origins} origins but {directions} directions")]
+    RayCount { origins: usize, directions: usize },
+    #[error("{what}: Python returned {got} results for {want} queries")]
+    ResultCount {
+        what: &'static str,
+        got: usize,
+        want: usize,
+    },
+    #[error("a convex hull needs at least 4 points, got {0}")]
+    TooFewPoints(usize),
+    #[error("closest_points on a mesh without triangles")]
+    Empty,
+}
+
+pub type Result<T, E = GeometryError> = std::result::Result<T, E>;
+
+impl GeometryError {
+    fn trimesh(what: impl Into<String>, e: PyErr) -> Self {
+        GeometryError::Trimesh {
+            what: what.into(),
+            reason: e.to_string(),
+        }
+    }
+}
 
 /// A mesh loaded into trimesh with its ray intersector, plus a Rust BVH for
 /// closest points. Build it once per mesh and query it in batches.
@@ -70,7 +111,7 @@ impl MeshQuery {
             let backend: String = obj.getattr("backend")?.extract()?;
             Ok((obj.unbind(), watertight, backend))
         })
-        .map_err(|e| anyhow::anyhow!("building the trimesh query object: {e}"))?;
+        .map_err(|e| GeometryError::trimesh("building the trimesh query object", e))?;
         Ok(MeshQuery {
             py,
             tree: TriangleTree::new(mesh),
@@ -86,11 +127,10 @@ impl MeshQuery {
         directions: &[[f64; 3]],
     ) -> Result<Vec<Option<f64>>> {
         if origins.len() != directions.len() {
-            bail!(
-                "first_hits: {} origins but {} directions",
-                origins.len(),
-                directions.len()
-            );
+            return Err(GeometryError::RayCount {
+                origins: origins.len(),
+                directions: directions.len(),
+            });
         }
         let bytes = self.call(
             "first_hits",
@@ -118,11 +158,7 @@ impl MeshQuery {
     pub fn closest_points(&self, points: &[[f64; 3]]) -> Result<Vec<([f64; 3], f64)>> {
         points
             .iter()
-            .map(|&p| {
-                self.tree
-                    .closest_point(p)
-                    .context("closest_points on a mesh without triangles")
-            })
+            .map(|&p| self.tree.closest_point(p).ok_or(GeometryError::Empty))
             .collect()
     }
 
@@ -147,17 +183,14 @@ impl MeshQuery {
             let out = self.py.bind(py).call_method1(method, args)?;
             Ok(out.downcast::<PyBytes>()?.as_bytes().to_vec())
         })
-        .map_err(|e| anyhow::anyhow!("trimesh {method}: {e}"))
+        .map_err(|e| GeometryError::trimesh(format!("trimesh {method}"), e))
     }
 }
 
 /// The convex hull of a point set, through trimesh (qhull).
 pub fn convex_hull(points: &[[f64; 3]]) -> Result<TriMesh> {
     if points.len() < 4 {
-        bail!(
-            "a convex hull needs at least 4 points, got {}",
-            points.len()
-        );
+        return Err(GeometryError::TooFewPoints(points.len()));
     }
     crate::python::init(&["numpy", "trimesh", "scipy", PY_MODULE])?;
     let input = points_to_bytes(points);
@@ -169,7 +202,7 @@ pub fn convex_hull(points: &[[f64; 3]]) -> Result<TriMesh> {
         let (v, f): (Bound<'_, PyBytes>, Bound<'_, PyBytes>) = out.extract()?;
         Ok((v.as_bytes().to_vec(), f.as_bytes().to_vec()))
     })
-    .map_err(|e| anyhow::anyhow!("trimesh convex hull: {e}"))?;
+    .map_err(|e| GeometryError::trimesh("trimesh convex hull", e))?;
     Ok(TriMesh {
         vertices: bytes_to_points(&v),
         faces: f
@@ -183,7 +216,7 @@ pub fn convex_hull(points: &[[f64; 3]]) -> Result<TriMesh> {
 
 fn check_mesh(mesh: &TriMesh) -> Result<()> {
     if mesh.faces.is_empty() {
-        bail!("the mesh has no triangles");
+        return Err(GeometryError::NoTriangles);
     }
     let n = mesh.vertices.len();
     if let Some(f) = mesh
@@ -191,17 +224,20 @@ fn check_mesh(mesh: &TriMesh) -> Result<()> {
         .iter()
         .find(|f| f.iter().any(|&i| i as usize >= n))
     {
-        bail!("face {f:?} indexes past the {n} vertices");
+        return Err(GeometryError::FacePastVertices {
+            face: *f,
+            vertices: n,
+        });
     }
     if mesh.vertices.iter().flatten().any(|x| !x.is_finite()) {
-        bail!("the mesh has a non-finite vertex coordinate");
+        return Err(GeometryError::NonFinite);
     }
     Ok(())
 }
 
-fn expect_len(what: &str, got: usize, want: usize) -> Result<()> {
+fn expect_len(what: &'static str, got: usize, want: usize) -> Result<()> {
     if got != want {
-        bail!("{what}: Python returned {got} results for {want} queries");
+        return Err(GeometryError::ResultCount { what, got, want });
     }
     Ok(())
 }

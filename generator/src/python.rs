@@ -6,16 +6,41 @@
 //! trainer finds pretrained weights in it the same way); `scripts/setup.sh`
 //! creates it.
 
-use anyhow::{Context, Result};
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-pub use grasp_support::venv::{setup_hint, venv_dir, workspace_root, VENV_ENV_VAR};
+pub use grasp_support::venv::{setup_hint, venv_dir, workspace_root, MissingVenv, VENV_ENV_VAR};
+
+/// Why the embedded Python cannot be used. Each message says what to fix:
+/// the venv's path, or the module that does not import and from where.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum PythonError {
+    /// The venv (its `site-packages`) is not there, or could not be added
+    /// to Python's path; kept as text because the first failure is
+    /// remembered for the whole process and reported to every caller.
+    #[error("{0}")]
+    Environment(String),
+    /// A required module does not import.
+    #[error(
+        "checking the Python environment: cannot import Python module '{module}' from {}: \
+         {reason}; {}",
+        site.display(),
+        setup_hint()
+    )]
+    Import {
+        module: String,
+        site: PathBuf,
+        /// Python's exception, as text (a `PyErr` needs the interpreter).
+        reason: String,
+    },
+}
+
+pub type Result<T, E = PythonError> = std::result::Result<T, E>;
 
 /// `site-packages` of the venv, checked to exist.
-pub fn site_packages(venv: &Path) -> Result<PathBuf> {
-    Ok(grasp_support::venv::site_packages(venv)?)
+pub fn site_packages(venv: &Path) -> std::result::Result<PathBuf, MissingVenv> {
+    grasp_support::venv::site_packages(venv)
 }
 
 static INITIALISED: OnceLock<Result<PathBuf, String>> = OnceLock::new();
@@ -26,7 +51,7 @@ pub fn init(required_modules: &[&str]) -> Result<()> {
     let site = INITIALISED
         .get_or_init(|| {
             let venv = venv_dir();
-            let site = site_packages(&venv).map_err(|e| format!("{e:#}"))?;
+            let site = site_packages(&venv).map_err(|e| e.to_string())?;
             Python::attach(|py| -> PyResult<()> {
                 // addsitedir also processes .pth files, which is how the
                 // editable install of `blender_scripts` is found.
@@ -38,20 +63,17 @@ pub fn init(required_modules: &[&str]) -> Result<()> {
             Ok(site)
         })
         .as_ref()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+        .map_err(|e| PythonError::Environment(e.clone()))?;
     Python::attach(|py| -> Result<()> {
         for module in required_modules {
-            py.import(*module).map_err(|e| {
-                anyhow::anyhow!(
-                    "cannot import Python module '{module}' from {}: {e}; {}",
-                    site.display(),
-                    setup_hint()
-                )
+            py.import(*module).map_err(|e| PythonError::Import {
+                module: module.to_string(),
+                site: site.clone(),
+                reason: e.to_string(),
             })?;
         }
         Ok(())
     })
-    .context("checking the Python environment")
 }
 
 #[cfg(test)]

@@ -304,3 +304,35 @@ pub fn arc(centre: [f64; 2], radius: f64, a0: f64, a1: f64, n: usize) -> Vec<[f6
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lathe_cylinder_has_the_analytic_volume() {
+        let (r, h) = (0.03, 0.1);
+        let m = lathe(&[(0.0, 0.0), (r, 0.0), (r, h), (0.0, h)], 256);
+        let exact = PI * r * r * h;
+        assert!((m.signed_volume() - exact).abs() / exact < 1e-3);
+    }
+
+    #[test]
+    fn closed_tube_torus_faces_outward() {
+        let path: Vec<V3> = (0..64)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 64.0;
+                [0.05 * a.cos(), 0.05 * a.sin(), 0.0]
+            })
+            .collect();
+        let m = tube(&path, &vec![(0.01, 0.01); 64], [0.0, 0.0, 1.0], true, 32);
+        let exact = 2.0 * PI * PI * 0.05 * 0.01 * 0.01;
+        assert!((m.signed_volume() - exact).abs() / exact < 0.01);
+    }
+
+    #[test]
+    fn prism_box_volume() {
+        let m = cuboid([0.1, 0.2, 0.3]);
+        assert!((m.signed_volume() - 0.006).abs() < 1e-12);
+    }
+}

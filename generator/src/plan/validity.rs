@@ -54,7 +54,9 @@ impl RayCaster for crate::geometry::MeshQuery {
         origins: &[[f64; 3]],
         directions: &[[f64; 3]],
     ) -> Result<Vec<Option<f64>>> {
-        crate::geometry::MeshQuery::first_hits(self, origins, directions)
+        Ok(crate::geometry::MeshQuery::first_hits(
+            self, origins, directions,
+        )?)
     }
 }
 

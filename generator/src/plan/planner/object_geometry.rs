@@ -1,0 +1,120 @@
+//! One object's geometry as the planner needs it: the mesh query, extents,
+//! bounding sphere, part boxes and a silhouette outline, at catalog size or
+//! scaled by `[randomize.object_scale]`.
+
+use crate::catalog::{GraspPart, ObjectSpec, TriMesh};
+use crate::plan::validity::{Obb, RayCaster, ScaledCaster};
+use crate::plan::wrist;
+use anyhow::Result;
+use nalgebra::Vector3;
+use std::rc::Rc;
+
+/// One object's geometry as the planner needs it.
+pub struct ObjectGeometry {
+    pub spec: ObjectSpec,
+    /// Ray casts against the object's mesh (object frame).
+    pub caster: Rc<dyn RayCaster>,
+    /// Extent of the mesh along the object's Z (min, max).
+    pub z_range: [f64; 2],
+    /// Bounding sphere of the mesh (object frame).
+    pub sphere_center: Vector3<f64>,
+    pub sphere_radius: f64,
+    /// The parts' boxes, in the catalog's part order (object frame).
+    pub boxes: Vec<Obb>,
+    /// Up to 6000 mesh triangles, for drawing the object's silhouette.
+    pub outline: Vec<[Vector3<f64>; 3]>,
+}
+
+impl ObjectGeometry {
+    pub fn new(spec: ObjectSpec, mesh: &TriMesh, caster: Box<dyn RayCaster>) -> Result<Self> {
+        anyhow::ensure!(
+            !mesh.vertices.is_empty(),
+            "object {}: the mesh has no vertices",
+            spec.id
+        );
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for v in &mesh.vertices {
+            let v = Vector3::from(*v);
+            lo = lo.inf(&v);
+            hi = hi.sup(&v);
+        }
+        let center = (lo + hi) / 2.0;
+        let radius = mesh
+            .vertices
+            .iter()
+            .map(|v| (Vector3::from(*v) - center).norm())
+            .fold(0.0, f64::max);
+        let boxes = spec
+            .parts
+            .iter()
+            .map(|p| part_box(&spec.id, p))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(ObjectGeometry {
+            spec,
+            caster: Rc::from(caster),
+            z_range: [lo.z, hi.z],
+            sphere_center: center,
+            sphere_radius: radius,
+            boxes,
+            outline: mesh
+                .faces
+                .iter()
+                .step_by(mesh.faces.len().div_ceil(6000).max(1))
+                .filter(|f| f.iter().all(|&i| (i as usize) < mesh.vertices.len()))
+                .map(|f| f.map(|i| Vector3::from(mesh.vertices[i as usize])))
+                .collect(),
+        })
+    }
+}
+
+impl ObjectGeometry {
+    /// The same object scaled uniformly about its frame's origin: mesh,
+    /// part boxes and every derived extent. Ray casts go through the
+    /// catalog-size mesh, so scaling builds no new mesh query.
+    pub fn scaled(&self, scale: f64) -> ObjectGeometry {
+        let mut spec = self.spec.clone();
+        for p in &mut spec.parts {
+            p.center = p.center.map(|c| c * scale);
+            p.size = p.size.map(|c| c * scale);
+        }
+        ObjectGeometry {
+            spec,
+            caster: Rc::new(ScaledCaster::new(self.caster.clone(), scale)),
+            z_range: self.z_range.map(|z| z * scale),
+            sphere_center: self.sphere_center * scale,
+            sphere_radius: self.sphere_radius * scale,
+            boxes: self
+                .boxes
+                .iter()
+                .map(|b| Obb {
+                    center: b.center * scale,
+                    rotation: b.rotation,
+                    half: b.half * scale,
+                })
+                .collect(),
+            outline: self.outline.iter().map(|t| t.map(|v| v * scale)).collect(),
+        }
+    }
+}
+
+fn part_box(object: &str, p: &GraspPart) -> Result<Obb> {
+    let q = p.rotation_wxyz;
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    anyhow::ensure!(
+        norm.is_finite() && norm > 1e-9,
+        "object {object}, part {}: rotation_wxyz {q:?} is not a rotation",
+        p.name
+    );
+    anyhow::ensure!(
+        p.size.iter().all(|s| s.is_finite() && *s > 0.0),
+        "object {object}, part {}: size {:?} must be positive",
+        p.name,
+        p.size
+    );
+    Ok(Obb {
+        center: Vector3::from(p.center),
+        rotation: wrist::from_wxyz(q),
+        half: Vector3::from(p.size) / 2.0,
+    })
+}

@@ -1,0 +1,239 @@
+//! The parent side of `grasp-gen render`: plans sequences, hands them to N
+//! worker processes, restarts crashed workers and retries their sequences a
+//! bounded number of times, recycles workers every `recycle_every`
+//! sequences, shows progress, and stops cleanly when `stop` is raised.
+//!
+//! * `resume`: what a non-empty output folder may hold, and what is redone.
+//! * `pool`: the parent's event loop and progress.
+//! * `slot`: one worker slot's thread; `worker_proc`: its process.
+//! * `outputs`: meshes, records and the manifest.
+
+mod outputs;
+mod pool;
+mod resume;
+mod slot;
+mod worker_proc;
+
+use super::protocol::MeshFiles;
+use super::source::RenderSource;
+use super::{RenderConfig, SceneGeometry, Shard};
+use crate::dataset::lock;
+use crate::dataset::{assign_folders, Assigned, DatasetDir};
+use anyhow::{bail, Result};
+use grasp_schema::dataset::RenderCost;
+use grasp_schema::SequencePlan;
+use grasp_support::atomic::write_atomic;
+use outputs::{finish_manifest, write_meshes};
+use pool::run_pool;
+use resume::{refuse_other_sequences, unfinished_jobs};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::path::PathBuf;
+use std::process::Child;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    pub out: PathBuf,
+    pub workers: usize,
+    pub shard: Shard,
+    /// Skip finished sequences instead of refusing a non-empty dataset.
+    pub resume: bool,
+    /// The `grasp-gen` executable to run workers from.
+    pub worker_exe: PathBuf,
+    pub progress: bool,
+    /// Raised by the Ctrl-C handler: stop handing out work, kill workers.
+    pub stop: Arc<AtomicBool>,
+    /// Extra environment variables of the worker processes.
+    pub worker_env: Vec<(String, String)>,
+    /// Take over the output lock of a holder on another machine once its
+    /// heartbeat has stopped (see [`crate::dataset::lock`]).
+    pub break_lock: bool,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct RenderSummary {
+    /// Sequences in this shard.
+    pub in_shard: usize,
+    /// Already finished before this run (`--resume`).
+    pub skipped: usize,
+    /// Looked finished but had missing or damaged files: rendered again.
+    pub redone: usize,
+    pub rendered: usize,
+    pub frames: usize,
+    pub retries: usize,
+    /// (sequence id, last error) of sequences that failed every attempt.
+    pub failed: Vec<(String, String)>,
+    pub seconds: f64,
+    pub interrupted: bool,
+    /// Why the run stopped early on its own (a full disk, a lost lock).
+    pub fatal: Option<String>,
+    /// Largest peak resident memory reported by any worker, KiB.
+    pub peak_worker_rss_kib: u64,
+    /// The devices this run's sequences were rendered on (`render.cost.device`).
+    pub devices: BTreeSet<String>,
+    /// Why `[render] device = "auto"` rendered on the CPU, logged once.
+    pub device_note: Option<String>,
+}
+
+impl RenderSummary {
+    pub fn frames_per_second(&self) -> f64 {
+        self.frames as f64 / self.seconds.max(1e-9)
+    }
+}
+
+struct Job {
+    assigned: Assigned,
+    attempt: u32,
+}
+
+/// What a worker slot tells the parent.
+enum Event {
+    Rendered(Box<Rendered>),
+    Retry {
+        id: String,
+        error: String,
+    },
+    Failed {
+        id: String,
+        error: String,
+    },
+    /// A worker's note for the log (the device fallback), once per start.
+    Note(String),
+    /// Nothing more can be written (a full disk), or no worker can start
+    /// as configured: stop the whole run.
+    Fatal {
+        id: String,
+        error: String,
+    },
+}
+
+/// A sequence rendered into its partial folder, to be moved into place.
+struct Rendered {
+    peak_rss_kib: u64,
+    cost: RenderCost,
+    /// Part names in label order (the `part` pass), else empty.
+    part_labels: Vec<String>,
+    job: Job,
+    plan: SequencePlan,
+    partial: PathBuf,
+    files: Vec<String>,
+}
+
+/// What every worker thread shares.
+struct Shared {
+    source: Arc<dyn RenderSource>,
+    dataset: DatasetDir,
+    geometry: SceneGeometry,
+    settings: serde_json::Value,
+    meshes: BTreeMap<String, MeshFiles>,
+    exe: PathBuf,
+    worker_env: Vec<(String, String)>,
+    recycle_every: usize,
+    max_retries: u32,
+    /// Whether the `part` pass is on (requests then carry the part boxes).
+    part_pass: bool,
+    queue: Mutex<VecDeque<Job>>,
+    stop: Arc<AtomicBool>,
+    /// The live worker process of each slot, so the main thread can kill it.
+    children: Mutex<Vec<Option<Arc<Mutex<Child>>>>>,
+    /// Prefix of the worker log names: shards sharing a folder keep apart.
+    log_prefix: String,
+}
+
+impl Shared {
+    pub(super) fn stop_and_kill(&self) {
+        self.stop.store(true, Ordering::SeqCst);
+        let children = self.children.lock().unwrap_or_else(|e| e.into_inner());
+        for child in children.iter().flatten() {
+            let mut c = child.lock().unwrap_or_else(|e| e.into_inner());
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+
+    fn stopped(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+
+    fn worker_log(&self, slot: usize) -> PathBuf {
+        self.dataset
+            .work_dir()
+            .join("logs")
+            .join(format!("{}worker-{slot}.log", self.log_prefix))
+    }
+}
+
+/// Renders every unfinished sequence of `shard` into `opts.out`.
+pub fn render(
+    source: Arc<dyn RenderSource>,
+    config: &RenderConfig,
+    opts: &RenderOptions,
+) -> Result<RenderSummary> {
+    config.validate()?;
+    let start = Instant::now();
+    let dataset = DatasetDir::create(&opts.out)?;
+    let lock = lock::acquire(&dataset.work_dir(), opts.shard, "render", opts.break_lock)?;
+    let keys = source.keys()?;
+    let in_shard: Vec<Assigned> = assign_folders(&keys)
+        .into_iter()
+        .filter(|a| opts.shard.contains(a.position))
+        .collect();
+    let finished: Vec<bool> = in_shard
+        .iter()
+        .map(|a| dataset.is_finished(&a.rel_dir))
+        .collect();
+    let finished_count = finished.iter().filter(|f| **f).count();
+    refuse_other_sequences(source.as_ref(), &dataset, &in_shard, &finished, config)?;
+    if finished_count > 0 && !opts.resume {
+        bail!(
+            "{} already holds {finished_count} finished sequences of this dataset; pass \
+             --resume to keep them and render the rest, or choose an empty folder",
+            opts.out.display()
+        );
+    }
+    dataset.clean_partials(opts.shard)?;
+    let mut summary = RenderSummary {
+        in_shard: in_shard.len(),
+        ..Default::default()
+    };
+    let todo = unfinished_jobs(&dataset, &in_shard, &finished, &mut summary);
+    let total = todo.len();
+    if total > 0 {
+        let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
+        // Kept for re-renders and the naive benchmark script.
+        let scene_json = serde_json::to_vec_pretty(&source.scene())?;
+        write_atomic(&dataset.work_dir().join("scene.json"), &scene_json)?;
+        let workers = opts.workers.clamp(1, total);
+        let ctx = Arc::new(Shared {
+            geometry: source.scene(),
+            source,
+            dataset: dataset.clone(),
+            settings: config.blender_settings(),
+            meshes,
+            exe: opts.worker_exe.clone(),
+            worker_env: opts.worker_env.clone(),
+            recycle_every: config.recycle_every,
+            max_retries: config.max_retries,
+            part_pass: config.passes.contains(&super::Pass::Part),
+            queue: Mutex::new(todo),
+            stop: opts.stop.clone(),
+            children: Mutex::new(vec![None; workers]),
+            log_prefix: match opts.shard == Shard::ALL {
+                true => String::new(),
+                false => format!("shard-{}-of-{}-", opts.shard.index, opts.shard.count),
+            },
+        });
+        summary.interrupted = run_pool(&ctx, workers, total, opts.progress, &lock, &mut summary)?;
+    }
+    if lock.lost() {
+        // The folder is another run's now: leave its partials and manifest.
+        summary.seconds = start.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
+    dataset.clean_partials(opts.shard)?;
+    finish_manifest(&dataset, opts.shard, lock)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
