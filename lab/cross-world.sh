@@ -7,7 +7,8 @@
 #   lab/cross-world.sh MAIN_OUT [VARIANT...]
 #
 # MAIN_OUT is a finished `scripts/main.sh` output (its data/, features/ and
-# model-*/ are reused). Variants: fc-no-damping, fc-no-views, fc-plain (no
+# model-*/ are reused; a recipe it did not train, such as fc-tuned, is
+# trained here). Variants: fc-no-damping, fc-no-views, fc-plain (no
 # pooled blocks either), fc-no-denoise, fc-crop-fraction (default: the first
 # three). Writes MAIN_OUT/lab/VARIANT and MAIN_OUT/cross-world/summary.md.
 set -euo pipefail
@@ -30,10 +31,12 @@ REPORTS=()
 for model in fc fc-tuned lstm "${VARIANTS[@]}"; do
   RUNS="$OUT/model-$model"
   if [ ! -d "$RUNS" ]; then
-    RUNS="$OUT/lab/$model"
+    # A recipe the main job did not train (fc-tuned), or a variant of fc.
+    RUNS="$OUT/lab/$model" RECIPE=configs/recipes/$model.toml FLAGS=''
+    [ -f "$RECIPE" ] || RECIPE=configs/recipes/fc.toml FLAGS=${SETS[$model]:?unknown variant $model}
     # shellcheck disable=SC2086 # the variant's flags are words
-    [ -f "$RUNS/.done" ] || { $BIN/grasp-train train --recipe configs/recipes/fc.toml \
-      ${SETS[$model]:?unknown variant $model} --data "$OUT/data/train" --val-data "$OUT/data/val" \
+    [ -f "$RUNS/.done" ] || { $BIN/grasp-train train --recipe "$RECIPE" $FLAGS \
+      --data "$OUT/data/train" --val-data "$OUT/data/val" \
       --seeds "$SEEDS" --cache-dir "$OUT/features" --out "$RUNS" && touch "$RUNS/.done"; }
   fi
   CHECKPOINTS=()

@@ -5,18 +5,20 @@
 # replay a test sequence with it against the simulated hand.
 #
 #   scripts/main.sh [--config FILE] [--train-seq N] [--test-seq N] [--seeds N]
-#                   [--models "fc lstm fc-tuned"] [--ycb DIR] [--weights FILE] [OUT]
+#                   [--models "fc lstm"] [--ycb DIR] [--weights FILE] [OUT]
 #
 # --config: the render config (configs/main.toml); --train-seq/--test-seq:
-# sequences per pair (24, 2); --ycb DIR: train on the authors' YCB meshes;
-# --weights FILE: another frozen backbone (FC and LSTM heads). Test sets: the
-# paper's five conditions, unseen_look, looks B-D and the foreign worlds
-# (configs/test-*.toml laid over the render config; the real-mesh world needs
-# ../shared/ycb). OUT: runs/main; a re-run resumes; SKIP_SETUP=1, BIN.
+# sequences per pair (24, 2); --models: recipes of configs/recipes/ (fc-tuned
+# loses on the worst world: lab/cross-world.sh trains it); --ycb DIR: train
+# on the authors' YCB meshes; --weights FILE: another frozen backbone (FC and
+# LSTM heads). Test sets: the paper's five conditions, unseen_look, looks
+# B-D and the foreign worlds (configs/test-*.toml laid over the render
+# config; the real-mesh worlds need ../shared/ycb). OUT: runs/main; a re-run
+# resumes; SKIP_SETUP=1, BIN.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-CONFIG=configs/main.toml TRAIN_SEQ=24 TEST_SEQ=2 SEEDS=3 MODELS="fc lstm fc-tuned"
+CONFIG=configs/main.toml TRAIN_SEQ=24 TEST_SEQ=2 SEEDS=3 MODELS="fc lstm"
 YCB='' OUT=runs/main TRAIN_SETS=()
 while [ $# -gt 0 ]; do
   case $1 in
@@ -29,7 +31,7 @@ while [ $# -gt 0 ]; do
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
         --set views.style=0 --set view_damping=0) MODELS="fc lstm" && shift ;;
-    -h | --help) head -15 "$0" | tail -14 && exit 0 ;;
+    -h | --help) head -17 "$0" | tail -16 && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;
   esac
