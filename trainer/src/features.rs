@@ -241,7 +241,7 @@ fn compute(
         let keys: Vec<String> = (0..chunk.len())
             .map(|i| PreparedFrames::key(seq, c * batch + i))
             .collect();
-        let loaded: Vec<Result<Option<image::RgbImage>>> = {
+        let loaded: Vec<Result<Option<image::RgbImage>, _>> = {
             use rayon::prelude::*;
             let known = &prepared.images;
             (0..chunk.len())
