@@ -3,10 +3,13 @@
 //! the feature cache ([`FeatureError`]), training ([`TrainError`]),
 //! evaluation ([`EvalError`]), summaries ([`SummaryError`]) and plots
 //! ([`PlotError`]). Every message names the file, the field or the object
-//! it is about; a cause (an I/O error, a model's error) is the error's
+//! it is about. A cause (an I/O, tensor or JSON error) is the error's
 //! source, which the binary prints after it (`cannot read X: No such file
-//! or directory`). Files that do not parse carry the parser's message as
-//! `reason`, as grasp-model's `Corrupt` does: it is the diagnosis.
+//! or directory`). Where the cause is the diagnosis it is in the message
+//! instead, so that `to_string()` tells all: a parser's message (as
+//! `reason`, like grasp-model's `Corrupt`), and a model's or input's error
+//! that a step wraps (kept typed in its own field, not as a source, so the
+//! binary does not print it twice).
 
 use grasp_model::error::ModelError;
 use grasp_model::input::InputError;
@@ -119,12 +122,8 @@ pub enum DataError {
     #[error(transparent)]
     Input(#[from] InputError),
     /// A frame the crop cannot be cut from (its size, the lens).
-    #[error("{}", path.display())]
-    Crop {
-        path: PathBuf,
-        #[source]
-        source: InputError,
-    },
+    #[error("{}: {}", path.display(), chain(input))]
+    Crop { path: PathBuf, input: InputError },
     #[error("no sequences found under {}", root.display())]
     NoSequences { root: PathBuf },
     #[error(
@@ -152,11 +151,10 @@ pub enum FeatureError {
     Config(#[from] ConfigError),
     /// (The model's error is boxed: it would double the size of every
     /// `Result` of the cache.)
-    #[error("feature extraction failed in {}", dir.display())]
+    #[error("feature extraction failed in {}: {}", dir.display(), chain(model))]
     Extract {
         dir: PathBuf,
-        #[source]
-        source: Box<ModelError>,
+        model: Box<ModelError>,
     },
     #[error(transparent)]
     NonFinite(#[from] NonFinite),
@@ -202,11 +200,10 @@ pub enum TrainError {
     Eval(Box<EvalError>),
     #[error(transparent)]
     NonFinite(#[from] NonFinite),
-    #[error("cannot use checkpoint {} as a backbone", path.display())]
+    #[error("cannot use checkpoint {} as a backbone: {}", path.display(), chain(model))]
     CheckpointBackbone {
         path: PathBuf,
-        #[source]
-        source: Box<ModelError>,
+        model: Box<ModelError>,
     },
     #[error(
         "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \
@@ -424,3 +421,15 @@ pub enum PlotError {
 }
 
 pub type Result<T, E = TrainError> = std::result::Result<T, E>;
+
+/// `e` and its causes on one line (`a: b: c`), as the binary prints them.
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        text.push_str(": ");
+        text.push_str(&c.to_string());
+        cause = c.source();
+    }
+    text
+}

@@ -275,7 +275,7 @@ fn compute(
         }
         .map_err(|e| FeatureError::Extract {
             dir: seq.dir.clone(),
-            source: Box::new(e),
+            model: Box::new(e),
         })?;
         let v: Vec<f32> = t.to_dtype(DType::F32)?.flatten_all()?.to_vec1()?;
         if let Some(i) = v.iter().position(|x| !x.is_finite()) {

@@ -119,9 +119,9 @@ impl Sequence {
         }
         let fraction = self
             .crop_fraction(img.width(), img.height())
-            .map_err(|source| DataError::Crop {
+            .map_err(|input| DataError::Crop {
                 path: self.frames[i].clone(),
-                source,
+                input,
             })?;
         let input = match &self.view {
             None => match fraction {

@@ -71,7 +71,7 @@ fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
         return BackboneInfo::from_checkpoint(path).map_err(|source| {
             TrainError::CheckpointBackbone {
                 path: path.clone(),
-                source: Box::new(source),
+                model: Box::new(source),
             }
         });
     }
