@@ -5,8 +5,8 @@ use crate::data::augment::AugmentConfig;
 use crate::data::split::SplitConfig;
 use crate::data::view::ViewConfig;
 use crate::data::{OnBadData, ReaderOptions};
+use crate::error::ConfigError;
 use crate::optim::AdamConfig;
-use anyhow::{Context, Result};
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use serde::{Deserialize, Serialize};
@@ -186,10 +186,16 @@ impl Default for FineTuneConfig {
 }
 
 impl TrainConfig {
-    pub fn from_toml_file(path: &Path) -> Result<TrainConfig> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        toml::from_str(&text).with_context(|| format!("invalid config {}", path.display()))
+    pub fn from_toml_file(path: &Path) -> Result<TrainConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        toml::from_str(&text).map_err(|e| ConfigError::Parse {
+            what: "config",
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
     }
 
     /// The batch size when none is set. The paper's (256 synthetic, 32 real)
@@ -210,78 +216,125 @@ impl TrainConfig {
         self.batch_size.unwrap_or(default)
     }
 
-    fn validate_view_damping(&self) -> Result<()> {
-        let d = self.view_damping;
-        if !d.is_finite() || d < 0.0 {
-            anyhow::bail!("view_damping must be 0 or positive, got {d}");
+    /// Refuses settings out of range or that do not go together, naming
+    /// the field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.data.as_os_str().is_empty() {
+            return refuse(
+                "data",
+                "no training data: pass --data (or set `data` in the recipe)".into(),
+            );
         }
-        let views = self.views.count;
-        if d > 0.0 && (self.mode != TrainMode::FrozenPretrained || views == 0) {
-            anyhow::bail!(
-                "view_damping {d} damps what the extra views change in the \
-                 cached features: it needs frozen-pretrained mode and views.count, \
-                 got {} mode and {} views",
-                self.mode.name(),
-                views
+        self.validate_views()?;
+        self.validate_view_damping()?;
+        self.validate_backbone()?;
+        self.validate_fine_tune()?;
+        self.validate_sequences()?;
+        if self.width_mult.is_nan() || self.width_mult <= 0.0 || self.input_size < 32 {
+            return refuse(
+                "width_mult",
+                format!(
+                    "width_mult must be positive and input_size at least 32 (got {} and {})",
+                    self.width_mult, self.input_size
+                ),
             );
         }
         Ok(())
     }
 
-    pub fn validate(&self) -> Result<()> {
-        if self.data.as_os_str().is_empty() {
-            anyhow::bail!("no training data: pass --data (or set `data` in the recipe)");
-        }
+    fn validate_views(&self) -> Result<(), ConfigError> {
         self.views.validate()?;
         if self.views.count > 0 && self.mode == TrainMode::FromScratch {
-            anyhow::bail!(
+            return refuse(
+                "views.count",
                 "views.count augments cached features; from-scratch training \
                  augments every epoch instead (the `augment` settings)"
+                    .into(),
             );
         }
         if self.views.style > 0.0 {
             if self.views.count == 0 {
-                anyhow::bail!(
-                    "views.style {} restyles the extra views, but there are none: \
-                     set views.count",
-                    self.views.style
+                return refuse(
+                    "views.style",
+                    format!(
+                        "views.style {} restyles the extra views, but there are none: \
+                         set views.count",
+                        self.views.style
+                    ),
                 );
             }
             if self.backbone == Some(grasp_model::backbone::Architecture::MobileNetV2) {
-                anyhow::bail!(
-                    "views.style needs an EfficientNet-Lite backbone, not \
-                     MobileNetV2"
+                return refuse(
+                    "views.style",
+                    "views.style needs an EfficientNet-Lite backbone, not MobileNetV2".into(),
                 );
             }
         }
-        self.validate_view_damping()?;
-        if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
-            anyhow::bail!(
-                "pooled_blocks {:?} are EfficientNet-Lite blocks, read in the \
-                 frozen-pretrained and fine-tuned modes; from-scratch trains a MobileNetV2",
-                self.pooled_blocks
+        Ok(())
+    }
+
+    fn validate_view_damping(&self) -> Result<(), ConfigError> {
+        let d = self.view_damping;
+        if !d.is_finite() || d < 0.0 {
+            return refuse(
+                "view_damping",
+                format!("view_damping must be 0 or positive, got {d}"),
             );
         }
+        let views = self.views.count;
+        if d > 0.0 && (self.mode != TrainMode::FrozenPretrained || views == 0) {
+            return refuse(
+                "view_damping",
+                format!(
+                    "view_damping {d} damps what the extra views change in the \
+                     cached features: it needs frozen-pretrained mode and views.count, \
+                     got {} mode and {} views",
+                    self.mode.name(),
+                    views
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    /// The backbone (and its pooled blocks) must suit the mode.
+    fn validate_backbone(&self) -> Result<(), ConfigError> {
         use grasp_model::backbone::Architecture;
-        match (self.mode, self.backbone, &self.weights) {
-            (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => anyhow::bail!(
+        if !self.pooled_blocks.is_empty() && self.mode == TrainMode::FromScratch {
+            return refuse(
+                "pooled_blocks",
+                format!(
+                    "pooled_blocks {:?} are EfficientNet-Lite blocks, read in the \
+                     frozen-pretrained and fine-tuned modes; from-scratch trains a MobileNetV2",
+                    self.pooled_blocks
+                ),
+            );
+        }
+        let reason = match (self.mode, self.backbone, &self.weights) {
+            (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => {
                 "a frozen MobileNetV2 needs its weights (--weights mobilenet_v2-b0353104.pth); \
                  EfficientNet-Lite0's come with the venv (--backbone efficientnet-lite0, the \
                  default), or train MobileNetV2 with --mode from-scratch"
-            ),
+                    .to_string()
+            }
             (TrainMode::FromScratch, Some(arch), _) if arch != Architecture::MobileNetV2 => {
-                anyhow::bail!(
+                format!(
                     "{} is used frozen only; from scratch trains MobileNetV2 \
                      (--backbone mobilenet-v2, or leave --backbone out)",
                     arch.name()
                 )
             }
-            (TrainMode::FineTuned, Some(Architecture::MobileNetV2), _) => anyhow::bail!(
+            (TrainMode::FineTuned, Some(Architecture::MobileNetV2), _) => {
                 "fine-tuned mode tunes the last blocks of an EfficientNet-Lite \
                  (--backbone efficientnet-lite0, the default)"
-            ),
-            _ => {}
-        }
+                    .to_string()
+            }
+            _ => return Ok(()),
+        };
+        refuse("backbone", reason)
+    }
+
+    fn validate_fine_tune(&self) -> Result<(), ConfigError> {
         let ft = &self.fine_tune;
         if self.mode == TrainMode::FineTuned
             && (ft.blocks == 0
@@ -290,40 +343,52 @@ impl TrainConfig {
                 || ft.weight_decay.is_nan()
                 || ft.weight_decay < 0.0)
         {
-            anyhow::bail!(
-                "fine_tune: blocks must be at least 1, lr positive and weight_decay not \
-                 negative (got {}, {}, {})",
-                ft.blocks,
-                ft.lr,
-                ft.weight_decay
-            );
-        }
-        if !(0.0..=1.0).contains(&self.lstm_start_crop) {
-            anyhow::bail!(
-                "lstm_start_crop must be a fraction in [0, 1], got {}",
-                self.lstm_start_crop
-            );
-        }
-        if self.lstm_start_crop > 0.0 && self.head != HeadKind::Lstm {
-            anyhow::bail!(
-                "lstm_start_crop {} crops training sequences for the LSTM \
-                 head; the {} head reads single frames",
-                self.lstm_start_crop,
-                self.head.name()
-            );
-        }
-        if self.sequences_per_pair == Some(0) {
-            anyhow::bail!("sequences_per_pair must be at least 1");
-        }
-        if self.width_mult.is_nan() || self.width_mult <= 0.0 || self.input_size < 32 {
-            anyhow::bail!(
-                "width_mult must be positive and input_size at least 32 (got {} and {})",
-                self.width_mult,
-                self.input_size
+            return refuse(
+                "fine_tune",
+                format!(
+                    "fine_tune: blocks must be at least 1, lr positive and weight_decay not \
+                     negative (got {}, {}, {})",
+                    ft.blocks, ft.lr, ft.weight_decay
+                ),
             );
         }
         Ok(())
     }
+
+    /// What is drawn from each training sequence.
+    fn validate_sequences(&self) -> Result<(), ConfigError> {
+        if !(0.0..=1.0).contains(&self.lstm_start_crop) {
+            return refuse(
+                "lstm_start_crop",
+                format!(
+                    "lstm_start_crop must be a fraction in [0, 1], got {}",
+                    self.lstm_start_crop
+                ),
+            );
+        }
+        if self.lstm_start_crop > 0.0 && self.head != HeadKind::Lstm {
+            return refuse(
+                "lstm_start_crop",
+                format!(
+                    "lstm_start_crop {} crops training sequences for the LSTM \
+                     head; the {} head reads single frames",
+                    self.lstm_start_crop,
+                    self.head.name()
+                ),
+            );
+        }
+        if self.sequences_per_pair == Some(0) {
+            return refuse(
+                "sequences_per_pair",
+                "sequences_per_pair must be at least 1".into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+fn refuse(field: &'static str, reason: String) -> Result<(), ConfigError> {
+    Err(ConfigError::invalid(field, reason))
 }
 
 /// The camera folder a checkpoint was trained on (`Wrist_d435`, or
@@ -447,6 +512,26 @@ mod tests {
             let err = format!("{:#}", cfg.validate().unwrap_err());
             assert!(err.contains("views.style"), "{style}: {err}");
         }
+    }
+
+    #[test]
+    fn a_refused_setting_names_its_field() {
+        let cfg = TrainConfig {
+            data: "d".into(),
+            lstm_start_crop: 2.0,
+            ..Default::default()
+        };
+        let err = cfg.validate().unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ConfigError::Invalid {
+                    field: "lstm_start_crop",
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
     }
 
     #[test]

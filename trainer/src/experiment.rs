@@ -4,13 +4,13 @@
 
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
+use crate::error::{DataError, EvalError, Result, TrainError};
 use crate::eval::metrics::FrameWindow;
 use crate::eval::metrics::VideoOutcome;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
 use crate::features::FeatureCache;
 use crate::train::{self, TrainOutcome};
-use anyhow::{Context, Result};
 use candle_core::Device;
 use grasp_model::checkpoint::{CheckpointMeta, Classifier, TrainMode};
 use std::path::{Path, PathBuf};
@@ -33,8 +33,10 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     let bad = BadData::new(cfg.on_bad_data);
     let splits = train::load_splits(cfg, &bad)?;
     crate::data::coverage::check_training_classes(&splits.train, cfg.allow_missing_classes)?;
-    std::fs::create_dir_all(&cfg.out)
-        .with_context(|| format!("cannot create {}", cfg.out.display()))?;
+    std::fs::create_dir_all(&cfg.out).map_err(|source| TrainError::Create {
+        path: cfg.out.clone(),
+        source,
+    })?;
     splits.split.save(&cfg.out.join("split.json"))?;
     grasp_support::atomic::write_atomic(
         &cfg.out.join("config.toml"),
@@ -107,7 +109,7 @@ pub fn evaluate(
     batch: usize,
     bad: &BadData,
     window: &FrameWindow,
-) -> Result<Report> {
+) -> Result<Report, EvalError> {
     window.validate()?;
     let mut outside = 0;
     let dev = Device::Cpu;
@@ -127,10 +129,8 @@ pub fn evaluate(
         let preds: Vec<_> = all.iter().filter_map(|v| window.apply(v)).collect();
         outside = all.len() - preds.len();
         if preds.is_empty() {
-            anyhow::bail!(
-                "no video has a frame in the window ({}): nothing to score",
-                window.describe()
-            );
+            let window = window.describe();
+            return Err(EvalError::EmptyWindow { window });
         }
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
@@ -151,16 +151,18 @@ pub fn evaluate(
 /// Records the first checkpoint's `value` in `seen`; a later one differing
 /// from it is an error (its numbers would not be comparable).
 fn same<T: PartialEq + std::fmt::Debug>(
-    what: &str,
+    what: &'static str,
     seen: &mut Option<T>,
     value: T,
     ckpt: &Path,
-) -> Result<()> {
+) -> Result<(), EvalError> {
     match seen {
-        Some(first) if *first != value => anyhow::bail!(
-            "cannot aggregate checkpoints with different {what}: {first:?} and {value:?} ({})",
-            ckpt.display()
-        ),
+        Some(first) if *first != value => Err(EvalError::Incomparable {
+            what,
+            first: format!("{first:?}"),
+            other: format!("{value:?}"),
+            checkpoint: ckpt.to_path_buf(),
+        }),
         Some(_) => Ok(()),
         None => {
             *seen = Some(value);
@@ -211,10 +213,14 @@ fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
 /// data root, and `split.json` next to the `seed-N` folder.
 /// A relative data path recorded by a run (before paths were recorded
 /// absolute) is resolved against the run folder, never the current one.
-pub fn test_split_of(checkpoint: &Path, bad: &BadData) -> Result<Dataset> {
+pub fn test_split_of(checkpoint: &Path, bad: &BadData) -> Result<Dataset, EvalError> {
     let (meta, dir) = CheckpointMeta::load(checkpoint)?;
-    let cfg: TrainConfig = serde_json::from_value(meta.train_config.clone())
-        .context("the checkpoint's train_config is not readable")?;
+    let cfg: TrainConfig = serde_json::from_value(meta.train_config.clone()).map_err(|source| {
+        EvalError::TrainConfig {
+            checkpoint: checkpoint.to_path_buf(),
+            source,
+        }
+    })?;
     let run_dir = dir.parent().unwrap_or(&dir);
     let split_file = run_dir.join("split.json");
     let recorded = cfg.test_data.clone().unwrap_or(cfg.data.clone());
@@ -223,23 +229,18 @@ pub fn test_split_of(checkpoint: &Path, bad: &BadData) -> Result<Dataset> {
         false => run_dir.join(&recorded),
     };
     if !root.is_dir() {
-        anyhow::bail!(
-            "the run {} was trained on {}{}, which does not exist; pass --data to choose the \
-             dataset to evaluate",
-            run_dir.display(),
-            recorded.display(),
-            match recorded.is_absolute() {
-                true => String::new(),
-                false => format!(" (relative to the run folder: {})", root.display()),
-            }
-        );
+        return Err(EvalError::NoRecordedData {
+            run: run_dir.to_path_buf(),
+            recorded,
+            resolved: root,
+        });
     }
     let data = crate::data::read_dataset(&root, &cfg.reader, bad)?;
     if cfg.test_data.is_some() {
         return Ok(data);
     }
-    let s = split::Split::load(&split_file)
-        .with_context(|| "pass --data to evaluate on a dataset of your choice")?;
+    let s =
+        split::Split::load(&split_file).map_err(|source| EvalError::NoRecordedSplit { source })?;
     let test = split::select(&data, &s.test);
     // Test sequences left out as bad data are listed in problems.json; any
     // other absence means another dataset.
@@ -253,19 +254,18 @@ pub fn test_split_of(checkpoint: &Path, bad: &BadData) -> Result<Dataset> {
         .filter(|id| !problems.iter().any(|p| p.path.starts_with(root.join(id))))
         .count();
     if missing > 0 {
-        anyhow::bail!(
-            "{missing} of the {} test sequences of {} are not in {}: not the dataset the run \
-             was trained on? Pass --data to evaluate on a dataset of your choice",
-            s.test.len(),
-            split_file.display(),
-            root.display()
-        );
+        return Err(EvalError::NotTheTrainingData {
+            missing,
+            total: s.test.len(),
+            split_file,
+            root,
+        });
     }
     Ok(test)
 }
 
 /// Writes the skipped problems to `out/problems.json` (when there are any).
-pub fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
+pub fn write_problems(bad: &BadData, out: &Path) -> Result<(), DataError> {
     let problems = bad.problems();
     if !problems.is_empty() {
         tracing::warn!(
@@ -273,7 +273,10 @@ pub fn write_problems(bad: &BadData, out: &Path) -> Result<()> {
             problems.len(),
             out.join("problems.json").display()
         );
-        std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+        std::fs::create_dir_all(out).map_err(|source| DataError::Create {
+            path: out.to_path_buf(),
+            source,
+        })?;
         grasp_support::atomic::write_atomic(
             &out.join("problems.json"),
             serde_json::to_string_pretty(&problems)?.as_bytes(),

@@ -12,7 +12,7 @@
 //! partial entry and concurrent runs never read one.
 
 use crate::data::{BadData, Dataset, Sequence};
-use anyhow::{Context, Result};
+use crate::error::{FeatureError, NonFinite};
 use candle_core::{DType, Device, Tensor};
 use grasp_model::extractor::FeatureExtractor;
 use grasp_model::hashing::{hex, sha256_hex};
@@ -57,7 +57,7 @@ impl FeatureCache {
         ex: &dyn FeatureExtractor,
         data: &Dataset,
         bad: &BadData,
-    ) -> Result<Vec<SequenceFeatures>> {
+    ) -> Result<Vec<SequenceFeatures>, FeatureError> {
         let bar = crate::progress::bar(data.sequences.len() as u64, "features");
         let mut out: Vec<Option<SequenceFeatures>> = vec![None; data.sequences.len()];
         let (mut hits, mut computed) = (0usize, 0usize);
@@ -93,7 +93,7 @@ impl FeatureCache {
         ex: &dyn FeatureExtractor,
         seq: &Sequence,
         bad: &BadData,
-    ) -> Result<(SequenceFeatures, bool)> {
+    ) -> Result<(SequenceFeatures, bool), FeatureError> {
         self.sequence_with(ex, seq, bad, &mut PreparedFrames::default())
     }
 
@@ -103,7 +103,7 @@ impl FeatureCache {
         seq: &Sequence,
         bad: &BadData,
         prepared: &mut PreparedFrames,
-    ) -> Result<(SequenceFeatures, bool)> {
+    ) -> Result<(SequenceFeatures, bool), FeatureError> {
         let path = self.entry_path(ex, seq)?;
         if path.is_file() {
             match read_entry(&path, ex.feature_dim(), seq.frames.len()) {
@@ -115,7 +115,7 @@ impl FeatureCache {
                     }
                     return Ok((f, true));
                 }
-                Err(e) => tracing::warn!("recomputing bad cache entry {}: {e:#}", path.display()),
+                Err(e) => tracing::warn!("recomputing bad cache entry {e}"),
             }
         }
         let f = compute(ex, seq, bad, self.batch, prepared)?;
@@ -123,7 +123,11 @@ impl FeatureCache {
         Ok((f, false))
     }
 
-    fn entry_path(&self, ex: &dyn FeatureExtractor, seq: &Sequence) -> Result<PathBuf> {
+    fn entry_path(
+        &self,
+        ex: &dyn FeatureExtractor,
+        seq: &Sequence,
+    ) -> Result<PathBuf, FeatureError> {
         let key = sha256_hex(ex.id().as_bytes())[..24].to_string();
         Ok(self
             .dir
@@ -135,7 +139,7 @@ impl FeatureCache {
 /// Hash of the frame files' absolute paths, sizes and modification times,
 /// and of the centre crop, augmented view, sensor probe and denoising the
 /// backbone sees.
-fn sequence_hash(seq: &Sequence) -> Result<String> {
+fn sequence_hash(seq: &Sequence) -> Result<String, FeatureError> {
     let mut h = Sha256::new();
     if seq.crop != grasp_model::input::Crop::Whole {
         h.update(b"crop");
@@ -225,7 +229,7 @@ fn compute(
     bad: &BadData,
     batch: usize,
     prepared: &mut PreparedFrames,
-) -> Result<SequenceFeatures> {
+) -> Result<SequenceFeatures, FeatureError> {
     let dim = ex.feature_dim();
     let mut rows = Vec::with_capacity(seq.frames.len() * dim);
     let mut valid = Vec::with_capacity(seq.frames.len());
@@ -241,7 +245,7 @@ fn compute(
         let keys: Vec<String> = (0..chunk.len())
             .map(|i| PreparedFrames::key(seq, c * batch + i))
             .collect();
-        let loaded: Vec<Result<Option<image::RgbImage>>> = {
+        let loaded: Vec<Result<Option<image::RgbImage>, _>> = {
             use rayon::prelude::*;
             let known = &prepared.images;
             (0..chunk.len())
@@ -269,39 +273,56 @@ fn compute(
             None => ex.extract(&images),
             Some(_) => ex.extract_styled(&images, &styles),
         }
-        .with_context(|| format!("feature extraction failed in {}", seq.dir.display()))?;
+        .map_err(|e| FeatureError::Extract {
+            dir: seq.dir.clone(),
+            model: Box::new(e),
+        })?;
         let v: Vec<f32> = t.to_dtype(DType::F32)?.flatten_all()?.to_vec1()?;
         if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-            anyhow::bail!(
-                "non-finite feature ({}) for frame {} of {}",
-                v[i],
-                chunk[(i / dim).min(chunk.len() - 1)].display(),
-                seq.dir.display()
-            );
+            return Err(NonFinite {
+                what: "feature",
+                value: f64::from(v[i]),
+                at: format!(
+                    "for frame {} of {}",
+                    chunk[(i / dim).min(chunk.len() - 1)].display(),
+                    seq.dir.display()
+                ),
+            }
+            .into());
         }
         rows.extend(v);
     }
     Ok(SequenceFeatures { rows, dim, valid })
 }
 
-fn read_entry(path: &Path, dim: usize, frames: usize) -> Result<SequenceFeatures> {
-    let t = candle_core::safetensors::load(path, &Device::Cpu)?;
-    let valid: Vec<u8> = t.get("valid").context("no 'valid'")?.to_vec1()?;
-    let feats = t.get("features").context("no 'features'")?;
+/// A cache entry, checked against the sequence (`frames`) and the
+/// extractor (`dim`).
+fn read_entry(path: &Path, dim: usize, frames: usize) -> Result<SequenceFeatures, FeatureError> {
+    let corrupt = |reason: String| FeatureError::Corrupt {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let (valid, feats) = load_entry(path).map_err(|e| corrupt(e.to_string()))?;
     let n = valid.iter().filter(|v| **v != 0).count();
     if valid.len() != frames {
-        anyhow::bail!("{} frames cached, {} in the sequence", valid.len(), frames);
+        let cached = valid.len();
+        return Err(corrupt(format!(
+            "{cached} frames cached, {frames} in the sequence"
+        )));
     }
     let rows: Vec<f32> = if n == 0 {
         Vec::new()
     } else {
         if feats.dims() != [n, dim] {
-            anyhow::bail!(
-                "features of shape {:?}, expected [{n}, {dim}]",
-                feats.dims()
-            );
+            let shape = feats.dims();
+            return Err(corrupt(format!(
+                "features of shape {shape:?}, expected [{n}, {dim}]"
+            )));
         }
-        feats.flatten_all()?.to_vec1()?
+        feats
+            .flatten_all()
+            .and_then(|f| f.to_vec1())
+            .map_err(|e| corrupt(e.to_string()))?
     };
     Ok(SequenceFeatures {
         rows,
@@ -310,7 +331,18 @@ fn read_entry(path: &Path, dim: usize, frames: usize) -> Result<SequenceFeatures
     })
 }
 
-fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<()> {
+/// A cache entry's `valid` flags and `features` tensor.
+fn load_entry(path: &Path) -> candle_core::Result<(Vec<u8>, Tensor)> {
+    let mut t = candle_core::safetensors::load(path, &Device::Cpu)?;
+    let mut take = |name: &str| {
+        t.remove(name)
+            .ok_or_else(|| candle_core::Error::Msg(format!("no '{name}'")))
+    };
+    let valid = take("valid")?.to_vec1()?;
+    Ok((valid, take("features")?))
+}
+
+fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<(), FeatureError> {
     let dev = Device::Cpu;
     let n = f.valid_count();
     let mut map = HashMap::new();
@@ -325,9 +357,11 @@ fn write_entry(path: &Path, f: &SequenceFeatures) -> Result<()> {
         "valid".to_string(),
         Tensor::from_vec(valid, f.valid.len(), &dev)?,
     );
-    grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> {
-        candle_core::safetensors::save(&map, tmp)
-            .with_context(|| format!("cannot write {}", path.display()))
+    grasp_support::atomic::write_atomic_with(path, |tmp| {
+        candle_core::safetensors::save(&map, tmp).map_err(|source| FeatureError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
     })
 }
 

@@ -3,7 +3,7 @@
 //! then overwritten, in name order, from a seeded stream with PyTorch's
 //! initialisation rules.
 
-use anyhow::Result;
+use crate::error::Result;
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::VarMap;
 use grasp_model::heads::{Head, HeadConfig};
@@ -11,7 +11,7 @@ use rand::Rng;
 
 /// A VarMap holding the head's parameters, initialised like PyTorch's
 /// `nn.Linear` / `nn.LSTM` from `seed`.
-pub fn head_varmap(cfg: &HeadConfig, seed: u64, device: &Device) -> Result<VarMap> {
+pub fn head_varmap(cfg: &HeadConfig, seed: u64, device: &Device) -> candle_core::Result<VarMap> {
     let varmap = VarMap::new();
     let mut rng = crate::rng::stream(seed, "init/head");
     {
@@ -32,7 +32,7 @@ pub fn head_varmap(cfg: &HeadConfig, seed: u64, device: &Device) -> Result<VarMa
 /// Re-initialises a MobileNetV2 built from scratch the way torchvision does:
 /// convolutions Kaiming-normal (fan_out), batch-norm scale 1 and shift 0,
 /// linear weights N(0, 0.01) and biases 0; running statistics reset.
-pub fn reinit_backbone(varmap: &VarMap, seed: u64) -> Result<()> {
+pub fn reinit_backbone(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let mut rng = crate::rng::stream(seed, "init/backbone");
     let data = varmap.data().lock().expect("varmap");
     let mut names: Vec<&String> = data.keys().collect();

@@ -6,18 +6,19 @@
 //! recipe (`OUT/config.toml`) and every checkpoint records it.
 
 use crate::config::TrainConfig;
-use anyhow::{Context, Result};
+use crate::error::ConfigError;
 use grasp_support::layers;
 use std::path::Path;
 use toml::Value;
 
 /// Reads `recipe` (the defaults when None) with `sets` applied in order.
 /// Errors name the file, the `--set` or the field at fault.
-pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig> {
+pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig, ConfigError> {
     let files: Vec<&Path> = recipe.into_iter().collect();
-    let table = layers::load(&files, sets).map_err(|e| match recipe {
-        Some(path) => e.context(format!("recipe {}", path.display())),
-        None => e,
+    // grasp-support's layers give untyped errors: their message (with causes) is kept.
+    let table = layers::load(&files, sets).map_err(|e| ConfigError::Layers {
+        recipe: recipe.map(Path::to_path_buf),
+        reason: format!("{e:#}"),
     })?;
     let source = match recipe {
         Some(path) => format!("recipe {}", path.display()),
@@ -26,7 +27,10 @@ pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig> {
     let with_sets = if sets.is_empty() { "" } else { " with --set" };
     Value::Table(table)
         .try_into()
-        .with_context(|| format!("{source}{with_sets}"))
+        .map_err(|e: toml::de::Error| ConfigError::Fields {
+            from: format!("{source}{with_sets}"),
+            reason: e.to_string(),
+        })
 }
 
 #[cfg(test)]

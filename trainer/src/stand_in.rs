@@ -2,7 +2,7 @@
 //! `hannes-run bench --checkpoint`) and for the runtime's tests: latency
 //! depends on the architecture, not on the weights' values.
 
-use anyhow::Result;
+use crate::error::Result;
 use image::RgbImage;
 
 /// A checkpoint for timing when no trained one is given: an FC head on

@@ -1,6 +1,7 @@
 //! Bad-data policy: unreadable images and missing labels are reported with
 //! their path; the run either skips them or stops.
 
+use crate::error::DataError;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -40,17 +41,16 @@ impl BadData {
     }
 
     /// Records a problem; under `fail` returns it as an error.
-    pub fn report(&self, path: &Path, reason: impl Into<String>) -> anyhow::Result<()> {
+    pub fn report(&self, path: &Path, reason: impl Into<String>) -> Result<(), DataError> {
         let problem = Problem {
             path: path.to_path_buf(),
             reason: reason.into(),
         };
         match self.policy {
-            OnBadData::Fail => anyhow::bail!(
-                "bad data: {}: {} (to leave it out: eval --on-bad-data skip, train --set on_bad_data=skip)",
-                problem.path.display(),
-                problem.reason
-            ),
+            OnBadData::Fail => Err(DataError::Bad {
+                path: problem.path,
+                reason: problem.reason,
+            }),
             OnBadData::Skip => {
                 tracing::warn!("skipping {}: {}", problem.path.display(), problem.reason);
                 self.problems.lock().expect("problem list").push(problem);

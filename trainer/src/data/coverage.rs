@@ -9,7 +9,7 @@
 //! all the classifier can never answer it, which only deserves a warning.
 
 use super::Dataset;
-use anyhow::{bail, Result};
+use crate::error::DataError;
 use grasp_schema::taxonomy::{Class, Preshape};
 use std::collections::BTreeSet;
 
@@ -43,7 +43,7 @@ fn names(p: &[Preshape]) -> String {
 
 /// Refuses a training split missing a pre-shape (unless `allow`, then a
 /// loud warning), and warns when no frame is `no_grasp`.
-pub fn check_training_classes(train: &Dataset, allow: bool) -> Result<Coverage> {
+pub fn check_training_classes(train: &Dataset, allow: bool) -> Result<Coverage, DataError> {
     let c = coverage(train);
     if !c.missing.is_empty() {
         let what = format!(
@@ -57,7 +57,10 @@ pub fn check_training_classes(train: &Dataset, allow: bool) -> Result<Coverage> 
             if c.missing.len() == 1 { "it" } else { "them" }
         );
         if !allow {
-            bail!("{what}. Add sequences of every pre-shape, or train anyway with --set allow_missing_classes=true");
+            return Err(DataError::MissingClasses {
+                missing: c.missing,
+                reason: what,
+            });
         }
         tracing::warn!("{what} (allow_missing_classes)");
     }

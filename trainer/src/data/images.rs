@@ -1,13 +1,13 @@
 //! Frame loading with bad-data reporting.
 
 use super::BadData;
-use anyhow::Result;
+use crate::error::DataError;
 use image::RgbImage;
 use std::path::Path;
 
 /// Decodes one frame as RGB; `None` when it is unreadable and the policy is
 /// to skip (the problem is recorded with its path).
-pub fn load_frame(path: &Path, bad: &BadData) -> Result<Option<RgbImage>> {
+pub fn load_frame(path: &Path, bad: &BadData) -> Result<Option<RgbImage>, DataError> {
     match image::open(path) {
         Ok(img) => Ok(Some(img.to_rgb8())),
         Err(e) => {

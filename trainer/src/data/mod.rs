@@ -15,7 +15,7 @@ pub mod view;
 pub use bad::{BadData, OnBadData};
 pub use reader::{read_dataset, ReaderOptions};
 
-use anyhow::Context;
+use crate::error::DataError;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -106,7 +106,11 @@ impl Sequence {
 
     /// Frame `i`, decoded, probed and centre-cropped as the reader was
     /// told.
-    pub fn load_frame(&self, i: usize, bad: &BadData) -> anyhow::Result<Option<image::RgbImage>> {
+    pub fn load_frame(
+        &self,
+        i: usize,
+        bad: &BadData,
+    ) -> Result<Option<image::RgbImage>, DataError> {
         let Some(mut img) = images::load_frame(&self.frames[i], bad)? else {
             return Ok(None);
         };
@@ -115,7 +119,10 @@ impl Sequence {
         }
         let fraction = self
             .crop_fraction(img.width(), img.height())
-            .with_context(|| format!("{}", self.frames[i].display()))?;
+            .map_err(|input| DataError::Crop {
+                path: self.frames[i].clone(),
+                input,
+            })?;
         let input = match &self.view {
             None => match fraction {
                 Some(f) => images::center_crop(&img, f),
@@ -132,7 +139,11 @@ impl Sequence {
     /// backbone sees: the model's crop through the sequence's lens at the
     /// frame's own size ([`grasp_model::input::Crop::fraction`]), cut to
     /// what was rendered.
-    pub fn crop_fraction(&self, width: u32, height: u32) -> anyhow::Result<Option<f64>> {
+    pub fn crop_fraction(
+        &self,
+        width: u32,
+        height: u32,
+    ) -> Result<Option<f64>, grasp_model::input::InputError> {
         let fraction = self.crop.fraction(self.lens.as_ref(), width, height)?;
         Ok(fraction.map(|f| f.min(self.rendered_region.unwrap_or(1.0))))
     }

@@ -7,6 +7,7 @@
 //! its features are cached like any other view of the frames. Training's
 //! sensor views (`[views] noise`, `blur_px`) draw one probe per view.
 
+use crate::error::ConfigError;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
@@ -30,21 +31,30 @@ impl SensorProbe {
     pub fn new(
         noise_sigma: Option<f32>,
         blur_sigma_px: Option<f32>,
-    ) -> anyhow::Result<Option<Self>> {
+    ) -> Result<Option<Self>, ConfigError> {
         let probe = SensorProbe {
             noise_sigma: noise_sigma.unwrap_or(0.0),
             blur_sigma_px: blur_sigma_px.unwrap_or(0.0),
         };
-        anyhow::ensure!(
-            probe.noise_sigma.is_finite() && (0.0..=MAX_NOISE_SIGMA).contains(&probe.noise_sigma),
-            "--probe-noise must be in [0, 1] (a fraction of full scale), got {}",
-            probe.noise_sigma
-        );
-        anyhow::ensure!(
-            probe.blur_sigma_px.is_finite() && (0.0..=MAX_BLUR_PX).contains(&probe.blur_sigma_px),
-            "--probe-blur must be in [0, 50] pixels, got {}",
-            probe.blur_sigma_px
-        );
+        let within = |v: f32, max: f32| v.is_finite() && (0.0..=max).contains(&v);
+        if !within(probe.noise_sigma, MAX_NOISE_SIGMA) {
+            return Err(ConfigError::invalid(
+                "--probe-noise",
+                format!(
+                    "--probe-noise must be in [0, 1] (a fraction of full scale), got {}",
+                    probe.noise_sigma
+                ),
+            ));
+        }
+        if !within(probe.blur_sigma_px, MAX_BLUR_PX) {
+            return Err(ConfigError::invalid(
+                "--probe-blur",
+                format!(
+                    "--probe-blur must be in [0, 50] pixels, got {}",
+                    probe.blur_sigma_px
+                ),
+            ));
+        }
         Ok(probe.active())
     }
 

@@ -8,7 +8,7 @@
 //! a missing-labels problem instead.
 
 use super::{BadData, Dataset, LabelSource, Sequence};
-use anyhow::{Context, Result};
+use crate::error::DataError;
 use grasp_model::input::{Crop, Lens};
 use grasp_schema::dataset::{SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE, WRIST_CAMERA_FOLDER};
 use grasp_schema::taxonomy::{Class, Preshape};
@@ -53,7 +53,11 @@ impl Default for ReaderOptions {
 
 /// Reads every sequence under `root`. Problems (unparseable or missing labels,
 /// missing frames) go through `bad`; a root that cannot be listed is an error.
-pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<Dataset> {
+pub fn read_dataset(
+    root: &Path,
+    opts: &ReaderOptions,
+    bad: &BadData,
+) -> Result<Dataset, DataError> {
     opts.validate()?;
     let generated = root.join(MANIFEST_FILE).is_file();
     let narrow_lens = std::cell::Cell::new(0);
@@ -113,9 +117,8 @@ pub fn read_dataset(root: &Path, opts: &ReaderOptions, bad: &BadData) -> Result<
 
 impl ReaderOptions {
     /// The input record's one validation of the crop (and of the lens).
-    pub fn validate(&self) -> Result<()> {
-        self.crop.validate()?;
-        Ok(())
+    pub fn validate(&self) -> Result<(), grasp_model::input::InputError> {
+        self.crop.validate()
     }
 
     /// The crop of a frame of `record`'s camera, rendered in its central
@@ -163,13 +166,16 @@ fn read_sequence(
     ctx: &FolderContext,
     opts: &ReaderOptions,
     bad: &BadData,
-) -> Result<Option<Sequence>> {
+) -> Result<Option<Sequence>, DataError> {
     let json = dir.join(SEQUENCE_FILE);
     let seq = if json.is_file() {
         match read_record(&json) {
             Ok(record) => match record.center_region() {
                 Some(region) => {
-                    let at_json = |why: String| anyhow::anyhow!("{}: {why}", json.display());
+                    let at_json = |reason: String| DataError::Invalid {
+                        path: json.clone(),
+                        reason,
+                    };
                     let lens = opts.record_lens(&record).map_err(at_json)?;
                     let (crop, cut) = opts
                         .crop_for(lens.as_ref(), &record, region)
@@ -185,8 +191,8 @@ fn read_sequence(
                     return Ok(None);
                 }
             },
-            Err(e) => {
-                bad.report(&json, format!("{e:#}"))?;
+            Err(reason) => {
+                bad.report(&json, reason)?;
                 return Ok(None);
             }
         }
@@ -204,22 +210,28 @@ fn read_sequence(
 
 /// Frames rendered only in their centre (`[render] center_region`) are
 /// black outside it, so a model must not look further out than that.
-fn check_center_region(json: &Path, region: f64, crop: Option<f64>) -> Result<()> {
+fn check_center_region(json: &Path, region: f64, crop: Option<f64>) -> Result<(), DataError> {
     match grasp_schema::dataset::crop_outside_region(region, crop) {
-        Some(why) => anyhow::bail!("{}: {why}", json.display()),
+        Some(reason) => Err(DataError::Invalid {
+            path: json.to_path_buf(),
+            reason,
+        }),
         None => Ok(()),
     }
 }
 
-fn read_record(path: &Path) -> Result<SequenceRecord> {
-    let text = fs::read_to_string(path).context("cannot read")?;
-    let record: SequenceRecord = serde_json::from_str(&text).context("invalid sequence.json")?;
+/// A `sequence.json`, or why it is bad data (the reason a report gives
+/// after the file's path).
+fn read_record(path: &Path) -> Result<SequenceRecord, String> {
+    let text = fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
+    let record: SequenceRecord =
+        serde_json::from_str(&text).map_err(|e| format!("invalid sequence.json: {e}"))?;
     if record.frame_files.len() != record.plan.frames.len() {
-        anyhow::bail!(
+        return Err(format!(
             "frame_files has {} entries but plan.frames has {}",
             record.frame_files.len(),
             record.plan.frames.len()
-        );
+        ));
     }
     Ok(record)
 }
@@ -258,20 +270,22 @@ fn from_record(
     }
 }
 
-fn from_folder(dir: &Path, ctx: &FolderContext, opts: &ReaderOptions) -> Result<Sequence> {
+fn from_folder(
+    dir: &Path,
+    ctx: &FolderContext,
+    opts: &ReaderOptions,
+) -> Result<Sequence, DataError> {
     if let (Crop::AngleDeg(angle), None) = (opts.crop, opts.lens) {
-        anyhow::bail!(
-            "{}: the model crops a fixed angle of {angle} degrees, which needs the camera's \
-             focal length, and these frames have no sequence.json: give the camera's lens \
-             (--focal-px with --lens-size, --hfov-deg, or --lens-file)",
-            dir.display()
-        );
+        return Err(DataError::Invalid {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "the model crops a fixed angle of {angle} degrees, which needs the camera's \
+                 focal length, and these frames have no sequence.json: give the camera's lens \
+                 (--focal-px with --lens-size, --hfov-deg, or --lens-file)"
+            ),
+        });
     }
-    let mut frames: Vec<PathBuf> = fs::read_dir(dir)
-        .with_context(|| format!("cannot list {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| is_image(p))
-        .collect();
+    let mut frames: Vec<PathBuf> = list(dir)?.filter(|p| is_image(p)).collect();
     frames.sort();
     Ok(Sequence {
         id: relative_id(ctx.root, dir),
@@ -314,7 +328,7 @@ pub fn folder_labels(n: usize, preshape: Preshape, opts: &ReaderOptions) -> Vec<
 }
 
 /// Drops (or fails on) frames whose file is missing, and empty sequences.
-fn check_frames(mut seq: Sequence, bad: &BadData) -> Result<Option<Sequence>> {
+fn check_frames(mut seq: Sequence, bad: &BadData) -> Result<Option<Sequence>, DataError> {
     let mut keep = Vec::with_capacity(seq.frames.len());
     for f in &seq.frames {
         let ok = f.is_file();
@@ -350,14 +364,21 @@ fn is_image(p: &Path) -> bool {
 /// The visible sub-folders of `dir`, sorted. Hidden ones are bookkeeping,
 /// never data: the generator's `.grasp-gen/` holds the partial sequences
 /// of an unfinished render, its mesh cache, logs and locks.
-fn subdirs(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut out: Vec<PathBuf> = fs::read_dir(dir)
-        .with_context(|| format!("cannot list {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
+fn subdirs(dir: &Path) -> Result<Vec<PathBuf>, DataError> {
+    let mut out: Vec<PathBuf> = list(dir)?
         .filter(|p| p.is_dir() && !file_name(p).starts_with('.'))
         .collect();
     out.sort();
     Ok(out)
+}
+
+/// The entries of `dir` (unreadable entries left out).
+fn list(dir: &Path) -> Result<impl Iterator<Item = PathBuf>, DataError> {
+    let entries = fs::read_dir(dir).map_err(|source| DataError::List {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    Ok(entries.filter_map(|e| e.ok().map(|e| e.path())))
 }
 
 fn file_name(p: &Path) -> String {
@@ -377,6 +398,17 @@ fn relative_id(root: &Path, dir: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_root_that_cannot_be_listed_is_named() {
+        let root = Path::new("no/such/dataset");
+        let err = read_dataset(root, &ReaderOptions::default(), &BadData::default()).unwrap_err();
+        assert!(
+            matches!(&err, DataError::List { path, .. } if path == root),
+            "{err:?}"
+        );
+        assert_eq!(err.to_string(), "cannot list no/such/dataset");
+    }
 
     #[test]
     fn last_half_second_is_no_grasp() {

@@ -4,7 +4,7 @@
 //! in every split.
 
 use super::Dataset;
-use anyhow::{Context, Result};
+use crate::error::DataError;
 use rand::seq::SliceRandom;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -39,16 +39,21 @@ pub struct Split {
 }
 
 impl Split {
-    pub fn save(&self, path: &Path) -> Result<()> {
+    pub fn save(&self, path: &Path) -> Result<(), DataError> {
         let json = serde_json::to_string_pretty(self)?;
         Ok(grasp_support::atomic::write_atomic(path, json.as_bytes())?)
     }
 
-    pub fn load(path: &Path) -> Result<Split> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        serde_json::from_str(&text)
-            .with_context(|| format!("invalid split file {}", path.display()))
+    pub fn load(path: &Path) -> Result<Split, DataError> {
+        let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        serde_json::from_str(&text).map_err(|e| DataError::Parse {
+            what: "split file",
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
     }
 }
 

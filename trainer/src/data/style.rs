@@ -5,7 +5,7 @@
 //! index, so a view's features are the same on every run and are cached
 //! once.
 
-use anyhow::Context;
+use crate::error::ConfigError;
 use grasp_model::style::ChannelStyle;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -28,7 +28,7 @@ impl StyleDraw {
         &self,
         frame: usize,
         channels: &[usize],
-    ) -> anyhow::Result<Vec<ChannelStyle>> {
+    ) -> Result<Vec<ChannelStyle>, ConfigError> {
         let mut rng = crate::rng::stream(self.seed, &format!("style/{frame}"));
         self.blocks
             .iter()
@@ -49,12 +49,15 @@ impl StyleDraw {
 
 /// The channels of `block`, when the extractor whose restylable blocks
 /// have `channels` can restyle it.
-pub fn restylable(block: usize, channels: &[usize]) -> anyhow::Result<usize> {
-    channels.get(block).copied().with_context(|| {
-        format!(
-            "views.style_blocks: no block {block} to restyle; the frozen blocks in front of the \
-             features are 0 to {}",
-            channels.len().saturating_sub(1)
+pub fn restylable(block: usize, channels: &[usize]) -> Result<usize, ConfigError> {
+    channels.get(block).copied().ok_or_else(|| {
+        ConfigError::invalid(
+            "views.style_blocks",
+            format!(
+                "views.style_blocks: no block {block} to restyle; the frozen blocks in front of \
+                 the features are 0 to {}",
+                channels.len().saturating_sub(1)
+            ),
         )
     })
 }

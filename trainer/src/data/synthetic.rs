@@ -4,7 +4,7 @@
 //! colour and stripe pattern under per-frame noise and brightness changes,
 //! so a classifier can beat chance while still having to generalise.
 
-use anyhow::{Context, Result};
+use crate::error::DataError;
 use grasp_schema::dataset::{
     camera_dir, frame_file_name, sequence_dir_name, ManifestEntry, SequenceRecord, MANIFEST_FILE,
     SEQUENCE_FILE, WRIST_CAMERA_FOLDER,
@@ -16,7 +16,6 @@ use grasp_schema::plan::{
 use grasp_schema::taxonomy::{Class, GraspType, Preshape};
 use image::{Rgb, RgbImage};
 use rand::Rng;
-use std::io::Write;
 use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -121,10 +120,9 @@ pub fn class_image(class: Class, size: u32, noise: f32, rng: &mut impl Rng) -> R
 }
 
 /// Writes the dataset under `root`.
-pub fn write_synthetic(root: &Path, spec: &SyntheticSpec) -> Result<()> {
+pub fn write_synthetic(root: &Path, spec: &SyntheticSpec) -> Result<(), DataError> {
     let mut rng = crate::rng::stream(spec.seed, "synthetic");
     let mut manifest = Vec::new();
-    let pad = grasp_schema::dataset::padding_for(spec.frames as u64);
     let mut number = 0u64;
     for (category, object, parts) in &spec.objects {
         for (part, preshape) in parts {
@@ -132,30 +130,13 @@ pub fn write_synthetic(root: &Path, spec: &SyntheticSpec) -> Result<()> {
                 let dir = camera_dir(root, category, object, *preshape, WRIST_CAMERA_FOLDER)
                     .join(sequence_dir_name(number, 5));
                 number += 1;
-                std::fs::create_dir_all(&dir)
-                    .with_context(|| format!("cannot create {}", dir.display()))?;
-                let labels: Vec<Class> = (0..spec.frames)
-                    .map(|i| {
-                        if i + spec.no_grasp_frames >= spec.frames {
-                            Class::NoGrasp
-                        } else {
-                            Class::from(*preshape)
-                        }
-                    })
-                    .collect();
-                let mut files = Vec::new();
-                for (i, class) in labels.iter().enumerate() {
-                    let name = frame_file_name(i as u64, pad);
-                    class_image(*class, spec.size, spec.noise, &mut rng)
-                        .save(dir.join(&name))
-                        .with_context(|| format!("cannot write {}", dir.join(&name).display()))?;
-                    files.push(name);
-                }
+                let labels = sequence_labels(spec, *preshape);
+                let files = write_frames(&dir, spec, &labels, &mut rng)?;
                 if spec.layout == Layout::Generated {
                     let record = record(
                         spec, category, object, part, *preshape, index, &labels, files,
                     );
-                    std::fs::write(dir.join(SEQUENCE_FILE), serde_json::to_string(&record)?)?;
+                    write_file(&dir.join(SEQUENCE_FILE), serde_json::to_string(&record)?)?;
                     manifest.push(ManifestEntry {
                         id: record.plan.key.id(),
                         path: dir
@@ -175,12 +156,58 @@ pub fn write_synthetic(root: &Path, spec: &SyntheticSpec) -> Result<()> {
         }
     }
     if spec.layout == Layout::Generated {
-        let mut f = std::fs::File::create(root.join(MANIFEST_FILE))?;
+        let mut lines = String::new();
         for m in manifest {
-            writeln!(f, "{}", serde_json::to_string(&m)?)?;
+            lines.push_str(&serde_json::to_string(&m)?);
+            lines.push('\n');
         }
+        write_file(&root.join(MANIFEST_FILE), lines)?;
     }
     Ok(())
+}
+
+/// The pre-shape, then `no_grasp` for the last `spec.no_grasp_frames`.
+fn sequence_labels(spec: &SyntheticSpec, preshape: Preshape) -> Vec<Class> {
+    (0..spec.frames)
+        .map(|i| {
+            if i + spec.no_grasp_frames >= spec.frames {
+                Class::NoGrasp
+            } else {
+                Class::from(preshape)
+            }
+        })
+        .collect()
+}
+
+/// Creates `dir` and writes one frame per label into it: the file names.
+fn write_frames(
+    dir: &Path,
+    spec: &SyntheticSpec,
+    labels: &[Class],
+    rng: &mut impl Rng,
+) -> Result<Vec<String>, DataError> {
+    std::fs::create_dir_all(dir).map_err(|source| DataError::Create {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let pad = grasp_schema::dataset::padding_for(spec.frames as u64);
+    let mut files = Vec::new();
+    for (i, class) in labels.iter().enumerate() {
+        let name = frame_file_name(i as u64, pad);
+        let path = dir.join(&name);
+        class_image(*class, spec.size, spec.noise, rng)
+            .save(&path)
+            .map_err(|source| DataError::WriteImage { path, source })?;
+        files.push(name);
+    }
+    Ok(files)
+}
+
+fn write_file(path: &Path, text: String) -> Result<(), DataError> {
+    std::fs::write(path, text).map_err(|source| DataError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 #[allow(clippy::too_many_arguments)]

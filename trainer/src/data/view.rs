@@ -13,6 +13,7 @@
 use super::augment::jitter;
 use super::probe::{SensorProbe, MAX_BLUR_PX, MAX_NOISE_SIGMA};
 use super::Dataset;
+use crate::error::ConfigError;
 use image::{imageops, RgbImage};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -70,46 +71,61 @@ impl Default for ViewConfig {
 }
 
 impl ViewConfig {
-    pub fn validate(&self) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            self.scale.is_finite() && (0.0..=1.0).contains(&self.scale),
-            "views.scale must be in [0, 1], got {}",
-            self.scale
-        );
-        anyhow::ensure!(
-            self.shift.is_finite() && (0.0..=0.5).contains(&self.shift),
-            "views.shift must be in [0, 0.5], got {}",
-            self.shift
-        );
-        anyhow::ensure!(
-            self.color.is_finite() && (0.0..1.0).contains(&self.color),
-            "views.color must be in [0, 1), got {}",
-            self.color
-        );
+    /// Refuses ranges a view cannot be drawn from, naming the field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
         let range_ok = |[lo, hi]: [f32; 2], max: f32| {
             lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi && hi <= max
         };
-        anyhow::ensure!(
-            range_ok(self.noise, MAX_NOISE_SIGMA),
-            "views.noise must be a range [low, high] within [0, 1] (a fraction of full scale), got {:?}",
-            self.noise
-        );
-        anyhow::ensure!(
-            range_ok(self.blur_px, MAX_BLUR_PX),
-            "views.blur_px must be a range [low, high] within [0, 50] pixels, got {:?}",
-            self.blur_px
-        );
-        anyhow::ensure!(
-            self.style.is_finite() && (0.0..=MAX_STYLE).contains(&self.style),
-            "views.style must be in [0, {MAX_STYLE}], got {}",
-            self.style
-        );
-        anyhow::ensure!(
-            self.style == 0.0 || !self.style_blocks.is_empty(),
-            "views.style is {} but views.style_blocks is empty: name the blocks to restyle",
-            self.style
-        );
-        Ok(())
+        let checks = [
+            (
+                self.scale.is_finite() && (0.0..=1.0).contains(&self.scale),
+                "views.scale",
+                format!("views.scale must be in [0, 1], got {}", self.scale),
+            ),
+            (
+                self.shift.is_finite() && (0.0..=0.5).contains(&self.shift),
+                "views.shift",
+                format!("views.shift must be in [0, 0.5], got {}", self.shift),
+            ),
+            (
+                self.color.is_finite() && (0.0..1.0).contains(&self.color),
+                "views.color",
+                format!("views.color must be in [0, 1), got {}", self.color),
+            ),
+            (
+                range_ok(self.noise, MAX_NOISE_SIGMA),
+                "views.noise",
+                format!(
+                    "views.noise must be a range [low, high] within [0, 1] (a fraction of full scale), got {:?}",
+                    self.noise
+                ),
+            ),
+            (
+                range_ok(self.blur_px, MAX_BLUR_PX),
+                "views.blur_px",
+                format!(
+                    "views.blur_px must be a range [low, high] within [0, 50] pixels, got {:?}",
+                    self.blur_px
+                ),
+            ),
+            (
+                self.style.is_finite() && (0.0..=MAX_STYLE).contains(&self.style),
+                "views.style",
+                format!("views.style must be in [0, {MAX_STYLE}], got {}", self.style),
+            ),
+            (
+                self.style == 0.0 || !self.style_blocks.is_empty(),
+                "views.style_blocks",
+                format!(
+                    "views.style is {} but views.style_blocks is empty: name the blocks to restyle",
+                    self.style
+                ),
+            ),
+        ];
+        match checks.into_iter().find(|(ok, _, _)| !ok) {
+            Some((_, field, reason)) => Err(ConfigError::invalid(field, reason)),
+            None => Ok(()),
+        }
     }
 }
 

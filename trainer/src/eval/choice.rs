@@ -6,7 +6,7 @@
 //! mean over all sets, then to the model listed first.
 
 use super::summary::Summary;
-use anyhow::{bail, Result};
+use crate::error::SummaryError;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -29,7 +29,7 @@ pub struct Choice {
 impl Choice {
     /// Ranks the summary's models; every model must have a report on every
     /// test set that any model has, so that all are judged on the same worlds.
-    pub fn by_worst_set(summary: &Summary) -> Result<Choice> {
+    pub fn by_worst_set(summary: &Summary) -> Result<Choice, SummaryError> {
         let sets = summary.conditions();
         let mut standings = Vec::new();
         for model in summary.models() {
@@ -40,7 +40,8 @@ impl Choice {
                     .iter()
                     .find(|r| r.group_name() == (&model, set))
                 else {
-                    bail!("model {model} has no report on test set {set}: every model is judged on every set");
+                    let set = set.clone();
+                    return Err(SummaryError::MissingSet { model, set });
                 };
                 accuracies.push((set, row.video_accuracy.mean));
             }

@@ -24,6 +24,7 @@
 //! A [`FrameWindow`] restricts every metric to the frames of a time window
 //! (videos with no frame in it are left out and counted).
 
+use crate::error::ConfigError;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -202,19 +203,21 @@ impl FrameWindow {
     }
 
     /// Checks the bounds.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    pub fn validate(&self) -> Result<(), ConfigError> {
         for (name, v) in [
-            ("from-s", self.from_s),
-            ("to-s", self.to_s),
-            ("before-tail-s", self.before_tail_s),
+            ("--from-s", self.from_s),
+            ("--to-s", self.to_s),
+            ("--before-tail-s", self.before_tail_s),
         ] {
             if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
-                anyhow::bail!("--{name} must be a time >= 0 seconds, got {v}");
+                let reason = format!("{name} must be a time >= 0 seconds, got {v}");
+                return Err(ConfigError::invalid(name, reason));
             }
         }
         if let (Some(a), Some(b)) = (self.from_s, self.to_s) {
             if a >= b {
-                anyhow::bail!("--from-s ({a}) must be before --to-s ({b})");
+                let reason = format!("--from-s ({a}) must be before --to-s ({b})");
+                return Err(ConfigError::invalid("--from-s", reason));
             }
         }
         Ok(())

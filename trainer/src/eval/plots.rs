@@ -4,7 +4,7 @@
 //! so every machine labels its plots, with no system font. Each function
 //! returns the PNG's bytes, for the caller to write atomically.
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::PlotError;
 use plotters::prelude::*;
 
 /// Registers the bundled font with plotters once.
@@ -16,9 +16,11 @@ fn register_font() {
     });
 }
 
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow!("plot: {e:?}")
+fn err<E: std::fmt::Debug>(e: E) -> PlotError {
+    PlotError::Draw(format!("{e:?}"))
 }
+
+type Result<T, E = PlotError> = std::result::Result<T, E>;
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
 
@@ -32,7 +34,7 @@ fn render_png(width: u32, height: u32, draw: impl FnOnce(&Area) -> Result<()>) -
         draw(&root)?;
         root.present().map_err(err)?;
     }
-    let img = image::RgbImage::from_raw(width, height, buf).context("plot buffer size")?;
+    let img = image::RgbImage::from_raw(width, height, buf).ok_or(PlotError::Buffer)?;
     let mut png = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
     Ok(png)

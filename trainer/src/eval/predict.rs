@@ -2,8 +2,8 @@
 
 use super::VideoPrediction;
 use crate::data::{BadData, Dataset};
+use crate::error::EvalError;
 use crate::features::FeatureCache;
-use anyhow::Result;
 use candle_core::Tensor;
 use grasp_model::checkpoint::{Classifier, TrainMode};
 use grasp_model::extractor::FeatureExtractor;
@@ -16,7 +16,7 @@ pub fn predict_dataset(
     data: &Dataset,
     cache: &FeatureCache,
     bad: &BadData,
-) -> Result<Vec<VideoPrediction>> {
+) -> Result<Vec<VideoPrediction>, EvalError> {
     let multi = data.multi_grasp_objects();
     let bar = crate::progress::bar(data.sequences.len() as u64, "predict");
     let mut out = Vec::with_capacity(data.sequences.len());
@@ -60,7 +60,7 @@ fn extract(
     seq: &crate::data::Sequence,
     batch: usize,
     bad: &BadData,
-) -> Result<(Tensor, Vec<bool>)> {
+) -> Result<(Tensor, Vec<bool>), EvalError> {
     let mut parts = Vec::new();
     let mut valid = Vec::new();
     let indices: Vec<usize> = (0..seq.frames.len()).collect();

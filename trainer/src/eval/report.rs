@@ -2,7 +2,7 @@
 //! `time_accuracy.png` (the paper's Fig. 5) and `confusion.png`.
 
 use super::metrics::{mean_std, scalars, Curve, FrameWindow, MeanStd, Metrics};
-use anyhow::Result;
+use crate::error::EvalError;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -235,8 +235,11 @@ fn add_curve(acc: &mut Curve, c: &Curve) {
 }
 
 /// Writes the report's files into `dir`.
-pub fn write_report(report: &Report, dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)?;
+pub fn write_report(report: &Report, dir: &Path) -> Result<(), EvalError> {
+    std::fs::create_dir_all(dir).map_err(|source| EvalError::Create {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     grasp_support::atomic::write_atomic(
         &dir.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),

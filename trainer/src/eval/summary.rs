@@ -10,7 +10,7 @@
 
 use super::metrics::MeanStd;
 use super::report::{PartSummary, Report};
-use anyhow::{bail, Context, Result};
+use crate::error::SummaryError;
 use grasp_schema::plan::Condition;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write;
@@ -46,16 +46,21 @@ pub struct Entry {
 
 impl Entry {
     /// Parses `LABEL[=X]:PATH` (the label holds no `:`, the path may).
-    pub fn parse(spec: &str) -> Result<Entry> {
+    pub fn parse(spec: &str) -> Result<Entry, SummaryError> {
+        let refuse = |reason: String| SummaryError::Entry {
+            spec: spec.to_string(),
+            reason,
+        };
         let form = "expected LABEL[=X]:PATH, e.g. cycles-4=4:runs/q4/report";
         let (head, path) = spec
             .split_once(':')
-            .with_context(|| format!("report `{spec}`: no `:` ({form})"))?;
+            .ok_or_else(|| refuse(format!("no `:` ({form})")))?;
         let (label, x) = match head.split_once('=') {
             Some((l, x)) => {
-                let v: f64 = x.trim().parse().with_context(|| {
-                    format!("report `{spec}`: x value `{x}` is not a number ({form})")
-                })?;
+                let v: f64 = x
+                    .trim()
+                    .parse()
+                    .map_err(|e| refuse(format!("x value `{x}` is not a number ({form}): {e}")))?;
                 (l, Some(v))
             }
             None => (head, None),
@@ -65,19 +70,20 @@ impl Entry {
             x,
             path: PathBuf::from(path),
         };
-        e.check().with_context(|| format!("report `{spec}`"))?;
+        e.check().map_err(refuse)?;
         Ok(e)
     }
 
-    fn check(&self) -> Result<()> {
+    /// What is wrong with the entry, if anything.
+    fn check(&self) -> Result<(), String> {
         if self.label.is_empty() {
-            bail!("empty label");
+            return Err("empty label".into());
         }
         if self.path.as_os_str().is_empty() {
-            bail!("empty path");
+            return Err("empty path".into());
         }
         if let Some(x) = self.x.filter(|x| !x.is_finite()) {
-            bail!("x value {x} is not finite");
+            return Err(format!("x value {x} is not finite"));
         }
         Ok(())
     }
@@ -86,15 +92,23 @@ impl Entry {
 impl SummarySpec {
     /// Reads a TOML list; relative paths are taken from the current
     /// directory when they exist there, otherwise from the file's.
-    pub fn from_toml_file(path: &Path) -> Result<SummarySpec> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let mut spec: SummarySpec =
-            toml::from_str(&text).with_context(|| format!("invalid list {}", path.display()))?;
+    pub fn from_toml_file(path: &Path) -> Result<SummarySpec, SummaryError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SummaryError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut spec: SummarySpec = toml::from_str(&text).map_err(|e| SummaryError::List {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         for (i, e) in spec.reports.iter_mut().enumerate() {
-            e.check()
-                .with_context(|| format!("{}: report {} (`{}`)", path.display(), i + 1, e.label))?;
+            e.check().map_err(|reason| SummaryError::ListEntry {
+                path: path.to_path_buf(),
+                index: i + 1,
+                label: e.label.clone(),
+                reason,
+            })?;
             e.path = grasp_model::backbone::resolve(&e.path, dir);
         }
         Ok(spec)
@@ -135,28 +149,27 @@ pub struct Row {
 }
 
 impl Row {
-    pub fn load(entry: &Entry) -> Result<Row> {
+    pub fn load(entry: &Entry) -> Result<Row, SummaryError> {
         let file = if entry.path.is_dir() {
             entry.path.join("report.json")
         } else {
             entry.path.clone()
         };
-        let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("report `{}`: cannot read {}", entry.label, file.display()))?;
-        let r: Report = serde_json::from_str(&text).with_context(|| {
-            format!(
-                "report `{}`: {} is not a report.json",
-                entry.label,
-                file.display()
-            )
+        let label = || entry.label.clone();
+        let text = std::fs::read_to_string(&file).map_err(|source| SummaryError::ReadReport {
+            label: label(),
+            path: file.clone(),
+            source,
+        })?;
+        let r: Report = serde_json::from_str(&text).map_err(|e| SummaryError::NotAReport {
+            label: label(),
+            path: file.clone(),
+            reason: e.to_string(),
         })?;
         let get = |k: &str| r.aggregate.get(k).copied();
-        let video = get("video_accuracy").with_context(|| {
-            format!(
-                "report `{}`: {} has no aggregate.video_accuracy (no runs?)",
-                entry.label,
-                file.display()
-            )
+        let video = get("video_accuracy").ok_or_else(|| SummaryError::NoRuns {
+            label: label(),
+            path: file.clone(),
         })?;
         Ok(Row {
             label: entry.label.clone(),
@@ -201,11 +214,15 @@ pub struct Summary {
 }
 
 impl Summary {
-    pub fn load(spec: SummarySpec) -> Result<Summary> {
+    pub fn load(spec: SummarySpec) -> Result<Summary, SummaryError> {
         if spec.reports.is_empty() {
-            bail!("nothing to summarize: give --report LABEL[=X]:PATH or --list FILE.toml");
+            return Err(SummaryError::Nothing);
         }
-        let rows = spec.reports.iter().map(Row::load).collect::<Result<_>>()?;
+        let rows = spec
+            .reports
+            .iter()
+            .map(Row::load)
+            .collect::<Result<_, _>>()?;
         let mut s = Summary {
             spec,
             rows,
@@ -216,24 +233,22 @@ impl Summary {
         }
         if s.spec.ship_by_worst {
             if !s.spec.by_condition {
-                bail!("choosing the shipped model by its worst test set needs --by-condition");
+                return Err(SummaryError::ShipNeedsConditions);
             }
             s.choice = Some(super::choice::Choice::by_worst_set(&s)?);
         }
         Ok(s)
     }
 
-    fn check_by_condition(&self) -> Result<()> {
+    fn check_by_condition(&self) -> Result<(), SummaryError> {
         let mut seen = std::collections::HashSet::new();
         for r in &self.rows {
+            let label = r.label.clone();
             if !r.label.contains('/') {
-                bail!(
-                    "report `{}`: by-condition labels are MODEL/CONDITION (e.g. fc/seated)",
-                    r.label
-                );
+                return Err(SummaryError::NotByCondition { label });
             }
             if !seen.insert(r.group_name()) {
-                bail!("report `{}` is given twice", r.label);
+                return Err(SummaryError::Twice { label });
             }
         }
         Ok(())
@@ -244,8 +259,11 @@ impl Summary {
     }
 
     /// Writes `summary.md`, `summary.json` and, with x values, `error.png`.
-    pub fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    pub fn write(&self, dir: &Path) -> Result<(), SummaryError> {
+        std::fs::create_dir_all(dir).map_err(|source| SummaryError::Create {
+            path: dir.to_path_buf(),
+            source,
+        })?;
         if self.has_x() {
             let png = super::plots::error_against_x(&self.error_plot()?)?;
             grasp_support::atomic::write_atomic(&dir.join("error.png"), &png)?;
@@ -300,12 +318,13 @@ impl Summary {
     }
 
     /// The plot of per-video error against x: one series per label group.
-    fn error_plot(&self) -> Result<super::plots::ErrorAgainstX> {
+    fn error_plot(&self) -> Result<super::plots::ErrorAgainstX, SummaryError> {
         let mut series: Vec<super::plots::Series> = Vec::new();
         for r in &self.rows {
             let Some(x) = r.x else { continue };
             if self.spec.log_x && x <= 0.0 {
-                anyhow::bail!("report `{}`: x = {x} cannot go on a log axis", r.label);
+                let label = r.label.clone();
+                return Err(SummaryError::LogAxis { label, x });
             }
             let group = r.group_name().0.to_string();
             let point = (x, r.video_error.mean * 100.0, r.video_error.std * 100.0);

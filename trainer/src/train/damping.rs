@@ -10,7 +10,7 @@
 //! any other does and the runtime needs nothing new.
 
 use super::{FrameSource, SplitFrames};
-use anyhow::{Context, Result};
+use crate::error::{Result, TrainError};
 use candle_core::{DType, Tensor};
 
 /// The damping map `x -> x - ((x B) * removed) B^T`.
@@ -36,9 +36,25 @@ impl ViewDamping {
         strength: f64,
     ) -> Result<Option<Self>> {
         let FrameSource::Cached(x) = &frames.source else {
-            anyhow::bail!("view damping needs cached features (frozen mode)");
+            let why = "view damping needs cached features (frozen mode)";
+            return Err(TrainError::Inconsistent(why));
         };
-        let Some(diff) = view_changes(x, &frames.seq_rows, originals)? else {
+        Self::from_changes(x, &frames.seq_rows, originals, strength).map_err(|source| {
+            TrainError::Tensors {
+                context: "computing the views' feature changes",
+                source,
+            }
+        })
+    }
+
+    /// [`Self::from_views`] of the cached features `x`.
+    fn from_changes(
+        x: &Tensor,
+        seq_rows: &[Vec<usize>],
+        originals: usize,
+        strength: f64,
+    ) -> candle_core::Result<Option<Self>> {
+        let Some(diff) = view_changes(x, seq_rows, originals)? else {
             return Ok(None);
         };
         // Uncentred: a shift that every view shares is a change too. f64 for
@@ -74,15 +90,19 @@ impl ViewDamping {
     }
 
     /// `m`'s rows (.., dim) damped.
-    pub fn apply(&self, m: &Tensor) -> Result<Tensor> {
+    pub fn apply(&self, m: &Tensor) -> candle_core::Result<Tensor> {
         let along = m.matmul(&self.basis)?.broadcast_mul(&self.removed)?;
-        Ok((m - along.matmul(&self.basis.t()?)?)?)
+        m - along.matmul(&self.basis.t()?)?
     }
 
     /// `frames`' cached features, damped.
     pub fn apply_to_frames(&self, frames: &mut SplitFrames) -> Result<()> {
         if let FrameSource::Cached(x) = &frames.source {
-            frames.source = FrameSource::Cached(self.apply(x).context("damping features")?);
+            let damped = self.apply(x).map_err(|source| TrainError::Tensors {
+                context: "damping features",
+                source,
+            })?;
+            frames.source = FrameSource::Cached(damped);
         }
         Ok(())
     }
@@ -95,7 +115,7 @@ impl ViewDamping {
         &self,
         tensors: Vec<(String, Tensor)>,
         input: &str,
-    ) -> Result<Vec<(String, Tensor)>> {
+    ) -> candle_core::Result<Vec<(String, Tensor)>> {
         tensors
             .into_iter()
             .map(|(name, t)| {
@@ -108,7 +128,11 @@ impl ViewDamping {
 
 /// Every view frame's features minus its original's, one row each; None
 /// without views.
-fn view_changes(x: &Tensor, seq_rows: &[Vec<usize>], originals: usize) -> Result<Option<Tensor>> {
+fn view_changes(
+    x: &Tensor,
+    seq_rows: &[Vec<usize>],
+    originals: usize,
+) -> candle_core::Result<Option<Tensor>> {
     let (mut from, mut to) = (Vec::new(), Vec::new());
     if originals > 0 {
         for (i, rows) in seq_rows.iter().enumerate().skip(originals) {
@@ -123,9 +147,9 @@ fn view_changes(x: &Tensor, seq_rows: &[Vec<usize>], originals: usize) -> Result
     if from.is_empty() {
         return Ok(None);
     }
-    let pick = |rows: Vec<u32>| -> Result<Tensor> {
+    let pick = |rows: Vec<u32>| -> candle_core::Result<Tensor> {
         let n = rows.len();
-        Ok(x.index_select(&Tensor::from_vec(rows, n, x.device())?, 0)?)
+        x.index_select(&Tensor::from_vec(rows, n, x.device())?, 0)
     };
     Ok(Some((pick(to)? - pick(from)?)?))
 }

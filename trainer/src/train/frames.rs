@@ -2,8 +2,8 @@
 //! sequence, and where the rows' features come from (cached or decoded).
 
 use crate::data::{self, BadData, Dataset};
+use crate::error::Result;
 use crate::features::SequenceFeatures;
-use anyhow::Result;
 use candle_core::{Device, Tensor};
 use image::RgbImage;
 

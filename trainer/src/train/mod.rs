@@ -37,8 +37,8 @@ pub use splits::{load_splits, Splits};
 pub use tail::lite;
 
 use crate::config::{Selection, TrainConfig};
+use crate::error::{NonFinite, Result};
 use crate::optim::Adam;
-use anyhow::Result;
 use candle_core::{Device, Tensor};
 use grasp_model::checkpoint::{self, CheckpointMeta};
 use grasp_model::heads::HeadKind;
@@ -111,7 +111,8 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         )?;
         let (val_loss, val_acc) = evaluate_split(&net, &prep.val, batch)?;
         if !val_loss.is_finite() {
-            anyhow::bail!("non-finite validation loss ({val_loss}) after epoch {epoch}");
+            let at = format!("after epoch {epoch}");
+            return Err(non_finite("validation loss", val_loss, at));
         }
         let lr = opt.learning_rate();
         history.push(EpochStats {
@@ -271,11 +272,12 @@ fn train_epoch(
     for (bi, chunk) in units.chunks(batch).enumerate() {
         let b = net.forward(frames, chunk, true, rng)?;
         let name = || batch_name(frames, chunk, net.head.cfg.kind, epoch, bi);
-        check_finite(&b.features, "feature", &name)?;
+        check_finite(&b.features, "feature value", &name)?;
         let loss = b.loss()?;
         let v = loss.to_scalar::<f32>()?;
         if !v.is_finite() {
-            anyhow::bail!("non-finite training loss ({v}) in {}", name());
+            let at = format!("in {}", name());
+            return Err(non_finite("training loss", f64::from(v), at));
         }
         opt.step(&loss.backward()?)?;
         let (c, n) = b.correct()?;
@@ -321,11 +323,15 @@ fn batch_name(
     )
 }
 
-fn check_finite(t: &Tensor, what: &str, name: &dyn Fn() -> String) -> Result<()> {
-    if let Some(bad) = grasp_model::ops::first_non_finite(t)? {
-        anyhow::bail!("non-finite {what} value ({bad}) in {}", name());
+fn check_finite(t: &Tensor, what: &'static str, name: &dyn Fn() -> String) -> Result<()> {
+    match grasp_model::ops::first_non_finite(t)? {
+        Some(bad) => Err(non_finite(what, f64::from(bad), format!("in {}", name()))),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+fn non_finite(what: &'static str, value: f64, at: String) -> crate::error::TrainError {
+    NonFinite { what, value, at }.into()
 }
 
 /// Mean per-frame loss and accuracy over a whole split (no downsampling).

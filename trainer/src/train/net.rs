@@ -4,7 +4,7 @@
 use super::tail::Tail;
 use super::{FrameSource, SplitFrames};
 use crate::data;
-use anyhow::{Context, Result};
+use crate::error::{Result, TrainError};
 use candle_core::{Device, Tensor, D};
 use candle_nn::VarMap;
 use grasp_model::backbone::Backbone;
@@ -98,7 +98,8 @@ impl Net {
                 Ok(with_zero.index_select(&index, 0)?)
             }
             (FrameSource::Images(_), None) => {
-                anyhow::bail!("image frames need a trainable backbone")
+                let why = "image frames need a trainable backbone";
+                Err(TrainError::Inconsistent(why))
             }
         }
     }
@@ -175,7 +176,8 @@ impl Net {
         if !train || k == 0 || t <= k {
             return Ok(self.head.forward_sequences(xs)?);
         }
-        let mut state = self.head.zero_state(b, xs)?.context("LSTM state")?;
+        let no_state = TrainError::Inconsistent("the head has no LSTM state");
+        let mut state = self.head.zero_state(b, xs)?.ok_or(no_state)?;
         let mut outs = Vec::new();
         for start in (0..t).step_by(k) {
             let len = k.min(t - start);

@@ -7,8 +7,8 @@ use super::tail::{BlockActivations, Tail, TailStart};
 use super::{Net, SplitFrames, Splits};
 use crate::config::TrainConfig;
 use crate::data::BadData;
+use crate::error::{ConfigError, Result, TrainError};
 use crate::features::FeatureCache;
-use anyhow::{Context, Result};
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{
@@ -57,9 +57,10 @@ pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> 
 fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
     let Some(path) = cfg.weights.as_ref() else {
         let arch = cfg.backbone.unwrap_or(Architecture::EfficientNetLite0);
-        let variant = arch
-            .lite()
-            .with_context(|| format!("a frozen {} needs --weights FILE", arch.name()))?;
+        let variant = arch.lite().ok_or_else(|| {
+            let reason = format!("a frozen {} needs --weights FILE", arch.name());
+            ConfigError::invalid("weights", reason)
+        })?;
         let path = grasp_model::backbone::venv_weights(variant)?;
         return Ok((
             BackboneInfo::pretrained(&path, arch, cfg.width_mult)?,
@@ -67,17 +68,22 @@ fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
         ));
     };
     if grasp_model::backbone::is_checkpoint(path) {
-        return BackboneInfo::from_checkpoint(path)
-            .with_context(|| format!("cannot use checkpoint {} as a backbone", path.display()));
+        return BackboneInfo::from_checkpoint(path).map_err(|source| {
+            TrainError::CheckpointBackbone {
+                path: path.clone(),
+                model: Box::new(source),
+            }
+        });
     }
     let arch = detect_architecture(path)?;
     if let Some(asked) = cfg.backbone.filter(|a| *a != arch) {
-        anyhow::bail!(
+        let reason = format!(
             "--backbone {} does not match the weights file {}, which is {}",
             asked.name(),
             path.display(),
             arch.name()
         );
+        return Err(ConfigError::invalid("backbone", reason).into());
     }
     Ok((
         BackboneInfo::pretrained(path, arch, cfg.width_mult)?,
@@ -88,12 +94,8 @@ fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
 /// The architecture of a pretrained weights file, from its tensor names.
 pub fn detect_architecture(path: &Path) -> Result<Architecture> {
     let vb = grasp_model::weights::var_builder(path, &Device::Cpu)?;
-    Architecture::detect(&vb).with_context(|| {
-        format!(
-            "weights file {}: neither torchvision's MobileNetV2 (features.0.0.weight) nor \
-             EfficientNet-Lite0/1/2 (_conv_stem.weight and the Lite blocks)",
-            path.display()
-        )
+    Architecture::detect(&vb).ok_or_else(|| TrainError::UnknownArchitecture {
+        path: path.to_path_buf(),
     })
 }
 
@@ -126,15 +128,13 @@ pub fn prepare(
         }
         TrainMode::FineTuned => {
             let (info, pre) = frozen_backbone(cfg)?;
-            if info.source_checkpoint.is_some() {
-                anyhow::bail!(
+            if let Some(checkpoint) = &info.source_checkpoint {
+                let reason = format!(
                     "fine-tuned mode starts from a pretrained EfficientNet-Lite file, not from \
                      the checkpoint {}",
-                    info.source_checkpoint
-                        .as_deref()
-                        .unwrap_or(Path::new(""))
-                        .display()
+                    checkpoint.display()
                 );
+                return Err(ConfigError::invalid("weights", reason).into());
             }
             let bb = Backbone::load_pretrained(&info, pre, dev)?;
             let acts = BlockActivations::new(&bb, cfg.fine_tune.blocks)?;
@@ -192,8 +192,7 @@ fn damp_views(
     if cfg.view_damping <= 0.0 {
         return Ok(None);
     }
-    let damping = ViewDamping::from_views(train, originals, cfg.view_damping)
-        .context("computing the views' feature changes")?;
+    let damping = ViewDamping::from_views(train, originals, cfg.view_damping)?;
     match &damping {
         Some(d) => {
             tracing::info!(

@@ -8,7 +8,7 @@ use super::{
     SplitFrames,
 };
 use crate::config::TrainConfig;
-use anyhow::Result;
+use crate::error::{Result, TrainError};
 use candle_core::Tensor;
 
 /// Trains `net`'s head for `cfg.fine_tune.probe_epochs` epochs on the
@@ -63,11 +63,13 @@ pub(super) fn probe_head(
 /// `frames` with the tail's output in place of its cached activations.
 fn tail_features(tail: &super::tail::Tail, frames: &SplitFrames) -> Result<SplitFrames> {
     let FrameSource::Cached(x) = &frames.source else {
-        anyhow::bail!("fine-tuning needs cached block activations");
+        let why = "fine-tuning needs cached block activations";
+        return Err(TrainError::Inconsistent(why));
     };
     let n = x.dim(0)?;
     if n == 0 {
-        anyhow::bail!("a split without frames cannot be probed");
+        let why = "a split without frames cannot be probed";
+        return Err(TrainError::Inconsistent(why));
     }
     let mut parts = Vec::new();
     for start in (0..n).step_by(256) {

@@ -3,7 +3,7 @@
 use crate::config::TrainConfig;
 use crate::data::split::{self, Split};
 use crate::data::{self, BadData, Dataset};
-use anyhow::Result;
+use crate::error::DataError;
 use std::path::Path;
 
 /// The three splits of a run.
@@ -17,11 +17,12 @@ pub struct Splits {
 
 /// Reads the data and splits it: separate validation/test roots when given,
 /// otherwise a stratified split of the training root.
-pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
-    let read = |root: &Path| -> Result<Dataset> {
+pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits, DataError> {
+    let read = |root: &Path| -> Result<Dataset, DataError> {
         let d = data::read_dataset(root, &cfg.reader, bad)?;
         if d.sequences.is_empty() {
-            anyhow::bail!("no sequences found under {}", root.display());
+            let root = root.to_path_buf();
+            return Err(DataError::NoSequences { root });
         }
         Ok(d)
     };
@@ -64,9 +65,7 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
     refuse_test_worlds(&train, "training")?;
     refuse_test_worlds(&val, "validation")?;
     if val.sequences.is_empty() {
-        anyhow::bail!(
-            "the validation split is empty: add sequences, raise split.val_fraction or pass --val-data"
-        );
+        return Err(DataError::EmptyValidation);
     }
     let ids = |d: &Dataset| d.sequences.iter().map(|s| s.id.clone()).collect();
     let split = Split {
@@ -85,15 +84,17 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits> {
 /// A test world (another render world, a held-out reach) measures how a
 /// model does where it was never trained or chosen: none of its sequences
 /// may train it or pick its checkpoint.
-fn refuse_test_worlds(data: &Dataset, split: &str) -> Result<()> {
+fn refuse_test_worlds(data: &Dataset, split: &str) -> Result<(), DataError> {
     match data.sequences.iter().find(|s| s.test_world.is_some()) {
-        Some(s) => anyhow::bail!(
-            "{}: sequence {} belongs to a test world ({}); the {split} set may only hold \
-             training's own world (render it without configs/test-world-*.toml)",
-            data.root.display(),
-            s.id,
-            s.test_world.as_deref().unwrap_or_default()
-        ),
+        Some(s) => Err(DataError::Invalid {
+            path: data.root.clone(),
+            reason: format!(
+                "sequence {} belongs to a test world ({}); the {split} set may only hold \
+                 training's own world (render it without configs/test-world-*.toml)",
+                s.id,
+                s.test_world.as_deref().unwrap_or_default()
+            ),
+        }),
         None => Ok(()),
     }
 }

@@ -2,7 +2,7 @@
 //! features ([`BlockActivations`]), and the trainable last blocks that turn
 //! them into the head's features ([`Tail`]).
 
-use anyhow::{Context, Result};
+use crate::error::{ConfigError, Result};
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{Backbone, Network};
@@ -12,14 +12,13 @@ use grasp_model::style::ChannelStyle;
 use image::RgbImage;
 
 /// The pretrained EfficientNet-Lite of a backbone, or why there is none.
-pub fn lite(bb: &Backbone) -> Result<&EfficientNetLite> {
+pub fn lite(bb: &Backbone) -> Result<&EfficientNetLite, ConfigError> {
     match &bb.net {
         Network::EfficientNetLite(n) => Ok(n),
-        Network::MobileNetV2(_) => {
-            anyhow::bail!(
-                "fine-tuned mode tunes the last blocks of an EfficientNet-Lite, not MobileNetV2"
-            )
-        }
+        Network::MobileNetV2(_) => Err(ConfigError::invalid(
+            "backbone",
+            "fine-tuned mode tunes the last blocks of an EfficientNet-Lite, not MobileNetV2",
+        )),
     }
 }
 
@@ -36,12 +35,13 @@ impl<'a> BlockActivations<'a> {
     /// The activations in front of the last `tuned` blocks.
     pub fn new(backbone: &'a Backbone, tuned: usize) -> Result<Self> {
         let net = lite(backbone)?;
-        let from = net.block_count().checked_sub(tuned).with_context(|| {
-            format!(
+        let from = net.block_count().checked_sub(tuned).ok_or_else(|| {
+            let reason = format!(
                 "fine_tune.blocks = {tuned}, but {} has {} blocks",
                 backbone.info.arch.name(),
                 net.block_count()
-            )
+            );
+            ConfigError::invalid("fine_tune.blocks", reason)
         })?;
         let side = backbone.preprocess.size as usize;
         let probe = Tensor::zeros((1, 3, side, side), DType::F32, &backbone.device)?;
