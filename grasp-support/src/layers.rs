@@ -7,26 +7,65 @@
 //! A later layer wins key by key: its tables merge into the earlier ones',
 //! any other value (numbers, strings, arrays) replaces the earlier one.
 
-use anyhow::{Context, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use toml::{Table, Value};
+
+/// A layer that cannot be read: the file or the `--set` at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum LayersError {
+    #[error("cannot read {}", path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{} is not valid TOML", path.display())]
+    Toml {
+        path: PathBuf,
+        #[source]
+        source: toml::de::Error,
+    },
+    #[error("--set {set}")]
+    Set {
+        set: String,
+        #[source]
+        source: SetError,
+    },
+}
+
+/// Why one `--set KEY=VALUE` cannot be applied.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SetError {
+    #[error("expected KEY=VALUE, e.g. --set dataset.seed=3 or --set head=lstm")]
+    NoValue,
+    #[error("'{0}' is not a key")]
+    NotAKey(String),
+    #[error("{0} is a value, not a table")]
+    NotATable(String),
+}
 
 /// Reads `files` in order, each merged over the ones before, then applies
 /// `sets` in order. No files and no sets give an empty table (every
 /// default). Errors name the file or the `--set` at fault.
-pub fn load<P: AsRef<Path>>(files: &[P], sets: &[String]) -> Result<Table> {
+pub fn load<P: AsRef<Path>>(files: &[P], sets: &[String]) -> Result<Table, LayersError> {
     let mut table = Table::new();
     for path in files {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let layer = text
-            .parse::<Table>()
-            .with_context(|| format!("{} is not valid TOML", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|source| LayersError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let layer = text.parse::<Table>().map_err(|source| LayersError::Toml {
+            path: path.to_path_buf(),
+            source,
+        })?;
         merge(&mut table, layer);
     }
     for set in sets {
-        apply_set(&mut table, set).with_context(|| format!("--set {set}"))?;
+        apply_set(&mut table, set).map_err(|source| LayersError::Set {
+            set: set.clone(),
+            source,
+        })?;
     }
     Ok(table)
 }
@@ -66,17 +105,14 @@ pub fn merge(base: &mut Table, over: Table) {
 /// and a TOML value (`0.5`, `true`, `[7, 10]`, `["fast"]`,
 /// `{ angle_deg = 18.3 }`); a value that is no TOML is taken as a string
 /// (`head=lstm`, `weights=path/to/file.pth`).
-pub fn apply_set(table: &mut Table, set: &str) -> Result<()> {
-    let (key, value) = set
-        .split_once('=')
-        .context("expected KEY=VALUE, e.g. --set dataset.seed=3 or --set head=lstm")?;
+pub fn apply_set(table: &mut Table, set: &str) -> Result<(), SetError> {
+    let (key, value) = set.split_once('=').ok_or(SetError::NoValue)?;
     let path: Vec<&str> = key.trim().split('.').map(str::trim).collect();
-    anyhow::ensure!(
-        path.iter().all(|p| !p.is_empty()),
-        "'{}' is not a key",
-        key.trim()
-    );
-    let (last, parents) = path.split_last().context("empty key")?;
+    let not_a_key = || SetError::NotAKey(key.trim().to_string());
+    if path.iter().any(|p| p.is_empty()) {
+        return Err(not_a_key());
+    }
+    let (last, parents) = path.split_last().ok_or_else(not_a_key)?;
     let mut at = table;
     for (depth, part) in parents.iter().enumerate() {
         let entry = at
@@ -84,7 +120,7 @@ pub fn apply_set(table: &mut Table, set: &str) -> Result<()> {
             .or_insert_with(|| Value::Table(Table::new()));
         at = entry
             .as_table_mut()
-            .with_context(|| format!("{} is a value, not a table", path[..=depth].join(".")))?;
+            .ok_or_else(|| SetError::NotATable(path[..=depth].join(".")))?;
     }
     at.insert(last.to_string(), parse_value(value.trim()));
     Ok(())
@@ -137,7 +173,7 @@ mod tests {
     #[test]
     fn bad_layers_and_sets_are_refused_by_name() {
         let err = |files: &[&Path], set: &str| {
-            format!("{:#}", load(files, &[set.to_string()]).unwrap_err())
+            crate::error_chain(&load(files, &[set.to_string()]).unwrap_err())
         };
         let e = err(&[], "seed");
         assert!(e.contains("--set seed") && e.contains("KEY=VALUE"), "{e}");
@@ -147,9 +183,9 @@ mod tests {
         let e = err(&[base.path()], "dataset.seed.x=1");
         assert!(e.contains("dataset.seed is a value"), "{e}");
         let bad = file("seed = [");
-        let e = format!("{:#}", load(&[bad.path()], &[]).unwrap_err());
+        let e = crate::error_chain(&load(&[bad.path()], &[]).unwrap_err());
         assert!(e.contains(&bad.path().display().to_string()), "{e}");
-        let e = format!("{:#}", load(&[Path::new("no/such.toml")], &[]).unwrap_err());
+        let e = crate::error_chain(&load(&[Path::new("no/such.toml")], &[]).unwrap_err());
         assert!(e.contains("no/such.toml"), "{e}");
         assert_eq!(describe::<&Path>(&[], &[], "the defaults"), "the defaults");
         let sets = ["a=1".to_string()];

@@ -8,3 +8,16 @@ pub mod atomic;
 pub mod cli;
 pub mod layers;
 pub mod venv;
+
+/// An error and its causes on one line, "outer: cause: cause", as the
+/// programs print them; for a library that keeps another's error as text.
+pub fn error_chain(error: &dyn std::error::Error) -> String {
+    let mut line = error.to_string();
+    let mut cause = error.source();
+    while let Some(e) = cause {
+        line.push_str(": ");
+        line.push_str(&e.to_string());
+        cause = e.source();
+    }
+    line
+}

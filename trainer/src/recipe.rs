@@ -15,10 +15,9 @@ use toml::Value;
 /// Errors name the file, the `--set` or the field at fault.
 pub fn load(recipe: Option<&Path>, sets: &[String]) -> Result<TrainConfig, ConfigError> {
     let files: Vec<&Path> = recipe.into_iter().collect();
-    // grasp-support's layers give untyped errors: their message (with causes) is kept.
     let table = layers::load(&files, sets).map_err(|e| ConfigError::Layers {
         recipe: recipe.map(Path::to_path_buf),
-        reason: format!("{e:#}"),
+        reason: grasp_support::error_chain(&e),
     })?;
     let source = match recipe {
         Some(path) => format!("recipe {}", path.display()),
