@@ -1,5 +1,6 @@
 mod bench_plan;
 mod bench_queries;
+mod objects;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -40,7 +41,7 @@ enum Command {
 #[derive(Subcommand)]
 enum ObjectsCli {
     #[command(flatten)]
-    Lib(generator::catalog::cli::ObjectsCommand),
+    Lib(objects::ObjectsCommand),
     /// Time the mesh queries (rays, inside tests, closest points) per
     /// object, for each ray backend, against trimesh's closest points.
     BenchQueries(bench_queries::BenchArgs),
@@ -52,7 +53,7 @@ fn main() -> std::process::ExitCode {
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),
-            Command::Objects(ObjectsCli::Lib(cmd)) => generator::catalog::cli::run(&cmd),
+            Command::Objects(ObjectsCli::Lib(cmd)) => objects::run(&cmd),
             Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
             Command::Render(args) => generator::render::cli::run_render(&args),
             Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
