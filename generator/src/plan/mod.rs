@@ -27,7 +27,7 @@ pub use source::{PlanSource, PlannedKey, PlannerSource};
 pub use trajectory::TrajectoryConfig;
 pub use validity::ValidityConfig;
 
-use anyhow::Result;
+use crate::config::{ConfigError, Result};
 use grasp_schema::Condition;
 use serde::{Deserialize, Serialize};
 
@@ -86,6 +86,8 @@ pub struct PlanConfig {
 
 impl PlanConfig {
     /// Checks every value, naming the offending field.
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self) -> Result<()> {
         self.scene.validate()?;
         self.camera.validate()?;
@@ -95,16 +97,22 @@ impl PlanConfig {
         for c in Condition::ALL {
             let d = self.conditions.duration_s(c, self.trajectory.duration_s);
             self.trajectory.frame_count(d)?;
-            anyhow::ensure!(
-                self.trajectory.no_grasp_tail_s < d,
-                "plan.trajectory.no_grasp_tail_s ({}) must be shorter than the {c} sequences ({d} s)",
-                self.trajectory.no_grasp_tail_s
-            );
+            if !(self.trajectory.no_grasp_tail_s < d) {
+                return Err(ConfigError::rule(
+                    "plan.trajectory.no_grasp_tail_s",
+                    format!(
+                        "({}) must be shorter than the {c} sequences ({d} s)",
+                        self.trajectory.no_grasp_tail_s
+                    ),
+                ));
+            }
         }
-        anyhow::ensure!(
-            self.validity.mesh_tolerance_m >= 0.0,
-            "plan.validity.mesh_tolerance_m must be >= 0"
-        );
+        if !(self.validity.mesh_tolerance_m >= 0.0) {
+            return Err(ConfigError::rule(
+                "plan.validity.mesh_tolerance_m",
+                "must be >= 0",
+            ));
+        }
         Ok(())
     }
 }
