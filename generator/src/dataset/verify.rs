@@ -455,10 +455,13 @@ fn check_against_plan(
     }
     // Compare after the same JSON round trip the record went through (float
     // parsing may differ from the in-memory value in the last bit).
-    let fresh = source.plan(&record.plan.key).and_then(|p| {
-        let text = serde_json::to_string(&p)?;
-        Ok(serde_json::from_str::<grasp_schema::SequencePlan>(&text)?)
-    });
+    let fresh = source
+        .plan(&record.plan.key)
+        .map_err(anyhow::Error::from)
+        .and_then(|p| {
+            let text = serde_json::to_string(&p)?;
+            Ok(serde_json::from_str::<grasp_schema::SequencePlan>(&text)?)
+        });
     match fresh {
         Ok(fresh) if fresh == record.plan => {}
         Ok(_) => report.problems.push(format!(

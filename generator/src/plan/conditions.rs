@@ -11,9 +11,9 @@
 //!   minimum-jerk via-point solution (continuous velocity and acceleration).
 
 use super::camera::StartRegion;
+use super::error::{PlanError, Result};
 use super::scene::{uniform, SceneConfig};
 use super::trajectory::{Path, ViaPath};
-use anyhow::{ensure, Result};
 use grasp_schema::Condition;
 use nalgebra::Vector3;
 use rand::Rng;
@@ -202,14 +202,15 @@ pub fn straight_approach(
     standoff: f64,
 ) -> Result<Path> {
     let dist = (target - start).norm();
-    ensure!(
-        dist >= 1e-9,
-        "the start coincides with the target {target:?}: no approach direction"
-    );
+    if dist < 1e-9 || dist.is_nan() {
+        return Err(PlanError::DegenerateApproach(format!(
+            "the start coincides with the target {target:?}: no approach direction"
+        )));
+    }
     let end = end_point(start, target, standoff).ok_or_else(|| {
-        anyhow::anyhow!(
+        PlanError::DegenerateApproach(format!(
             "the start is {dist:.4} m from the target, within the {standoff} m stand-off"
-        )
+        ))
     })?;
     Ok(Path::Straight { start: *start, end })
 }

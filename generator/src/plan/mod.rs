@@ -5,10 +5,11 @@
 pub mod budget;
 pub mod camera;
 pub mod check;
-pub mod cli;
 pub mod conditions;
 pub mod distractors;
+pub mod error;
 pub mod head_camera;
+pub mod jsonl;
 mod planner;
 pub mod plot_paths;
 pub mod scene;
@@ -20,12 +21,20 @@ pub mod wrist;
 
 pub use camera::CameraConfig;
 pub use conditions::ConditionsConfig;
+pub use error::PlanError;
 pub use head_camera::HeadCameraConfig;
+pub use jsonl::read_jsonl;
 pub use planner::{sequence_keys, ObjectGeometry, Planner};
 pub use scene::SceneConfig;
 pub use source::{PlanSource, PlannedKey, PlannerSource};
 pub use trajectory::TrajectoryConfig;
 pub use validity::ValidityConfig;
+
+/// [`read_jsonl`], where it was before `grasp-gen plan` moved into the
+/// binary.
+pub mod cli {
+    pub use super::jsonl::read_jsonl;
+}
 
 use crate::config::{ConfigError, Result};
 use grasp_schema::Condition;

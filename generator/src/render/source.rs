@@ -5,8 +5,8 @@
 
 use super::parts::PartBox;
 use super::SceneGeometry;
-use crate::plan::{PlanSource, PlannedKey};
-use anyhow::{bail, Context, Result};
+use crate::plan::{PlanError, PlanSource, PlannedKey};
+use anyhow::{bail, Result};
 use grasp_schema::{SequenceKey, SequencePlan};
 use std::collections::BTreeMap;
 
@@ -44,7 +44,7 @@ pub struct StaticSource {
 }
 
 impl PlanSource for StaticSource {
-    fn keys(&self) -> Result<Vec<PlannedKey>> {
+    fn keys(&self) -> crate::plan::error::Result<Vec<PlannedKey>> {
         Ok(self
             .plans
             .iter()
@@ -56,12 +56,12 @@ impl PlanSource for StaticSource {
             .collect())
     }
 
-    fn plan(&self, key: &SequenceKey) -> Result<SequencePlan> {
+    fn plan(&self, key: &SequenceKey) -> crate::plan::error::Result<SequencePlan> {
         self.plans
             .iter()
             .find(|p| &p.key == key)
             .cloned()
-            .with_context(|| format!("no plan for sequence {}", key.id()))
+            .ok_or_else(|| PlanError::NoPlan { id: key.id() })
     }
 }
 

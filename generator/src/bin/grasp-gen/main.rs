@@ -1,6 +1,7 @@
 mod bench_plan;
 mod bench_queries;
 mod objects;
+mod plan;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -28,7 +29,7 @@ enum Command {
     /// Write a contact sheet and an animated GIF of a few sequences.
     Preview(generator::preview::PreviewArgs),
     /// Plan sequences (camera paths, labels, scene samples) without Blender.
-    Plan(generator::plan::cli::PlanArgs),
+    Plan(plan::PlanArgs),
     /// Time the planner and print the BENCHMARKS.md tables.
     #[command(hide = true)]
     BenchPlan(bench_plan::BenchArgs),
@@ -59,7 +60,7 @@ fn main() -> std::process::ExitCode {
             Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
             Command::Preview(args) => generator::preview::run(&args),
             Command::Worker => generator::render::cli::run_worker(),
-            Command::Plan(args) => generator::plan::cli::run(&args),
+            Command::Plan(args) => plan::run(&args),
             Command::BenchPlan(args) => bench_plan::run(&args),
         }
     })

@@ -90,10 +90,13 @@ pub(super) fn refuse_other_sequences(
 fn refuse_other_plan(source: &dyn RenderSource, dir: &Path, recorded: &SequencePlan) -> Result<()> {
     let id = recorded.key.id();
     // The same JSON round trip as the record, so floats compare exactly.
-    let fresh = source.plan(&recorded.key).and_then(|p| {
-        let text = serde_json::to_string(&p)?;
-        Ok(serde_json::from_str::<SequencePlan>(&text)?)
-    });
+    let fresh = source
+        .plan(&recorded.key)
+        .map_err(anyhow::Error::from)
+        .and_then(|p| {
+            let text = serde_json::to_string(&p)?;
+            Ok(serde_json::from_str::<SequencePlan>(&text)?)
+        });
     let fresh = fresh.with_context(|| format!("re-planning finished sequence {id}"))?;
     if &fresh == recorded {
         return Ok(());
