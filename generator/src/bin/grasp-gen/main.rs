@@ -1,5 +1,6 @@
 mod bench_plan;
 mod bench_queries;
+mod dataset;
 mod objects;
 mod plan;
 
@@ -25,7 +26,7 @@ enum Command {
     Render(generator::render::cli::RenderArgs),
     /// Check a finished dataset, or merge shard outputs.
     #[command(subcommand)]
-    Dataset(generator::dataset::cli::DatasetCommand),
+    Dataset(dataset::DatasetCommand),
     /// Write a contact sheet and an animated GIF of a few sequences.
     Preview(generator::preview::PreviewArgs),
     /// Plan sequences (camera paths, labels, scene samples) without Blender.
@@ -57,7 +58,7 @@ fn main() -> std::process::ExitCode {
             Command::Objects(ObjectsCli::Lib(cmd)) => objects::run(&cmd),
             Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
             Command::Render(args) => generator::render::cli::run_render(&args),
-            Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
+            Command::Dataset(cmd) => dataset::run(&cmd),
             Command::Preview(args) => generator::preview::run(&args),
             Command::Worker => generator::render::cli::run_worker(),
             Command::Plan(args) => plan::run(&args),

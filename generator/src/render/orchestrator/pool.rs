@@ -5,6 +5,7 @@
 use super::outputs::record_settings;
 use super::slot::worker_slot;
 use super::{Event, RenderSummary, Rendered, Shared};
+use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;
 use anyhow::{anyhow, Result};
@@ -142,11 +143,11 @@ fn on_rendered(
         }
         Err(e) if storage::is_storage_full(&e) => {
             let _ = std::fs::remove_dir_all(&partial);
-            summary.fatal = Some(format!("{id}: {e:#}"));
+            summary.fatal = Some(format!("{id}: {}", chain(&e)));
             return false;
         }
         Err(e) => {
-            let error = format!("{e:#}");
+            let error = chain(&e);
             progress.log(&|| tracing::error!("FAILED {id}: {error}"));
             summary.failed.push((id, error));
         }

@@ -149,11 +149,11 @@ fn report_failure(
         let _ = tx.send(Event::Fatal { id, error });
         return false;
     }
-    let full = match storage::is_storage_full(&e) {
+    let full = match storage::is_storage_full(&*e) {
         true => None,
         false => storage::probe(&ctx.dataset.work_dir().join("partial")),
     };
-    if storage::is_storage_full(&e) || full.is_some() {
+    if storage::is_storage_full(&*e) || full.is_some() {
         let error = match full {
             Some(f) => format!("{e:#}; {:#}", anyhow::Error::new(f)),
             None => format!("{e:#}"),
