@@ -6,10 +6,10 @@
 //! workers talk JSON lines over pipes ([`protocol`]); finished sequences are
 //! moved into the dataset atomically ([`crate::dataset::writer`]).
 
-pub mod cli;
 pub mod consistency;
 pub mod device;
 pub mod effects;
+pub mod error;
 pub mod orchestrator;
 pub mod parts;
 pub mod planner_source;
@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
 pub use device::Device;
+pub use error::RenderError;
 pub use orchestrator::{render, RenderOptions, RenderSummary};
 pub use scene::SceneGeometry;
 pub use source::RenderSource;

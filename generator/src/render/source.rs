@@ -3,10 +3,10 @@
 //! the catalog and the planner (`planner_source`); [`StaticSource`] renders
 //! given plans.
 
+use super::error::{RenderError, Result};
 use super::parts::PartBox;
 use super::SceneGeometry;
 use crate::plan::{PlanError, PlanSource, PlannedKey};
-use anyhow::{bail, Result};
 use grasp_schema::{SequenceKey, SequencePlan};
 use std::collections::BTreeMap;
 
@@ -69,7 +69,10 @@ impl RenderSource for StaticSource {
     fn mesh(&self, object: &str) -> Result<Mesh> {
         match self.meshes.get(object) {
             Some(m) => Ok(m.clone()),
-            None => bail!("no mesh for object '{object}'"),
+            None => Err(RenderError::NoObjectData {
+                what: "mesh",
+                object: object.to_string(),
+            }),
         }
     }
 
@@ -80,7 +83,10 @@ impl RenderSource for StaticSource {
     fn parts(&self, object: &str) -> Result<Vec<PartBox>> {
         match self.parts.get(object) {
             Some(p) => Ok(p.clone()),
-            None => bail!("no part boxes for object '{object}'"),
+            None => Err(RenderError::NoObjectData {
+                what: "part boxes",
+                object: object.to_string(),
+            }),
         }
     }
 }

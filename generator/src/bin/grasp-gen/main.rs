@@ -3,6 +3,8 @@ mod bench_queries;
 mod dataset;
 mod objects;
 mod plan;
+mod preview;
+mod render;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -23,12 +25,12 @@ enum Command {
     #[command(subcommand)]
     Objects(ObjectsCli),
     /// Render the configured sequences with headless Blender workers.
-    Render(generator::render::cli::RenderArgs),
+    Render(render::RenderArgs),
     /// Check a finished dataset, or merge shard outputs.
     #[command(subcommand)]
     Dataset(dataset::DatasetCommand),
     /// Write a contact sheet and an animated GIF of a few sequences.
-    Preview(generator::preview::PreviewArgs),
+    Preview(preview::PreviewArgs),
     /// Plan sequences (camera paths, labels, scene samples) without Blender.
     Plan(plan::PlanArgs),
     /// Time the planner and print the BENCHMARKS.md tables.
@@ -57,10 +59,10 @@ fn main() -> std::process::ExitCode {
             Command::Doctor => doctor(),
             Command::Objects(ObjectsCli::Lib(cmd)) => objects::run(&cmd),
             Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
-            Command::Render(args) => generator::render::cli::run_render(&args),
+            Command::Render(args) => render::run_render(&args),
             Command::Dataset(cmd) => dataset::run(&cmd),
-            Command::Preview(args) => generator::preview::run(&args),
-            Command::Worker => generator::render::cli::run_worker(),
+            Command::Preview(args) => preview::run(&args),
+            Command::Worker => render::run_worker(),
             Command::Plan(args) => plan::run(&args),
             Command::BenchPlan(args) => bench_plan::run(&args),
         }

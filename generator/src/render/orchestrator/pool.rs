@@ -8,7 +8,7 @@ use super::{Event, RenderSummary, Rendered, Shared};
 use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;
-use anyhow::{anyhow, Result};
+use crate::render::error::{RenderError, Result};
 use grasp_schema::dataset::SequenceRecord;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::Ordering;
@@ -70,7 +70,7 @@ pub(super) fn run_pool(
     ctx.stop_and_kill();
     for t in threads {
         if t.join().is_err() {
-            return Err(anyhow!("a worker thread panicked"));
+            return Err(RenderError::WorkerPanicked);
         }
     }
     Ok(interrupted)
