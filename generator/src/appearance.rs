@@ -10,7 +10,7 @@
 //! ([`crate::unseen_look`]); training's further levers are in
 //! [`crate::randomize`].
 
-use anyhow::{bail, Context, Result};
+use crate::config::{ConfigError, Result};
 use grasp_schema::appearance::{Appearance, Light, ObjectMaterial, SurfaceMaterial};
 use grasp_schema::Condition;
 use rand::{Rng, SeedableRng};
@@ -111,41 +111,51 @@ impl AppearanceConfig {
     pub fn validate(&self) -> Result<()> {
         let known = |f: &str| FAMILIES.contains(&f);
         if self.families.is_empty() {
-            bail!("[appearance] families: the list is empty");
+            return Err(ConfigError::invalid(
+                "[appearance] families",
+                "the list is empty",
+            ));
         }
         for f in &self.families {
             if crate::look::unseen_config::UNSEEN_FAMILIES.contains(&f.as_str()) {
-                bail!("[appearance] families: '{f}' is reserved for the unseen_look condition and may not be drawn in training");
+                return Err(ConfigError::invalid("[appearance] families", format!("'{f}' is reserved for the unseen_look condition and may not be drawn in training")));
             }
             if !known(f) || f == "image" {
-                bail!("[appearance] families: unknown procedural family '{f}' (expected some of noise, voronoi, brick, checker, wave, marble, gingham)");
+                return Err(ConfigError::invalid("[appearance] families", format!("unknown procedural family '{f}' (expected some of noise, voronoi, brick, checker, wave, marble, gingham)")));
             }
             if *f == self.held_out_family {
-                bail!("[appearance] families: '{f}' is the held-out family and may only be used for the background condition");
+                return Err(ConfigError::invalid("[appearance] families", format!("'{f}' is the held-out family and may only be used for the background condition")));
             }
         }
         if !known(&self.held_out_family)
             || self.held_out_family == "image"
             || crate::look::unseen_config::UNSEEN_FAMILIES.contains(&self.held_out_family.as_str())
         {
-            bail!(
-                "[appearance] held_out_family: unknown family '{}'",
-                self.held_out_family
-            );
+            return Err(ConfigError::invalid(
+                "[appearance] held_out_family",
+                format!("unknown family '{}'", self.held_out_family),
+            ));
         }
         for k in &self.light_kinds {
             if !LIGHT_KINDS.contains(&k.as_str()) {
-                bail!(
-                    "[appearance] light_kinds: unknown kind '{k}' (expected point, spot or area)"
-                );
+                return Err(ConfigError::invalid(
+                    "[appearance] light_kinds",
+                    format!("unknown kind '{k}' (expected point, spot or area)"),
+                ));
             }
         }
         if self.light_kinds.is_empty() {
-            bail!("[appearance] light_kinds: the list is empty");
+            return Err(ConfigError::invalid(
+                "[appearance] light_kinds",
+                "the list is empty",
+            ));
         }
         // The Blender side pools 4 lights per kind.
         if self.lights[1] > 4 || self.lights[0] > self.lights[1] {
-            bail!("[appearance] lights: need min <= max <= 4");
+            return Err(ConfigError::invalid(
+                "[appearance] lights",
+                "need min <= max <= 4",
+            ));
         }
         let ranges = [
             ("scale", self.scale),
@@ -158,11 +168,17 @@ impl AppearanceConfig {
         ];
         for (name, [lo, hi]) in ranges {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-                bail!("[appearance] {name}: need a finite range [min, max], got [{lo}, {hi}]");
+                return Err(ConfigError::invalid(
+                    format!("[appearance] {name}"),
+                    format!("need a finite range [min, max], got [{lo}, {hi}]"),
+                ));
             }
         }
         if self.color_temperature_k[0] < 1000.0 || self.color_temperature_k[1] > 25000.0 {
-            bail!("[appearance] color_temperature_k: supported range is 1000 to 25000 K");
+            return Err(ConfigError::invalid(
+                "[appearance] color_temperature_k",
+                "supported range is 1000 to 25000 K",
+            ));
         }
         for (name, p) in [
             ("image_probability", self.image_probability),
@@ -173,7 +189,10 @@ impl AppearanceConfig {
             ("hand_visible", self.hand_visible),
         ] {
             if !(0.0..=1.0).contains(&p) {
-                bail!("[appearance] {name}: a probability must be in [0, 1], got {p}");
+                return Err(ConfigError::invalid(
+                    format!("[appearance] {name}"),
+                    format!("a probability must be in [0, 1], got {p}"),
+                ));
             }
         }
         self.unseen_look.validate()
@@ -189,11 +208,15 @@ impl AppearanceConfig {
 }
 
 fn list_images(dir: &Path) -> Result<Vec<String>> {
-    let entries = std::fs::read_dir(dir)
-        .with_context(|| format!("[appearance] image_dir: cannot read {}", dir.display()))?;
+    let cannot_read = |source| ConfigError::Read {
+        field: "[appearance] image_dir",
+        path: dir.to_path_buf(),
+        source,
+    };
+    let entries = std::fs::read_dir(dir).map_err(cannot_read)?;
     let mut images = Vec::new();
     for entry in entries {
-        let path = entry?.path();
+        let path = entry.map_err(cannot_read)?.path();
         let ext = path
             .extension()
             .and_then(|e| e.to_str())

@@ -8,7 +8,6 @@ pub mod dataset;
 pub mod geometry;
 pub mod look;
 pub mod plan;
-pub mod preview;
 pub mod python;
 pub mod randomize;
 pub mod raster;

@@ -4,7 +4,6 @@
 //! wireframes coloured by pre-shape and numbered, with a legend.
 
 use crate::catalog::{ObjectSpec, TriMesh};
-use anyhow::{Context, Result};
 use grasp_schema::Preshape;
 use image::{Rgb, RgbImage};
 
@@ -284,17 +283,4 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), colour: Rgb<u8>, ox: u
 /// 2 is body text (18 px).
 pub fn text(img: &mut RgbImage, x: i64, y: i64, s: &str, colour: Rgb<u8>, scale: i64) {
     grasp_font::draw_text(img, x, y, s, colour, 6.0 + 6.0 * scale as f32);
-}
-
-/// Renders and writes a PNG atomically.
-pub fn write_object_png(object: &ObjectSpec, path: &std::path::Path) -> Result<()> {
-    let mesh = object.mesh()?;
-    let img = render_object(object, &mesh);
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .context("encoding the PNG")?;
-    Ok(grasp_support::atomic::write_atomic(path, &bytes)?)
 }

@@ -84,10 +84,17 @@ fn bad_files_are_errors() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("x.off");
     std::fs::write(&p, "OFF\n").unwrap();
-    assert!(format!("{:#}", meshio::read_mesh(&p).unwrap_err()).contains(".off"));
+    assert!(format!(
+        "{:#}",
+        anyhow::Error::from(meshio::read_mesh(&p).unwrap_err())
+    )
+    .contains(".off"));
     let p = dir.path().join("bad.ply");
     std::fs::write(&p, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n").unwrap();
-    let e = format!("{:#}", meshio::read_mesh(&p).unwrap_err());
+    let e = format!(
+        "{:#}",
+        anyhow::Error::from(meshio::read_mesh(&p).unwrap_err())
+    );
     assert!(
         e.contains("bad.ply") && e.contains("past the 1 vertices"),
         "{e}"

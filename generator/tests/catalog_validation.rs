@@ -17,7 +17,10 @@ fn catalog_with(edit: impl Fn(&str) -> String) -> tempfile::TempDir {
 }
 
 fn error_of(dir: &Path) -> String {
-    format!("{:#}", Catalog::load_dir(dir).unwrap_err())
+    format!(
+        "{:#}",
+        anyhow::Error::from(Catalog::load_dir(dir).unwrap_err())
+    )
 }
 
 #[test]

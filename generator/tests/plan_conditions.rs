@@ -133,7 +133,7 @@ fn a_part_buried_in_the_mesh_fails_with_object_part_and_reason() {
     let err = planner
         .plan(&key("top", 0, Condition::Default))
         .unwrap_err();
-    let msg = format!("{err:#}");
+    let msg = format!("{:#}", anyhow::Error::from(err));
     assert!(msg.contains("object test_carton, part top"), "{msg}");
     assert!(
         msg.contains("hits the object's mesh before the target box"),

@@ -41,14 +41,20 @@ fn a_bad_value_names_the_file_and_the_field() {
         "[plan.trajectory]\nduration_s = 3.0\nfps = 30.0\nno_grasp_tail = 0.5\n",
     )
     .unwrap();
-    let err = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    let err = format!(
+        "{:#}",
+        anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+    );
     assert!(
         err.contains("bad.toml") && err.contains("no_grasp_tail"),
         "{err}"
     );
     // A value out of range is refused on load, naming the file and field.
     std::fs::write(&path, "[plan.trajectory]\nno_grasp_tail_s = 5.0\n").unwrap();
-    let err = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    let err = format!(
+        "{:#}",
+        anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+    );
     assert!(
         err.contains("bad.toml") && err.contains("plan.trajectory.no_grasp_tail_s"),
         "{err}"

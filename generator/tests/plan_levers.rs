@@ -328,7 +328,10 @@ fn a_config_file_with_an_overlap_names_the_file_and_the_field() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.toml");
     std::fs::write(&path, "[appearance]\nfamilies = [\"noise\", \"gabor\"]\n").unwrap();
-    let err = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    let err = format!(
+        "{:#}",
+        anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+    );
     assert!(err.contains("bad.toml") && err.contains("gabor"), "{err}");
 }
 

@@ -33,7 +33,7 @@ fn start_equal_to_target_is_a_clear_error() {
     let err = carton_planner(&c, 1.0)
         .plan(&key("side", 0, Condition::Default))
         .unwrap_err();
-    let msg = format!("{err:#}");
+    let msg = format!("{:#}", anyhow::Error::from(err));
     assert!(msg.contains("test_carton") && msg.contains("side"), "{msg}");
     assert!(
         msg.contains("no valid default approach in 20 attempts"),

@@ -29,7 +29,10 @@ fn an_unknown_or_misplaced_device_is_refused_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("gpu.toml");
     std::fs::write(&path, "[render]\ndevice = \"vulkan\"\n").unwrap();
-    let e = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    let e = format!(
+        "{:#}",
+        anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+    );
     assert!(e.contains("gpu.toml"), "{e}");
     assert!(e.contains("device") && e.contains("vulkan"), "{e}");
     assert!(e.contains("optix") && e.contains("cpu"), "{e}");
@@ -38,7 +41,10 @@ fn an_unknown_or_misplaced_device_is_refused_naming_the_field() {
         "[render]\nengine = \"workbench\"\ndevice = \"cuda\"\n",
     )
     .unwrap();
-    let e = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+    let e = format!(
+        "{:#}",
+        anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+    );
     assert!(e.contains("[render] device = \"cuda\""), "{e}");
     for name in ["auto", "cpu", "cuda", "optix", "hip", "oneapi", "metal"] {
         std::fs::write(&path, format!("[render]\ndevice = \"{name}\"\n")).unwrap();

@@ -148,7 +148,10 @@ fn a_foreign_world_config_it_cannot_render_is_refused_naming_the_field() {
     let path = dir.path().join("foreign.toml");
     let refused = |text: &str, wanted: &[&str]| {
         std::fs::write(&path, text).unwrap();
-        let e = format!("{:#}", GeneratorConfig::load(&path).unwrap_err());
+        let e = format!(
+            "{:#}",
+            anyhow::Error::from(GeneratorConfig::load(&path).unwrap_err())
+        );
         assert!(e.contains("foreign.toml"), "{e}");
         for w in wanted {
             assert!(e.contains(w), "{w} not in: {e}");

@@ -1,10 +1,10 @@
 //! Reading a catalog folder: one TOML file per object, checked field by
 //! field, then geometrically (every box must touch its mesh).
 
+use super::error::{CatalogError, Result};
 use super::mesh::TriMesh;
 use super::model::*;
 use super::{meshio, validate};
-use anyhow::{bail, Context, Result};
 use grasp_schema::{GraspType, Preshape};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -75,17 +75,16 @@ impl Catalog {
     /// not the boxes against the meshes.
     pub fn load_dir_unchecked(dir: &Path) -> Result<Catalog> {
         let entries = std::fs::read_dir(dir)
-            .with_context(|| format!("reading the catalog folder {}", dir.display()))?;
+            .map_err(|e| CatalogError::io("reading the catalog folder", dir, e))?;
         let mut files: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|e| e == "toml"))
             .collect();
         files.sort();
         if files.is_empty() {
-            bail!(
-                "the catalog folder {} holds no *.toml object files",
-                dir.display()
-            );
+            return Err(CatalogError::Empty {
+                dir: dir.to_path_buf(),
+            });
         }
         let mut objects = Vec::new();
         let mut ids: HashSet<String> = HashSet::new();
@@ -98,11 +97,11 @@ impl Catalog {
                     .and_then(|o| o.source.as_ref())
                     .map(|p| p.display().to_string())
                     .unwrap_or_default();
-                bail!(
-                    "{}: field 'id': duplicate object id '{}' (also in {first})",
-                    file.display(),
-                    object.id
-                );
+                return Err(CatalogError::DuplicateId {
+                    path: file.clone(),
+                    id: object.id,
+                    first,
+                });
             }
             objects.push(object);
         }
@@ -148,6 +147,31 @@ impl Catalog {
     }
 }
 
+/// Fails unless both catalogs have the same objects with the same grasp
+/// types, counted per object.
+pub fn compare_grasp_types(a: &Catalog, b: &Catalog) -> Result<()> {
+    let summary = |c: &Catalog| -> Vec<(String, Vec<GraspType>)> {
+        c.objects
+            .iter()
+            .map(|o| {
+                let mut g: Vec<GraspType> = o.parts.iter().map(|p| p.grasp_type).collect();
+                g.sort();
+                (o.id.clone(), g)
+            })
+            .collect()
+    };
+    let (sa, sb) = (summary(a), summary(b));
+    if sa != sb {
+        return Err(CatalogError::GraspTypesDiffer {
+            a_dir: a.dir.clone(),
+            a: format!("{sa:?}"),
+            b_dir: b.dir.clone(),
+            b: format!("{sb:?}"),
+        });
+    }
+    Ok(())
+}
+
 /// Where the built-in catalog lives.
 pub fn builtin_dir() -> PathBuf {
     match std::env::var_os(OBJECTS_ENV_VAR) {
@@ -169,9 +193,11 @@ impl ObjectSpec {
                 rotation_wxyz,
                 translation,
             } => {
-                let m = meshio::read_mesh(path).with_context(|| self.context("mesh.file.path"))?;
-                let r = quaternion(*rotation_wxyz)
-                    .with_context(|| self.context("mesh.file.rotation_wxyz"))?;
+                let m =
+                    meshio::read_mesh(path).map_err(|e| e.at(self.context("mesh.file.path")))?;
+                let r = quaternion(*rotation_wxyz).map_err(|reason| {
+                    CatalogError::invalid(self.context("mesh.file.rotation_wxyz"), reason)
+                })?;
                 transform(m, &r.to_rotation_matrix().into_inner(), *translation)
             }
         };
@@ -233,10 +259,13 @@ pub(crate) fn transform(mut m: TriMesh, r: &Matrix3<f64>, t: [f64; 3]) -> TriMes
     m
 }
 
-fn quaternion(q: [f64; 4]) -> Result<UnitQuaternion<f64>> {
+/// The unit quaternion `q`, or why it is not one.
+fn quaternion(q: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
     let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     if !q.iter().all(|x| x.is_finite()) || (n - 1.0).abs() > 1e-3 {
-        bail!("{q:?} is not a unit quaternion (w, x, y, z); its norm is {n}");
+        return Err(format!(
+            "{q:?} is not a unit quaternion (w, x, y, z); its norm is {n}"
+        ));
     }
     Ok(UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
         q[0], q[1], q[2], q[3],
@@ -246,9 +275,12 @@ fn quaternion(q: [f64; 4]) -> Result<UnitQuaternion<f64>> {
 /// Parses one object file and checks its fields.
 pub fn read_object(file: &Path) -> Result<ObjectSpec> {
     let text = std::fs::read_to_string(file)
-        .with_context(|| format!("reading object file {}", file.display()))?;
-    let raw: ObjectFile = toml::from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}: malformed object file: {e}", file.display()))?;
+        .map_err(|e| CatalogError::io("reading object file", file, e))?;
+    let raw: ObjectFile =
+        toml::from_str(&text).map_err(|source| CatalogError::MalformedObject {
+            path: file.to_path_buf(),
+            source,
+        })?;
     object_from_file(raw, file)
 }
 
@@ -256,7 +288,10 @@ pub fn read_object(file: &Path) -> Result<ObjectSpec> {
 pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
     let at = |field: &str| format!("{}: object '{}': field '{field}'", file.display(), raw.id);
     if raw.id.trim().is_empty() {
-        bail!("{}: field 'id' is empty", file.display());
+        return Err(CatalogError::invalid(
+            file.display().to_string(),
+            "field 'id' is empty",
+        ));
     }
     check_positive(&raw.size, at, "size")?;
     let mut mesh = raw.mesh.clone();
@@ -264,11 +299,13 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
         MeshSource::Procedural(shape) => {
             for (name, value) in shape.parameters() {
                 if !(value.is_finite() && value > 0.0) {
-                    bail!(
-                        "{}: mesh parameter '{name}' of kind '{}' must be a positive number, got {value}",
+                    return Err(CatalogError::invalid(
                         at("mesh.procedural"),
-                        shape.kind()
-                    );
+                        format!(
+                            "mesh parameter '{name}' of kind '{}' must be a positive number, got {value}",
+                            shape.kind()
+                        ),
+                    ));
                 }
             }
         }
@@ -277,36 +314,52 @@ pub fn object_from_file(raw: ObjectFile, file: &Path) -> Result<ObjectSpec> {
                 *path = file.parent().unwrap_or(Path::new(".")).join(&*path);
             }
             if !path.is_file() {
-                bail!(
-                    "{}: mesh file {} does not exist",
+                return Err(CatalogError::invalid(
                     at("mesh.file.path"),
-                    path.display()
-                );
+                    format!("mesh file {} does not exist", path.display()),
+                ));
             }
         }
     }
     if raw.parts.is_empty() {
-        bail!("{}: an object needs at least one grasp part", at("parts"));
+        return Err(CatalogError::invalid(
+            at("parts"),
+            "an object needs at least one grasp part",
+        ));
     }
     if let Some(c) = &raw.color {
-        c.check()
-            .map_err(|e| anyhow::anyhow!("{}: object '{}': field {e}", file.display(), raw.id))?;
+        c.check().map_err(|e| {
+            CatalogError::invalid(
+                format!("{}: object '{}'", file.display(), raw.id),
+                format!("field {e}"),
+            )
+        })?;
     }
     let mut names = HashSet::new();
     let mut parts = Vec::new();
     for (i, p) in raw.parts.iter().enumerate() {
         let field = |f: &str| at(&format!("parts[{i}] ('{}').{f}", p.name));
         if p.name.trim().is_empty() {
-            bail!("{}: the part name is empty", field("name"));
+            return Err(CatalogError::invalid(
+                field("name"),
+                "the part name is empty",
+            ));
         }
         if !names.insert(p.name.clone()) {
-            bail!("{}: duplicate part name '{}'", field("name"), p.name);
+            return Err(CatalogError::invalid(
+                field("name"),
+                format!("duplicate part name '{}'", p.name),
+            ));
         }
         check_positive(&p.size, field, "size")?;
         if !p.center.iter().all(|x| x.is_finite()) {
-            bail!("{}: {:?} is not finite", field("center"), p.center);
+            return Err(CatalogError::invalid(
+                field("center"),
+                format!("{:?} is not finite", p.center),
+            ));
         }
-        let rotation = part_rotation(p).with_context(|| field("rotation"))?;
+        let rotation =
+            part_rotation(p).map_err(|reason| CatalogError::invalid(field("rotation"), reason))?;
         parts.push(GraspPart {
             name: p.name.clone(),
             grasp_type: p.grasp_type,
@@ -339,30 +392,31 @@ fn check_positive(v: &[f64; 3], at: impl Fn(&str) -> String, field: &str) -> Res
         .enumerate()
         .find(|(_, x)| !(x.is_finite() && **x > 0.0))
     {
-        bail!(
-            "{} = {x}: sizes must be positive finite numbers (metres)",
-            at(&format!("{field}[{k}]"))
-        );
+        return Err(CatalogError::invalid(
+            format!("{} = {x}", at(&format!("{field}[{k}]"))),
+            "sizes must be positive finite numbers (metres)",
+        ));
     }
     Ok(())
 }
 
-/// The part's rotation from either a quaternion or its X and Z axes.
-fn part_rotation(p: &PartFile) -> Result<UnitQuaternion<f64>> {
+/// The part's rotation from either a quaternion or its X and Z axes, or why
+/// the fields give none.
+fn part_rotation(p: &PartFile) -> Result<UnitQuaternion<f64>, String> {
     match (p.rotation_wxyz, p.x_axis, p.z_axis) {
         (Some(q), None, None) => quaternion(q),
         (None, Some(x), Some(z)) => {
             let (x, z) = (Vector3::from(x), Vector3::from(z));
             let (nx, nz) = (x.norm(), z.norm());
             if !(nx.is_finite() && nz.is_finite()) || nx < 1e-9 || nz < 1e-9 {
-                bail!("x_axis and z_axis must be finite non-zero vectors");
+                return Err("x_axis and z_axis must be finite non-zero vectors".into());
             }
             let (x, z) = (x / nx, z / nz);
             if x.dot(&z).abs() > 0.02 {
-                bail!(
+                return Err(format!(
                     "x_axis and z_axis must be perpendicular (their cosine is {:.3})",
                     x.dot(&z)
-                );
+                ));
             }
             // Orthonormalise, keeping Z (the approach axis) exact.
             let x = (x - z * x.dot(&z)).normalize();
@@ -372,7 +426,7 @@ fn part_rotation(p: &PartFile) -> Result<UnitQuaternion<f64>> {
                 &Rotation3::from_matrix_unchecked(m),
             ))
         }
-        (None, None, None) => bail!("give either rotation_wxyz or both x_axis and z_axis"),
-        _ => bail!("give either rotation_wxyz or both x_axis and z_axis, not a mix"),
+        (None, None, None) => Err("give either rotation_wxyz or both x_axis and z_axis".into()),
+        _ => Err("give either rotation_wxyz or both x_axis and z_axis, not a mix".into()),
     }
 }

@@ -1,8 +1,8 @@
 //! Reading triangle meshes (PLY ASCII or binary, OBJ, STL; metres) and
 //! writing binary PLY.
 
+use super::error::{CatalogError, MeshError, Result};
 use super::mesh::TriMesh;
-use anyhow::{bail, Context, Result};
 use std::io::{BufReader, Write};
 use std::path::Path;
 
@@ -17,16 +17,22 @@ pub fn read_mesh(path: &Path) -> Result<TriMesh> {
         "ply" => read_ply(path),
         "obj" => read_obj(path),
         "stl" => read_stl(path),
-        _ => bail!("unsupported mesh format '.{ext}' (expected .ply, .obj or .stl)"),
+        _ => Err(MeshError::UnsupportedFormat(ext)),
     }
-    .with_context(|| format!("reading mesh {}", path.display()))?;
-    check(&mesh).with_context(|| format!("mesh {}", path.display()))?;
+    .map_err(|source| CatalogError::ReadMesh {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    check(&mesh).map_err(|source| CatalogError::BadMesh {
+        path: path.to_path_buf(),
+        source,
+    })?;
     Ok(mesh)
 }
 
-fn check(mesh: &TriMesh) -> Result<()> {
+fn check(mesh: &TriMesh) -> Result<(), MeshError> {
     if mesh.faces.is_empty() {
-        bail!("the mesh has no triangles");
+        return Err(MeshError::NoTriangles);
     }
     let n = mesh.vertices.len();
     if let Some((i, f)) = mesh
@@ -35,10 +41,14 @@ fn check(mesh: &TriMesh) -> Result<()> {
         .enumerate()
         .find(|(_, f)| f.iter().any(|&v| v as usize >= n))
     {
-        bail!("face {i} {f:?} refers to a vertex past the {n} vertices");
+        return Err(MeshError::FacePastVertices {
+            face: i,
+            indices: *f,
+            vertices: n,
+        });
     }
     if mesh.vertices.iter().flatten().any(|x| !x.is_finite()) {
-        bail!("a vertex coordinate is not finite");
+        return Err(MeshError::NonFinite);
     }
     Ok(())
 }
@@ -49,14 +59,14 @@ fn fan(polygon: &[u32], faces: &mut Vec<[u32; 3]>) {
     }
 }
 
-fn read_ply(path: &Path) -> Result<TriMesh> {
+fn read_ply(path: &Path) -> Result<TriMesh, MeshError> {
     use ply_rs_bw::parser::Parser;
     use ply_rs_bw::ply::{DefaultElement, Property};
     let file = std::fs::File::open(path)?;
     let mut reader = BufReader::new(file);
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut reader)
-        .map_err(|e| anyhow::anyhow!("malformed PLY: {e}"))?;
+        .map_err(MeshError::Ply)?;
     let scalar = |p: &Property| -> Option<f64> {
         Some(match *p {
             Property::Float(v) => v as f64,
@@ -74,24 +84,25 @@ fn read_ply(path: &Path) -> Result<TriMesh> {
     let vertices = ply
         .payload
         .get("vertex")
-        .context("the PLY has no 'vertex' element")?;
+        .ok_or(MeshError::NoElement("vertex"))?;
     for (i, v) in vertices.iter().enumerate() {
-        let coord = |k: &str| -> Result<f64> {
-            v.get(k)
-                .and_then(scalar)
-                .with_context(|| format!("vertex {i} has no numeric '{k}'"))
+        let coord = |k: &'static str| -> Result<f64, MeshError> {
+            v.get(k).and_then(scalar).ok_or(MeshError::NoCoordinate {
+                vertex: i,
+                coordinate: k,
+            })
         };
         mesh.vertices.push([coord("x")?, coord("y")?, coord("z")?]);
     }
     let faces = ply
         .payload
         .get("face")
-        .context("the PLY has no 'face' element")?;
+        .ok_or(MeshError::NoElement("face"))?;
     for (i, f) in faces.iter().enumerate() {
         let list = f
             .get("vertex_indices")
             .or_else(|| f.get("vertex_index"))
-            .with_context(|| format!("face {i} has no 'vertex_indices'"))?;
+            .ok_or(MeshError::NoIndices(i))?;
         let idx: Vec<u32> = match list {
             Property::ListInt(v) => v.iter().map(|&x| x as u32).collect(),
             Property::ListUInt(v) => v.clone(),
@@ -99,21 +110,21 @@ fn read_ply(path: &Path) -> Result<TriMesh> {
             Property::ListUShort(v) => v.iter().map(|&x| x as u32).collect(),
             Property::ListChar(v) => v.iter().map(|&x| x as u32).collect(),
             Property::ListUChar(v) => v.iter().map(|&x| x as u32).collect(),
-            _ => bail!("face {i}: 'vertex_indices' is not an integer list"),
+            _ => return Err(MeshError::IndicesNotIntegers(i)),
         };
         fan(&idx, &mut mesh.faces);
     }
     Ok(mesh)
 }
 
-fn read_obj(path: &Path) -> Result<TriMesh> {
+fn read_obj(path: &Path) -> Result<TriMesh, MeshError> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _) = tobj::load_obj(path, &options).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (models, _) = tobj::load_obj(path, &options)?;
     let mut mesh = TriMesh::default();
     for model in models {
         let base = mesh.vertices.len() as u32;
@@ -132,9 +143,9 @@ fn read_obj(path: &Path) -> Result<TriMesh> {
     Ok(mesh)
 }
 
-fn read_stl(path: &Path) -> Result<TriMesh> {
+fn read_stl(path: &Path) -> Result<TriMesh, MeshError> {
     let mut file = std::fs::File::open(path)?;
-    let stl = stl_io::read_stl(&mut file).map_err(|e| anyhow::anyhow!("malformed STL: {e}"))?;
+    let stl = stl_io::read_stl(&mut file).map_err(MeshError::Stl)?;
     Ok(TriMesh {
         vertices: stl
             .vertices
@@ -159,7 +170,8 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<()> {
          property list uchar uint vertex_indices\nend_header\n",
         mesh.vertices.len(),
         mesh.faces.len()
-    )?;
+    )
+    .map_err(|e| CatalogError::io("writing", path, e))?;
     for v in &mesh.vertices {
         for x in v {
             bytes.extend(x.to_le_bytes());

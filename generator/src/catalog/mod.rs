@@ -1,7 +1,7 @@
 //! The object catalog: one file per object in `objects/`, each with a mesh
 //! (built-in procedural or external file) and its grasp parts.
 
-pub mod cli;
+pub mod error;
 pub mod load;
 pub mod mesh;
 pub mod meshio;
@@ -11,6 +11,13 @@ pub mod shapes;
 pub mod validate;
 pub mod ycb;
 
-pub use load::{builtin_dir, Catalog, ObjectFile, PartFile, OBJECTS_ENV_VAR};
+pub use error::{AnnotationError, CatalogError, MeshError, Result};
+pub use load::{builtin_dir, compare_grasp_types, Catalog, ObjectFile, PartFile, OBJECTS_ENV_VAR};
+
+/// The comparison `grasp-gen objects check --mesh-dir` makes, where it
+/// was before the command moved into the binary.
+pub mod cli {
+    pub use super::load::compare_grasp_types;
+}
 pub use mesh::TriMesh;
 pub use model::*;

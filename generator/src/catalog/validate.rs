@@ -9,10 +9,10 @@
 //!    opening, such as the mug's top grasp, which the hand reaches through
 //!    the opening).
 
+use super::error::{CatalogError, Result};
 use super::mesh::TriMesh;
 use super::model::{GraspPart, ObjectSpec};
 use crate::geometry::{convex_hull, MeshQuery};
-use anyhow::{bail, Context, Result};
 
 /// Grid samples per box edge.
 const GRID: usize = 11;
@@ -42,7 +42,10 @@ impl Touch {
 /// Checks every part of an object against its mesh.
 pub fn check_object_geometry(object: &ObjectSpec) -> Result<Vec<Touch>> {
     let mesh = object.mesh()?;
-    let query = MeshQuery::new(&mesh).with_context(|| object.context("mesh"))?;
+    let query = MeshQuery::new(&mesh).map_err(|source| CatalogError::GeometryAt {
+        what: object.context("mesh"),
+        source,
+    })?;
     let mut hull: Option<TriMesh> = None;
     let mut touches = Vec::new();
     for (i, part) in object.parts.iter().enumerate() {
@@ -50,14 +53,16 @@ pub fn check_object_geometry(object: &ObjectSpec) -> Result<Vec<Touch>> {
             Some(t) => touches.push(t),
             None => {
                 let (_, d) = query.closest_points(&[part.center])?[0];
-                bail!(
-                    "{}: the box does not touch the mesh (its centre {:?} is {:.1} mm from the surface, \
-                     no vertex or grid sample of it is on or inside the mesh, and it is not inside the \
-                     convex hull)",
+                return Err(CatalogError::invalid(
                     object.context(&format!("parts[{i}] ('{}')", part.name)),
-                    part.center,
-                    d * 1e3
-                );
+                    format!(
+                        "the box does not touch the mesh (its centre {:?} is {:.1} mm from the surface, \
+                         no vertex or grid sample of it is on or inside the mesh, and it is not inside the \
+                         convex hull)",
+                        part.center,
+                        d * 1e3
+                    ),
+                ));
             }
         }
     }
@@ -70,7 +75,7 @@ pub fn touch(
     mesh: &TriMesh,
     query: &MeshQuery,
     hull: &mut Option<TriMesh>,
-) -> Result<Option<Touch>> {
+) -> crate::geometry::Result<Option<Touch>> {
     if mesh.vertices.iter().any(|v| part.contains(*v, MARGIN)) {
         return Ok(Some(Touch::Vertex));
     }

@@ -7,11 +7,11 @@
 //! mesh in place (nothing is copied), except the chips can, whose convex
 //! hull of `points.xyz` is written next to the object files.
 
+use super::error::{AnnotationError, CatalogError, Result};
 use super::load::{ObjectFile, PartFile};
 use super::mesh::TriMesh;
 use super::meshio;
 use super::model::{MeshSource, Pronation, UpsideDown};
-use anyhow::{bail, Context, Result};
 use grasp_support::atomic::write_atomic;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;
@@ -40,17 +40,19 @@ pub const PAPER_OBJECTS: [&str; 15] = [
 pub fn import(ycb: &Path, out: &Path) -> Result<Vec<PathBuf>> {
     let ann_path = ycb.join("annotations.json");
     let text = std::fs::read_to_string(&ann_path)
-        .with_context(|| format!("reading {}", ann_path.display()))?;
-    let ann: Value = serde_json::from_str(&text)
-        .with_context(|| format!("{}: malformed JSON", ann_path.display()))?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        .map_err(|e| CatalogError::io("reading", &ann_path, e))?;
+    let ann: Value = serde_json::from_str(&text).map_err(|source| CatalogError::MalformedJson {
+        path: ann_path.clone(),
+        source,
+    })?;
+    std::fs::create_dir_all(out).map_err(|e| CatalogError::io("creating", out, e))?;
     let mut files = Vec::new();
     for id in PAPER_OBJECTS {
-        let obj = ann
-            .pointer(&format!("/objects/{id}"))
-            .with_context(|| format!("{}: no object '{id}'", ann_path.display()))?;
+        let obj = ann.pointer(&format!("/objects/{id}")).ok_or_else(|| {
+            CatalogError::invalid(ann_path.display().to_string(), format!("no object '{id}'"))
+        })?;
         let file = import_object(ycb, out, id, obj)
-            .with_context(|| format!("{}: object '{id}'", ann_path.display()))?;
+            .map_err(|e| e.at(format!("{}: object '{id}'", ann_path.display())))?;
         files.push(file);
     }
     Ok(files)
@@ -82,18 +84,25 @@ fn import_object(ycb: &Path, out: &Path, id: &str, obj: &Value) -> Result<PathBu
     let (lo, hi) = super::load::transform(mesh, &r, [0.0; 3]).bounds();
     let t = Vector3::new(-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]);
     let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
-    let grasps = obj["grasps"].as_array().context("no 'grasps' list")?;
+    let grasps = obj["grasps"]
+        .as_array()
+        .ok_or(AnnotationError::Missing("'grasps' list"))?;
     let boxes = obj["boxes_in_mesh_frame"]
         .as_array()
-        .context("no 'boxes_in_mesh_frame' list")?;
+        .ok_or(AnnotationError::Missing("'boxes_in_mesh_frame' list"))?;
     if grasps.len() != boxes.len() {
-        bail!("{} grasps but {} boxes", grasps.len(), boxes.len());
+        return Err(AnnotationError::Count {
+            grasps: grasps.len(),
+            boxes: boxes.len(),
+        }
+        .into());
     }
     let mut parts = Vec::new();
     let mut names = Vec::<String>::new();
     for (g, b) in grasps.iter().zip(boxes) {
-        let part = import_part(g, b, &r, &t, &names)
-            .with_context(|| format!("grasp '{}'", g["raw_name"].as_str().unwrap_or("?")))?;
+        let part = import_part(g, b, &r, &t, &names).map_err(|e| {
+            CatalogError::from(e).at(format!("grasp '{}'", g["raw_name"].as_str().unwrap_or("?")))
+        })?;
         names.push(part.name.clone());
         parts.push(part);
     }
@@ -119,7 +128,7 @@ fn import_object(ycb: &Path, out: &Path, id: &str, obj: &Value) -> Result<PathBu
     };
     let text = format!(
         "# Imported by `grasp-gen objects import-ycb` from the YCB annotations.\n{}",
-        toml::to_string(&file).context("serialising the object file")?
+        toml::to_string(&file).map_err(AnnotationError::Serialise)?
     );
     let path = out.join(format!("{id}.toml"));
     write_atomic(&path, text.as_bytes())?;
@@ -140,16 +149,16 @@ fn import_part(
     r: &Matrix3<f64>,
     t: &Vector3<f64>,
     taken: &[String],
-) -> Result<PartFile> {
+) -> Result<PartFile, AnnotationError> {
     let grasp_type = g["grasp_type"]
         .as_str()
-        .context("no grasp_type")?
+        .ok_or(AnnotationError::Missing("grasp_type"))?
         .parse()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+        .map_err(AnnotationError::GraspType)?;
     let c = r * Vector3::from(vec3(b, "/center_m")?) + t;
     let m = b["rotation_matrix"]
         .as_array()
-        .context("no rotation_matrix")?;
+        .ok_or(AnnotationError::Missing("rotation_matrix"))?;
     let rows: Vec<[f64; 3]> = m
         .iter()
         .map(|row| {
@@ -158,11 +167,11 @@ fn import_part(
                 .map(|a| a.iter().filter_map(Value::as_f64).collect())
                 .unwrap_or_default();
             v.try_into()
-                .map_err(|_| anyhow::anyhow!("rotation_matrix rows need 3 numbers"))
+                .map_err(|_| AnnotationError::Shape("rotation_matrix rows need 3 numbers"))
         })
-        .collect::<Result<_>>()?;
+        .collect::<Result<_, _>>()?;
     if rows.len() != 3 {
-        bail!("rotation_matrix needs 3 rows");
+        return Err(AnnotationError::Shape("rotation_matrix needs 3 rows"));
     }
     let rb = r * Matrix3::from_fn(|i, j| rows[i][j]);
     let size = vec3(b, "/size_m")?;
@@ -209,10 +218,10 @@ fn import_part(
 
 /// The rotation that takes `up` to +Z: the shortest one, or a half turn
 /// about X when `up` points down.
-pub fn standing_rotation(up: [f64; 3]) -> Result<Matrix3<f64>> {
+pub fn standing_rotation(up: [f64; 3]) -> Result<Matrix3<f64>, AnnotationError> {
     let u = Vector3::from(up);
     if !(u.norm().is_finite() && u.norm() > 1e-9) {
-        bail!("up_axis_in_mesh_frame {up:?} is not a direction");
+        return Err(AnnotationError::NotADirection(up));
     }
     let u = u.normalize();
     let flip = if u.z < -0.999 {
@@ -227,19 +236,22 @@ pub fn standing_rotation(up: [f64; 3]) -> Result<Matrix3<f64>> {
     Ok(r * flip)
 }
 
-fn vec3(v: &Value, pointer: &str) -> Result<[f64; 3]> {
-    let a = v
-        .pointer(pointer)
-        .and_then(Value::as_array)
-        .with_context(|| format!("no '{}'", pointer.trim_start_matches('/')))?;
+fn vec3(v: &Value, pointer: &str) -> Result<[f64; 3], AnnotationError> {
+    let name = pointer.trim_start_matches('/').to_string();
+    let Some(a) = v.pointer(pointer).and_then(Value::as_array) else {
+        return Err(AnnotationError::NoVector(name));
+    };
     let x: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
-    x.try_into()
-        .map_err(|_| anyhow::anyhow!("'{}' needs 3 numbers", pointer.trim_start_matches('/')))
+    x.try_into().map_err(|_| AnnotationError::NotThree(name))
 }
 
 fn read_xyz(path: &Path) -> Result<Vec<[f64; 3]>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text = std::fs::read_to_string(path).map_err(|e| CatalogError::io("reading", path, e))?;
+    let not_three = |i: usize, source| CatalogError::NotThreeNumbers {
+        path: path.to_path_buf(),
+        line: i + 1,
+        source,
+    };
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
@@ -249,9 +261,8 @@ fn read_xyz(path: &Path) -> Result<Vec<[f64; 3]>> {
                 .take(3)
                 .map(str::parse)
                 .collect::<Result<_, _>>()
-                .with_context(|| format!("{}:{}: not three numbers", path.display(), i + 1))?;
-            v.try_into()
-                .map_err(|_| anyhow::anyhow!("{}:{}: not three numbers", path.display(), i + 1))
+                .map_err(|e| not_three(i, Some(e)))?;
+            v.try_into().map_err(|_| not_three(i, None))
         })
         .collect()
 }

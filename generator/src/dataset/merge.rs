@@ -2,10 +2,10 @@
 //! numbers come from the full key order, so shards never collide; a folder
 //! present in two inputs must hold the same record.
 
+use super::error::{DatasetError, Result};
 use super::lock;
 use super::shard::Shard;
 use super::writer::{read_record, sequence_dirs, visit_sequences, DatasetDir, WORK_DIR};
-use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{head_sequence_dir, SEQUENCE_FILE};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -39,11 +39,11 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
             if existing.contains(rel) {
                 let present = read_record(&out.join(rel).join(SEQUENCE_FILE))?;
                 if present.plan != record.plan {
-                    bail!(
-                        "{rel} differs between {} and {}: were the shards made with the same config?",
-                        shard.display(),
-                        out.display()
-                    );
+                    return Err(DatasetError::Differs {
+                        rel: rel.to_string(),
+                        shard: shard.clone(),
+                        out: out.to_path_buf(),
+                    });
                 }
                 summary.already_present += 1;
                 return Ok(());
@@ -54,8 +54,10 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
             }
             // The head folder first: the wrist folder marks the sequence done.
             if record.has_head_camera() {
-                let head = head_sequence_dir(rel)
-                    .with_context(|| format!("{rel}: head camera poses outside Wrist_d435"))?;
+                let head = head_sequence_dir(rel).ok_or_else(|| DatasetError::NoHeadFolder {
+                    rel: rel.to_string(),
+                    reason: "head camera poses outside Wrist_d435".into(),
+                })?;
                 copy_sequence(&dataset, &shard.join(&head), &out.join(&head))?;
             }
             copy_sequence(&dataset, &shard.join(rel), &out.join(rel))?;
@@ -63,17 +65,15 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
             summary.copied += 1;
             Ok(())
         })
-        .with_context(|| format!("cannot read shard {}", shard.display()))?;
+        .map_err(|e| DatasetError::Shard {
+            shard: shard.clone(),
+            source: Box::new(e),
+        })?;
     }
     dataset.clean_partials(Shard::ALL)?;
     dataset.rebuild_manifest()?;
     if !damaged.is_empty() {
-        bail!(
-            "{} damaged sequence(s) left out of the merge (re-render their shard with \
-             --resume, then merge again): {}",
-            damaged.len(),
-            damaged.join("; ")
-        );
+        return Err(DatasetError::Damaged { reasons: damaged });
     }
     Ok(summary)
 }
@@ -82,22 +82,25 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<MergeSummary> {
 /// folder and a rename, so an interrupted merge leaves no half sequence.
 fn copy_sequence(dataset: &DatasetDir, from: &Path, to: &Path) -> Result<()> {
     let tmp = dataset.partial_dir(0, 0)?;
-    for entry in
-        std::fs::read_dir(from).with_context(|| format!("cannot read {}", from.display()))?
-    {
-        let src = entry?.path();
+    let cannot_read = |e| DatasetError::io("cannot read", from, e);
+    for entry in std::fs::read_dir(from).map_err(cannot_read)? {
+        let src = entry.map_err(cannot_read)?.path();
         let dst = tmp.join(src.file_name().unwrap_or_default());
         if std::fs::hard_link(&src, &dst).is_err() {
-            std::fs::copy(&src, &dst).with_context(|| format!("cannot copy {}", src.display()))?;
+            std::fs::copy(&src, &dst).map_err(|e| DatasetError::io("cannot copy", &src, e))?;
         }
     }
     if let Some(parent) = to.parent() {
-        std::fs::create_dir_all(parent)?;
+        std::fs::create_dir_all(parent)
+            .map_err(|e| DatasetError::io("cannot create", parent, e))?;
     }
     if to.exists() {
         // A head folder left by an interrupted merge or run.
-        std::fs::remove_dir_all(to).with_context(|| format!("cannot replace {}", to.display()))?;
+        std::fs::remove_dir_all(to).map_err(|e| DatasetError::io("cannot replace", to, e))?;
     }
-    std::fs::rename(&tmp, to)
-        .with_context(|| format!("cannot move {} to {}", tmp.display(), to.display()))
+    std::fs::rename(&tmp, to).map_err(|source| DatasetError::Move {
+        from: tmp.clone(),
+        to: to.to_path_buf(),
+        source,
+    })
 }

@@ -2,7 +2,7 @@
 //! finished dataset, and joining shards. The layout itself is
 //! [`grasp_schema::dataset`].
 
-pub mod cli;
+pub mod error;
 pub mod integrity;
 pub mod lock;
 pub mod merge;
@@ -11,5 +11,7 @@ pub mod stats;
 pub mod storage;
 pub mod verify;
 pub mod writer;
+
+pub use error::{DatasetError, Result};
 
 pub use writer::{assign_folders, Assigned, DatasetDir};

@@ -1,7 +1,7 @@
 //! `--shard K/N`: a deterministic split of the work with no coordination, for
 //! Slurm array jobs and Kubernetes indexed jobs.
 
-use anyhow::{bail, Context, Result};
+use super::error::DatasetError;
 use std::fmt;
 use std::str::FromStr;
 
@@ -38,21 +38,26 @@ fn gcd(a: usize, b: usize) -> usize {
 }
 
 impl FromStr for Shard {
-    type Err = anyhow::Error;
-    fn from_str(s: &str) -> Result<Self> {
+    type Err = DatasetError;
+    fn from_str(s: &str) -> Result<Self, DatasetError> {
+        let bad = |reason, source| DatasetError::ShardSpec {
+            spec: s.to_string(),
+            reason,
+            source,
+        };
         let (k, n) = s
             .split_once('/')
-            .with_context(|| format!("--shard '{s}': expected K/N, e.g. 0/4"))?;
+            .ok_or_else(|| bad("expected K/N, e.g. 0/4", None))?;
         let index: usize = k
             .trim()
             .parse()
-            .with_context(|| format!("--shard '{s}': K is not a number"))?;
+            .map_err(|e| bad("K is not a number", Some(e)))?;
         let count: usize = n
             .trim()
             .parse()
-            .with_context(|| format!("--shard '{s}': N is not a number"))?;
+            .map_err(|e| bad("N is not a number", Some(e)))?;
         if count == 0 || index >= count {
-            bail!("--shard '{s}': need 0 <= K < N");
+            return Err(bad("need 0 <= K < N", None));
         }
         Ok(Shard { index, count })
     }

@@ -2,8 +2,8 @@
 //! per frame (worker wall-clock seconds from each record's `render.cost`),
 //! per camera, so users can weigh render quality against accuracy.
 
+use super::error::{DatasetError, Result};
 use super::writer::visit_sequences;
-use anyhow::{Context, Result};
 use grasp_schema::dataset::{SequenceRecord, STUDIO_WORLD};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -161,7 +161,10 @@ pub fn stats(root: &Path) -> Result<DatasetStats> {
         s.add(&record?);
         Ok(())
     })
-    .with_context(|| format!("cannot scan dataset {}", root.display()))?;
+    .map_err(|e| DatasetError::Scan {
+        root: root.to_path_buf(),
+        source: Box::new(e),
+    })?;
     Ok(s)
 }
 

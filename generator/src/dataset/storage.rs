@@ -43,7 +43,7 @@ pub fn probe(dir: &Path) -> Option<StorageFull> {
 }
 
 /// Whether an error, anywhere in its chain, is a full file system.
-pub fn is_storage_full(e: &anyhow::Error) -> bool {
-    e.chain()
+pub fn is_storage_full(e: &(dyn std::error::Error + 'static)) -> bool {
+    std::iter::successors(Some(e), |c| c.source())
         .any(|c| c.is::<StorageFull>() || c.downcast_ref::<std::io::Error>().is_some_and(is_full))
 }

@@ -7,6 +7,7 @@
 //! (of the shard) is there and each record against a fresh re-plan and its
 //! folder.
 
+use super::error::{chain, DatasetError, Result};
 use super::integrity::check_image;
 use super::shard::Shard;
 use super::writer::{
@@ -15,7 +16,6 @@ use super::writer::{
 use super::{assign_folders, Assigned};
 use crate::plan::PlanSource;
 use crate::render::RenderConfig;
-use anyhow::{Context, Result};
 use grasp_schema::dataset::{
     head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,
 };
@@ -134,12 +134,15 @@ fn verify_against(
     decode: bool,
     shard: Shard,
 ) -> Result<VerifyReport> {
-    let scan_error = || format!("cannot scan dataset {}", root.display());
+    let scan_error = |e| DatasetError::Scan {
+        root: root.to_path_buf(),
+        source: Box::new(e),
+    };
     // Folder lists only: records are read and checked one at a time, so a
     // dataset of any size verifies in little memory.
-    let dirs = sequence_dirs(root, false).with_context(scan_error)?;
+    let dirs = sequence_dirs(root, false).map_err(scan_error)?;
     let head_dirs: BTreeSet<String> = sequence_dirs(root, true)
-        .with_context(scan_error)?
+        .map_err(scan_error)?
         .into_iter()
         .collect();
     let mut report = VerifyReport::default();
@@ -161,7 +164,7 @@ fn verify_against(
         let record = match record {
             Ok(r) => r,
             Err(e) => {
-                report.problems.push(format!("{rel}: {e:#}"));
+                report.problems.push(format!("{rel}: {}", chain(&e)));
                 return Ok(());
             }
         };
@@ -205,7 +208,7 @@ fn verify_against(
         }
         Ok(())
     })
-    .with_context(scan_error)?;
+    .map_err(scan_error)?;
     if let Some(listed) = listed {
         for rel in listed.keys().filter(|r| !present.contains(*r)) {
             report.problems.push(format!(
@@ -324,7 +327,7 @@ fn check_head_folder(
     let head = match read_record(&root.join(&head_rel).join(SEQUENCE_FILE)) {
         Ok(h) => h,
         Err(e) => {
-            report.problems.push(format!("{head_rel}: {e:#}"));
+            report.problems.push(format!("{head_rel}: {}", chain(&e)));
             return Some(head_rel);
         }
     };
@@ -455,10 +458,17 @@ fn check_against_plan(
     }
     // Compare after the same JSON round trip the record went through (float
     // parsing may differ from the in-memory value in the last bit).
-    let fresh = source.plan(&record.plan.key).and_then(|p| {
-        let text = serde_json::to_string(&p)?;
-        Ok(serde_json::from_str::<grasp_schema::SequencePlan>(&text)?)
-    });
+    let fresh = source
+        .plan(&record.plan.key)
+        .map_err(DatasetError::from)
+        .and_then(|p| {
+            let json = |source| DatasetError::Serialise {
+                what: "the JSON round trip of a plan",
+                source,
+            };
+            let text = serde_json::to_string(&p).map_err(json)?;
+            serde_json::from_str::<grasp_schema::SequencePlan>(&text).map_err(json)
+        });
     match fresh {
         Ok(fresh) if fresh == record.plan => {}
         Ok(_) => report.problems.push(format!(
@@ -466,6 +476,6 @@ fn check_against_plan(
         )),
         Err(e) => report
             .problems
-            .push(format!("{rel}: cannot re-plan {id}: {e:#}")),
+            .push(format!("{rel}: cannot re-plan {id}: {}", chain(&e))),
     }
 }

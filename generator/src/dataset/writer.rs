@@ -7,9 +7,9 @@
 //! temporary folder and moved into `Head_d435` first; the wrist folder moves
 //! last, so a sequence is finished only when both cameras are complete.
 
+use super::error::{chain, DatasetError, Result};
 use super::shard::Shard;
 use crate::plan::PlannedKey;
-use anyhow::{bail, Context, Result};
 use grasp_schema::dataset::{
     camera_dir, frame_file_name, head_sequence_dir, padding_for, part_file_name, sequence_dir_name,
     ManifestEntry, SequenceRecord, HEAD_CAMERA_FOLDER, MANIFEST_FILE, SEQUENCE_FILE,
@@ -92,7 +92,7 @@ pub struct DatasetDir {
 impl DatasetDir {
     pub fn create(root: &Path) -> Result<Self> {
         std::fs::create_dir_all(root.join(WORK_DIR).join("partial"))
-            .with_context(|| format!("cannot create dataset folder {}", root.display()))?;
+            .map_err(|e| DatasetError::io("cannot create dataset folder", root, e))?;
         Ok(DatasetDir {
             root: root.to_path_buf(),
         })
@@ -132,11 +132,9 @@ impl DatasetDir {
             .join("partial")
             .join(format!("{position:08}-{attempt}-{}", std::process::id()));
         if dir.exists() {
-            std::fs::remove_dir_all(&dir)
-                .with_context(|| format!("cannot clear {}", dir.display()))?;
+            std::fs::remove_dir_all(&dir).map_err(|e| DatasetError::io("cannot clear", &dir, e))?;
         }
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create {}", dir.display()))?;
+        std::fs::create_dir_all(&dir).map_err(|e| DatasetError::io("cannot create", &dir, e))?;
         Ok(dir)
     }
 
@@ -145,12 +143,10 @@ impl DatasetDir {
     /// keep theirs: a partial folder's name starts with its position.
     pub fn clean_partials(&self, shard: Shard) -> Result<()> {
         let dir = self.work_dir().join("partial");
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create {}", dir.display()))?;
-        for entry in
-            std::fs::read_dir(&dir).with_context(|| format!("cannot read {}", dir.display()))?
-        {
-            let path = entry?.path();
+        std::fs::create_dir_all(&dir).map_err(|e| DatasetError::io("cannot create", &dir, e))?;
+        let cannot_read = |e| DatasetError::io("cannot read", &dir, e);
+        for entry in std::fs::read_dir(&dir).map_err(cannot_read)? {
+            let path = entry.map_err(cannot_read)?.path();
             let name = path.file_name().unwrap_or_default().to_string_lossy();
             let position = name.split('-').next().and_then(|p| p.parse::<usize>().ok());
             if shard == Shard::ALL || position.is_some_and(|p| shard.contains(p)) {
@@ -159,7 +155,7 @@ impl DatasetDir {
                 } else {
                     std::fs::remove_file(&path)
                 };
-                removed.with_context(|| format!("cannot clear {}", path.display()))?;
+                removed.map_err(|e| DatasetError::io("cannot clear", &path, e))?;
             }
         }
         Ok(())
@@ -170,7 +166,7 @@ impl DatasetDir {
     /// when not. `--resume` re-renders such sequences.
     pub fn check_finished(&self, rel_dir: &str) -> std::result::Result<(), String> {
         let record_path = self.root.join(rel_dir).join(SEQUENCE_FILE);
-        let record = read_record(&record_path).map_err(|e| format!("{e:#}"))?;
+        let record = read_record(&record_path).map_err(|e| chain(&e))?;
         let mut dirs = vec![rel_dir.to_string()];
         if record.has_head_camera() {
             let head = head_sequence_dir(rel_dir)
@@ -196,11 +192,16 @@ impl DatasetDir {
     /// With a head camera, its folder [`Self::partial_head_dir`] is
     /// completed and moved first.
     pub fn finish(&self, partial: &Path, rel_dir: &str, record: &SequenceRecord) -> Result<()> {
-        let json = serde_json::to_vec_pretty(record)?;
+        let json = serde_json::to_vec_pretty(record).map_err(|source| DatasetError::Serialise {
+            what: "a sequence record",
+            source,
+        })?;
         if record.has_head_camera() {
-            let head_rel = head_sequence_dir(rel_dir).with_context(|| {
-                format!("{rel_dir}: no {WRIST_CAMERA_FOLDER} component for the head camera")
-            })?;
+            let head_rel =
+                head_sequence_dir(rel_dir).ok_or_else(|| DatasetError::NoHeadFolder {
+                    rel: rel_dir.to_string(),
+                    reason: format!("no {WRIST_CAMERA_FOLDER} component for the head camera"),
+                })?;
             let head_partial = Self::partial_head_dir(partial);
             check_frames(&head_partial, record)?;
             self.move_into_place(&head_partial, &head_rel, &json)?;
@@ -213,19 +214,22 @@ impl DatasetDir {
     /// Writes `sequence.json` into a completed folder and renames it into place.
     fn move_into_place(&self, partial: &Path, rel_dir: &str, json: &[u8]) -> Result<()> {
         std::fs::write(partial.join(SEQUENCE_FILE), json)
-            .with_context(|| format!("cannot write {}", partial.display()))?;
+            .map_err(|e| DatasetError::io("cannot write", partial, e))?;
         let target = self.root.join(rel_dir);
         if let Some(parent) = target.parent() {
             std::fs::create_dir_all(parent)
-                .with_context(|| format!("cannot create {}", parent.display()))?;
+                .map_err(|e| DatasetError::io("cannot create", parent, e))?;
         }
         if target.exists() {
             // Unfinished leftovers only: finished sequences are skipped.
             std::fs::remove_dir_all(&target)
-                .with_context(|| format!("cannot replace {}", target.display()))?;
+                .map_err(|e| DatasetError::io("cannot replace", &target, e))?;
         }
-        std::fs::rename(partial, &target)
-            .with_context(|| format!("cannot move {} to {}", partial.display(), target.display()))
+        std::fs::rename(partial, &target).map_err(|source| DatasetError::Move {
+            from: partial.to_path_buf(),
+            to: target.clone(),
+            source,
+        })
     }
 
     fn append_manifest(&self, entry: &ManifestEntry) -> Result<()> {
@@ -234,11 +238,14 @@ impl DatasetDir {
             .create(true)
             .append(true)
             .open(&path)
-            .with_context(|| format!("cannot open {}", path.display()))?;
-        let mut line = serde_json::to_string(entry)?;
+            .map_err(|e| DatasetError::io("cannot open", &path, e))?;
+        let mut line = serde_json::to_string(entry).map_err(|source| DatasetError::Serialise {
+            what: "a manifest entry",
+            source,
+        })?;
         line.push('\n');
         f.write_all(line.as_bytes())
-            .with_context(|| format!("cannot append to {}", path.display()))
+            .map_err(|e| DatasetError::io("cannot append to", &path, e))
     }
 
     /// Rewrites `manifest.jsonl` from the finished sequence folders, sorted
@@ -247,7 +254,12 @@ impl DatasetDir {
         let mut text = String::new();
         let mut count = 0;
         visit_sequences(&self.root, false, |rel, record| {
-            text.push_str(&serde_json::to_string(&manifest_entry(rel, &record?))?);
+            let entry = manifest_entry(rel, &record?);
+            let line = serde_json::to_string(&entry).map_err(|source| DatasetError::Serialise {
+                what: "a manifest entry",
+                source,
+            })?;
+            text.push_str(&line);
             text.push('\n');
             count += 1;
             Ok(())
@@ -264,15 +276,12 @@ fn check_frames(dir: &Path, record: &SequenceRecord) -> Result<()> {
     for name in output_files(record) {
         let f = dir.join(&name);
         if let Err(damage) = super::integrity::check_image(&f, false) {
-            let what = format!(
-                "sequence {}: frame {}: {damage}",
-                record.plan.key.id(),
-                f.display()
-            );
-            if let Some(full) = super::storage::probe(dir) {
-                return Err(anyhow::Error::new(full).context(what));
-            }
-            bail!(what);
+            return Err(DatasetError::BadFrame {
+                sequence: record.plan.key.id(),
+                path: f,
+                damage: damage.to_string(),
+                full: super::storage::probe(dir),
+            });
         }
     }
     Ok(())
@@ -363,10 +372,10 @@ pub fn sequence_dirs(root: &Path, head: bool) -> Result<Vec<String>> {
     let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
-        let entries =
-            std::fs::read_dir(&dir).with_context(|| format!("cannot read {}", dir.display()))?;
+        let cannot_read = |e| DatasetError::io("cannot read", &dir, e);
+        let entries = std::fs::read_dir(&dir).map_err(cannot_read)?;
         for entry in entries {
-            let path = entry?.path();
+            let path = entry.map_err(cannot_read)?.path();
             let name = path.file_name().unwrap_or_default().to_string_lossy();
             if name.starts_with('.') {
                 continue;
@@ -398,9 +407,11 @@ fn in_head_folder(record: &Path) -> bool {
 
 pub fn read_record(path: &Path) -> Result<SequenceRecord> {
     let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("invalid sequence record {}", path.display()))
+        std::fs::read_to_string(path).map_err(|e| DatasetError::io("cannot read", path, e))?;
+    serde_json::from_str(&text).map_err(|source| DatasetError::Record {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Checks shared by the look's config sections: value ranges and the names
 //! of the bundled world HDRIs.
 
-use anyhow::{bail, Result};
+use crate::config::{ConfigError, Result};
 
 /// The world HDRIs shipped in the bpy wheel
 /// (`bpy/5.0/datafiles/studiolights/world/*.exr`, CC0, Poly Haven).
@@ -19,7 +19,10 @@ pub const BUNDLED_HDRIS: [&str; 8] = [
 /// A `[lo, hi]` range check naming the field.
 pub(crate) fn check_range(field: &str, [lo, hi]: [f64; 2], min: f64, max: f64) -> Result<()> {
     if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= min && hi <= max) {
-        bail!("{field}: need a range [min, max] within [{min}, {max}], got [{lo}, {hi}]");
+        return Err(ConfigError::invalid(
+            field,
+            format!("need a range [min, max] within [{min}, {max}], got [{lo}, {hi}]"),
+        ));
     }
     Ok(())
 }
@@ -27,14 +30,17 @@ pub(crate) fn check_range(field: &str, [lo, hi]: [f64; 2], min: f64, max: f64) -
 /// Checks a list of bundled HDRI names.
 pub(crate) fn check_hdris(field: &str, hdris: &[String]) -> Result<()> {
     if hdris.is_empty() {
-        bail!("{field}: the list is empty");
+        return Err(ConfigError::invalid(field, "the list is empty"));
     }
     for h in hdris {
         if !BUNDLED_HDRIS.contains(&h.as_str()) {
-            bail!(
-                "{field}: '{h}' is not one of the bpy wheel's studio-light worlds ({})",
-                BUNDLED_HDRIS.join(", ")
-            );
+            return Err(ConfigError::invalid(
+                field,
+                format!(
+                    "'{h}' is not one of the bpy wheel's studio-light worlds ({})",
+                    BUNDLED_HDRIS.join(", ")
+                ),
+            ));
         }
     }
     Ok(())

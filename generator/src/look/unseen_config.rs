@@ -5,7 +5,7 @@
 //! [`crate::randomize`].
 
 use super::{check_hdris, check_range};
-use anyhow::{bail, Result};
+use crate::config::{ConfigError, Result};
 use serde::{Deserialize, Serialize};
 
 /// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`):
@@ -91,14 +91,20 @@ impl UnseenLookConfig {
     pub fn validate(&self) -> Result<()> {
         let at = "[appearance.unseen_look]";
         if self.families.is_empty() {
-            bail!("{at} families: the list is empty");
+            return Err(ConfigError::invalid(
+                format!("{at} families"),
+                "the list is empty",
+            ));
         }
         for f in &self.families {
             if !UNSEEN_FAMILIES.contains(&f.as_str()) {
-                bail!(
-                    "{at} families: '{f}' is not an unseen_look family (expected some of {})",
-                    UNSEEN_FAMILIES.join(", ")
-                );
+                return Err(ConfigError::invalid(
+                    format!("{at} families"),
+                    format!(
+                        "'{f}' is not an unseen_look family (expected some of {})",
+                        UNSEEN_FAMILIES.join(", ")
+                    ),
+                ));
             }
         }
         check_range(&format!("{at} sun_strength"), self.sun_strength, 0.0, 100.0)?;
@@ -109,10 +115,13 @@ impl UnseenLookConfig {
             90.0,
         )?;
         if self.ring_lights[0] > self.ring_lights[1] || self.ring_lights[1] > MAX_RING_LIGHTS {
-            bail!(
-                "{at} ring_lights: need min <= max <= {MAX_RING_LIGHTS}, got {:?}",
-                self.ring_lights
-            );
+            return Err(ConfigError::invalid(
+                format!("{at} ring_lights"),
+                format!(
+                    "need min <= max <= {MAX_RING_LIGHTS}, got {:?}",
+                    self.ring_lights
+                ),
+            ));
         }
         check_range(
             &format!("{at} ring_radius_m"),
@@ -137,14 +146,20 @@ impl UnseenLookConfig {
         )?;
         check_range(&format!("{at} fov_scale"), self.fov_scale, 0.05, 20.0)?;
         if !VIEW_TRANSFORMS.contains(&self.view_transform.as_str()) {
-            bail!(
-                "{at} view_transform: unknown '{}' (expected one of {})",
-                self.view_transform,
-                VIEW_TRANSFORMS.join(", ")
-            );
+            return Err(ConfigError::invalid(
+                format!("{at} view_transform"),
+                format!(
+                    "unknown '{}' (expected one of {})",
+                    self.view_transform,
+                    VIEW_TRANSFORMS.join(", ")
+                ),
+            ));
         }
         if self.looks.is_empty() {
-            bail!("{at} looks: the list is empty (\"None\" is Blender's plain look)");
+            return Err(ConfigError::invalid(
+                format!("{at} looks"),
+                "the list is empty (\"None\" is Blender's plain look)",
+            ));
         }
         check_range(&format!("{at} exposure"), self.exposure, -10.0, 10.0)?;
         check_range(&format!("{at} noise_sigma"), self.noise_sigma, 0.0, 0.5)?;

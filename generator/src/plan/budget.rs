@@ -5,8 +5,8 @@
 //! Blender worker fail. Such a config is refused at once, naming the field,
 //! the size it asks for and the limit.
 
+use super::error::{PlanError, Result};
 use super::{DatasetConfig, PlanConfig};
-use anyhow::{bail, Result};
 use grasp_schema::Condition;
 
 /// Frames of one sequence (per camera). A plan costs about 1.2 KB per
@@ -30,49 +30,59 @@ pub const MAX_SEQUENCE_PIXELS: u64 = 1 << 30;
 pub fn check_size(d: &DatasetConfig, plan: &PlanConfig, pairs: usize) -> Result<()> {
     let sequences = pairs as u128 * d.conditions.len() as u128 * u128::from(d.sequences_per_pair);
     if sequences > u128::from(MAX_SEQUENCES) {
-        bail!(
-            "dataset.sequences_per_pair = {}: {pairs} pairs x {} conditions x {} = {sequences} \
-             sequences; the limit is {MAX_SEQUENCES} sequences per dataset (split a bigger \
-             dataset into several configs with different dataset.seed)",
-            d.sequences_per_pair,
-            d.conditions.len(),
-            d.sequences_per_pair
-        );
+        return Err(PlanError::TooBig {
+            field: format!("dataset.sequences_per_pair = {}", d.sequences_per_pair),
+            reason: format!(
+                "{pairs} pairs x {} conditions x {} = {sequences} \
+                 sequences; the limit is {MAX_SEQUENCES} sequences per dataset (split a bigger \
+                 dataset into several configs with different dataset.seed)",
+                d.conditions.len(),
+                d.sequences_per_pair
+            ),
+        });
     }
     let [w, h] = plan.camera.resolution;
     let pixels = u64::from(w) * u64::from(h);
     if pixels > MAX_FRAME_PIXELS {
-        bail!(
-            "plan.camera.resolution = [{w}, {h}]: {pixels} pixels per frame; the limit is \
-             {MAX_FRAME_PIXELS} (4096 x 4096): Blender's buffers for one frame would need \
-             about {:.0} GB per worker",
-            pixels as f64 * 100.0 / 1e9
-        );
+        return Err(PlanError::TooBig {
+            field: format!("plan.camera.resolution = [{w}, {h}]"),
+            reason: format!(
+                "{pixels} pixels per frame; the limit is \
+                 {MAX_FRAME_PIXELS} (4096 x 4096): Blender's buffers for one frame would need \
+                 about {:.0} GB per worker",
+                pixels as f64 * 100.0 / 1e9
+            ),
+        });
     }
     let cameras: u64 = if plan.head_camera.enabled { 2 } else { 1 };
     for &c in &d.conditions {
         let (field, seconds) = duration_field(plan, c);
         let frames = (seconds * plan.trajectory.fps).round();
         if frames.is_nan() || frames > MAX_FRAMES_PER_SEQUENCE as f64 {
-            bail!(
-                "{field} x plan.trajectory.fps = {seconds} s x {} fps = {frames} frames per {} \
-                 sequence; the limit is {MAX_FRAMES_PER_SEQUENCE} frames per sequence",
-                plan.trajectory.fps,
-                c.name()
-            );
+            return Err(PlanError::TooManyFrames {
+                field,
+                seconds,
+                fps: plan.trajectory.fps,
+                frames,
+                condition: c,
+                limit: MAX_FRAMES_PER_SEQUENCE,
+            });
         }
         let total = frames as u64 * pixels * cameras;
         if total > MAX_SEQUENCE_PIXELS {
-            bail!(
-                "plan.camera.resolution x frames: a {} sequence has {frames} frames of \
-                 {w}x{h}{} = {:.1} Gpixels ({:.1} GiB as RGB8); the limit is {:.1} Gpixels per \
-                 sequence (lower plan.camera.resolution, {field} or plan.trajectory.fps)",
-                c.name(),
-                if cameras == 2 { " from 2 cameras" } else { "" },
-                total as f64 / 1e9,
-                total as f64 * 3.0 / f64::from(1u32 << 30),
-                MAX_SEQUENCE_PIXELS as f64 / 1e9
-            );
+            return Err(PlanError::TooBig {
+                field: "plan.camera.resolution x frames".into(),
+                reason: format!(
+                    "a {} sequence has {frames} frames of \
+                     {w}x{h}{} = {:.1} Gpixels ({:.1} GiB as RGB8); the limit is {:.1} Gpixels per \
+                     sequence (lower plan.camera.resolution, {field} or plan.trajectory.fps)",
+                    c.name(),
+                    if cameras == 2 { " from 2 cameras" } else { "" },
+                    total as f64 / 1e9,
+                    total as f64 * 3.0 / f64::from(1u32 << 30),
+                    MAX_SEQUENCE_PIXELS as f64 / 1e9
+                ),
+            });
         }
     }
     Ok(())

@@ -14,7 +14,7 @@
 //! square and a square image sees 42 x 42 degrees; `stretch` squeezes the
 //! whole sensor field into the image (fx != fy).
 
-use anyhow::{ensure, Result};
+use crate::config::{ConfigError, Result};
 use grasp_schema::plan::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
 
@@ -138,23 +138,29 @@ impl CameraConfig {
         }
     }
 
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self) -> Result<()> {
         for (i, f) in self.sensor_fov_deg.iter().enumerate() {
-            ensure!(
-                f.is_finite() && *f > 0.0 && *f < 179.0,
-                "plan.camera.sensor_fov_deg[{i}] must be in (0, 179), got {f}"
-            );
+            if !(f.is_finite() && *f > 0.0 && *f < 179.0) {
+                return Err(ConfigError::rule(
+                    format!("plan.camera.sensor_fov_deg[{i}]"),
+                    format!("must be in (0, 179), got {f}"),
+                ));
+            }
         }
-        ensure!(
-            self.resolution[0] > 0 && self.resolution[1] > 0,
-            "plan.camera.resolution must be positive, got {:?}",
-            self.resolution
-        );
-        ensure!(
-            self.clip_m[0] > 0.0 && self.clip_m[1] > self.clip_m[0],
-            "plan.camera.clip_m must satisfy 0 < near < far, got {:?}",
-            self.clip_m
-        );
+        if !(self.resolution[0] > 0 && self.resolution[1] > 0) {
+            return Err(ConfigError::rule(
+                "plan.camera.resolution",
+                format!("must be positive, got {:?}", self.resolution),
+            ));
+        }
+        if !(self.clip_m[0] > 0.0 && self.clip_m[1] > self.clip_m[0]) {
+            return Err(ConfigError::rule(
+                "plan.camera.clip_m",
+                format!("must satisfy 0 < near < far, got {:?}", self.clip_m),
+            ));
+        }
         let s = &self.start;
         for (name, r) in [
             ("plane_distance_m", s.plane_distance_m),
@@ -162,16 +168,19 @@ impl CameraConfig {
             ("height_m", s.height_m),
             ("distance_m", s.distance_m),
         ] {
-            ensure!(
-                r[0].is_finite() && r[1].is_finite() && r[0] <= r[1],
-                "plan.camera.start.{name} must be a range [min, max], got {r:?}"
-            );
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
+                return Err(ConfigError::rule(
+                    format!("plan.camera.start.{name}"),
+                    format!("must be a range [min, max], got {r:?}"),
+                ));
+            }
         }
-        ensure!(
-            s.distance_m[1] > 0.0,
-            "plan.camera.start.distance_m must allow positive distances, got {:?}",
-            s.distance_m
-        );
+        if !(s.distance_m[1] > 0.0) {
+            return Err(ConfigError::rule(
+                "plan.camera.start.distance_m",
+                format!("must allow positive distances, got {:?}", s.distance_m),
+            ));
+        }
         Ok(())
     }
 }

@@ -4,19 +4,16 @@
 //! selection and size checks need the catalog and the planner's pair
 //! selection, and `config` must not import the planner back.
 
+use super::error::{PlanError, Result};
 use super::{budget, selection};
 use crate::catalog::Catalog;
 use crate::config::GeneratorConfig;
-use anyhow::{Context, Result};
 
 /// Every check before planning: each section's values, the selection
 /// against the catalog (unknown object ids and parts, with near matches)
 /// and the size limits of [`crate::plan::budget`].
 pub fn check(config: &GeneratorConfig, catalog: &Catalog) -> Result<()> {
-    config
-        .plan
-        .validate()
-        .context("invalid [plan] section of the config")?;
+    config.plan.validate().map_err(PlanError::PlanSection)?;
     config.appearance.validate()?;
     config.render.validate()?;
     config.check_world()?;

@@ -11,9 +11,9 @@
 //!   minimum-jerk via-point solution (continuous velocity and acceleration).
 
 use super::camera::StartRegion;
+use super::error::{PlanError, Result};
 use super::scene::{uniform, SceneConfig};
 use super::trajectory::{Path, ViaPath};
-use anyhow::{ensure, Result};
 use grasp_schema::Condition;
 use nalgebra::Vector3;
 use rand::Rng;
@@ -108,28 +108,33 @@ impl ConditionsConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<()> {
+    pub fn validate(&self) -> crate::config::Result<()> {
         for (name, d) in [
             ("fast", self.fast.duration_s),
             ("seated", self.seated.duration_s),
             ("from_ground", self.from_ground.duration_s),
         ] {
-            ensure!(
-                d.is_finite() && d > 0.0,
-                "plan.conditions.{name}.duration_s must be positive, got {d}"
-            );
+            if !(d.is_finite() && d > 0.0) {
+                return Err(crate::config::ConfigError::rule(
+                    format!("plan.conditions.{name}.duration_s"),
+                    format!("must be positive, got {d}"),
+                ));
+            }
         }
         let s = &self.seated;
-        ensure!(
-            s.distance_scale > 0.0 && s.height_scale > 0.0,
-            "plan.conditions.seated.distance_scale and height_scale must be positive"
-        );
+        if !(s.distance_scale > 0.0 && s.height_scale > 0.0) {
+            return Err(crate::config::ConfigError::rule(
+                "plan.conditions.seated.distance_scale",
+                "and height_scale must be positive",
+            ));
+        }
         let g = &self.from_ground;
-        ensure!(
-            g.via_time[0] > 0.0 && g.via_time[1] < 1.0 && g.via_time[0] <= g.via_time[1],
-            "plan.conditions.from_ground.via_time must be a range inside (0, 1), got {:?}",
-            g.via_time
-        );
+        if !(g.via_time[0] > 0.0 && g.via_time[1] < 1.0 && g.via_time[0] <= g.via_time[1]) {
+            return Err(crate::config::ConfigError::rule(
+                "plan.conditions.from_ground.via_time",
+                format!("must be a range inside (0, 1), got {:?}", g.via_time),
+            ));
+        }
         Ok(())
     }
 }
@@ -197,14 +202,15 @@ pub fn straight_approach(
     standoff: f64,
 ) -> Result<Path> {
     let dist = (target - start).norm();
-    ensure!(
-        dist >= 1e-9,
-        "the start coincides with the target {target:?}: no approach direction"
-    );
+    if dist < 1e-9 || dist.is_nan() {
+        return Err(PlanError::DegenerateApproach(format!(
+            "the start coincides with the target {target:?}: no approach direction"
+        )));
+    }
     let end = end_point(start, target, standoff).ok_or_else(|| {
-        anyhow::anyhow!(
+        PlanError::DegenerateApproach(format!(
             "the start is {dist:.4} m from the target, within the {standoff} m stand-off"
-        )
+        ))
     })?;
     Ok(Path::Straight { start: *start, end })
 }

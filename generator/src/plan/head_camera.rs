@@ -22,7 +22,7 @@
 
 use super::scene::{uniform, SceneConfig};
 use super::wrist::{look_at, roll, to_wxyz};
-use anyhow::{ensure, Result};
+use crate::config::{ConfigError, Result};
 use grasp_schema::plan::Pose;
 use grasp_schema::Condition;
 use nalgebra::{Unit, UnitQuaternion, Vector3};
@@ -91,6 +91,8 @@ impl Default for HeadCameraConfig {
 }
 
 impl HeadCameraConfig {
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self, scene: &SceneConfig) -> Result<()> {
         for (name, r) in [
             ("behind_edge_m", self.behind_edge_m),
@@ -98,16 +100,22 @@ impl HeadCameraConfig {
             ("standing_eye_height_m", self.standing_eye_height_m),
             ("seated_eye_height_m", self.seated_eye_height_m),
         ] {
-            ensure!(
-                r[0].is_finite() && r[1].is_finite() && r[0] <= r[1],
-                "plan.head_camera.{name} must be a range [min, max], got {r:?}"
-            );
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
+                return Err(ConfigError::rule(
+                    format!("plan.head_camera.{name}"),
+                    format!("must be a range [min, max], got {r:?}"),
+                ));
+            }
         }
-        ensure!(
-            self.behind_edge_m[0] >= 0.0,
-            "plan.head_camera.behind_edge_m must be >= 0 (the user cannot stand in the table), got {:?}",
-            self.behind_edge_m
-        );
+        if !(self.behind_edge_m[0] >= 0.0) {
+            return Err(ConfigError::rule(
+                "plan.head_camera.behind_edge_m",
+                format!(
+                    "must be >= 0 (the user cannot stand in the table), got {:?}",
+                    self.behind_edge_m
+                ),
+            ));
+        }
         // The eyes must fit the scene only when the camera is used: a scaled
         // scene (tests plan millimetre tables) need not rescale a camera
         // that stays off.
@@ -120,21 +128,26 @@ impl HeadCameraConfig {
             Vec::new()
         };
         for (name, r) in heights {
-            ensure!(
-                r[0] > scene.table_height && r[1] < scene.room_size[2],
-                "plan.head_camera.{name} {r:?} must lie between the table top ({}) and the ceiling ({})",
-                scene.table_height,
-                scene.room_size[2]
-            );
+            if !(r[0] > scene.table_height && r[1] < scene.room_size[2]) {
+                return Err(ConfigError::rule(
+                    format!("plan.head_camera.{name}"),
+                    format!(
+                        "{r:?} must lie between the table top ({}) and the ceiling ({})",
+                        scene.table_height, scene.room_size[2]
+                    ),
+                ));
+            }
         }
         for (name, v) in [
             ("aim_jitter_deg", self.aim_jitter_deg),
             ("roll_jitter_deg", self.roll_jitter_deg),
         ] {
-            ensure!(
-                (0.0..45.0).contains(&v),
-                "plan.head_camera.{name} must be in [0, 45), got {v}"
-            );
+            if !((0.0..45.0).contains(&v)) {
+                return Err(ConfigError::rule(
+                    format!("plan.head_camera.{name}"),
+                    format!("must be in [0, 45), got {v}"),
+                ));
+            }
         }
         Ok(())
     }

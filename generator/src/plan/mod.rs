@@ -5,10 +5,11 @@
 pub mod budget;
 pub mod camera;
 pub mod check;
-pub mod cli;
 pub mod conditions;
 pub mod distractors;
+pub mod error;
 pub mod head_camera;
+pub mod jsonl;
 mod planner;
 pub mod plot_paths;
 pub mod scene;
@@ -20,14 +21,22 @@ pub mod wrist;
 
 pub use camera::CameraConfig;
 pub use conditions::ConditionsConfig;
+pub use error::PlanError;
 pub use head_camera::HeadCameraConfig;
+pub use jsonl::read_jsonl;
 pub use planner::{sequence_keys, ObjectGeometry, Planner};
 pub use scene::SceneConfig;
 pub use source::{PlanSource, PlannedKey, PlannerSource};
 pub use trajectory::TrajectoryConfig;
 pub use validity::ValidityConfig;
 
-use anyhow::Result;
+/// [`read_jsonl`], where it was before `grasp-gen plan` moved into the
+/// binary.
+pub mod cli {
+    pub use super::jsonl::read_jsonl;
+}
+
+use crate::config::{ConfigError, Result};
 use grasp_schema::Condition;
 use serde::{Deserialize, Serialize};
 
@@ -86,6 +95,8 @@ pub struct PlanConfig {
 
 impl PlanConfig {
     /// Checks every value, naming the offending field.
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self) -> Result<()> {
         self.scene.validate()?;
         self.camera.validate()?;
@@ -95,16 +106,22 @@ impl PlanConfig {
         for c in Condition::ALL {
             let d = self.conditions.duration_s(c, self.trajectory.duration_s);
             self.trajectory.frame_count(d)?;
-            anyhow::ensure!(
-                self.trajectory.no_grasp_tail_s < d,
-                "plan.trajectory.no_grasp_tail_s ({}) must be shorter than the {c} sequences ({d} s)",
-                self.trajectory.no_grasp_tail_s
-            );
+            if !(self.trajectory.no_grasp_tail_s < d) {
+                return Err(ConfigError::rule(
+                    "plan.trajectory.no_grasp_tail_s",
+                    format!(
+                        "({}) must be shorter than the {c} sequences ({d} s)",
+                        self.trajectory.no_grasp_tail_s
+                    ),
+                ));
+            }
         }
-        anyhow::ensure!(
-            self.validity.mesh_tolerance_m >= 0.0,
-            "plan.validity.mesh_tolerance_m must be >= 0"
-        );
+        if !(self.validity.mesh_tolerance_m >= 0.0) {
+            return Err(ConfigError::rule(
+                "plan.validity.mesh_tolerance_m",
+                "must be >= 0",
+            ));
+        }
         Ok(())
     }
 }

@@ -3,9 +3,9 @@
 //! z up) of the planned camera paths over the table and the object's
 //! silhouette, coloured by pre-shape.
 
+use super::error::{PlanError, Result};
 use super::wrist;
 use super::Planner;
-use anyhow::{Context, Result};
 use grasp_schema::{Preshape, SequencePlan};
 use image::{Rgb, RgbImage};
 use nalgebra::Vector3;
@@ -147,7 +147,9 @@ pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Res
             .or_default()
             .push(p);
     }
-    anyhow::ensure!(!groups.is_empty(), "no plans to draw");
+    if groups.is_empty() {
+        return Err(PlanError::NothingToDraw);
+    }
     let scene = &planner.config().plan.scene;
     // Common bounds for every cell: all paths and the placement area.
     let (alo, ahi) = scene.placement_bounds();
@@ -191,7 +193,10 @@ pub fn draw_paths(plans: &[&SequencePlan], planner: &Planner, out: &Path) -> Res
         canvas
             .img
             .save_with_format(tmp, image::ImageFormat::Png)
-            .with_context(|| format!("writing {}", out.display()))
+            .map_err(|e| PlanError::Image {
+                path: out.to_path_buf(),
+                source: Box::new(e),
+            })
     })
 }
 

@@ -6,7 +6,7 @@
 //! table edge is at `table_center.x - table_size.x / 2`.
 
 use crate::catalog::{GraspPart, UpsideDown};
-use anyhow::{ensure, Result};
+use crate::config::{ConfigError, Result};
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -95,12 +95,16 @@ impl SceneConfig {
         )
     }
 
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self) -> Result<()> {
         let pos = |name: &str, v: f64| -> Result<()> {
-            ensure!(
-                v.is_finite() && v > 0.0,
-                "plan.scene.{name} must be positive, got {v}"
-            );
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ConfigError::rule(
+                    format!("plan.scene.{name}"),
+                    format!("must be positive, got {v}"),
+                ));
+            }
             Ok(())
         };
         for (i, v) in self.room_size.iter().enumerate() {
@@ -110,23 +114,29 @@ impl SceneConfig {
         pos("table_size[1]", self.table_size[1])?;
         pos("table_height", self.table_height)?;
         pos("table_thickness", self.table_thickness)?;
-        ensure!(
-            self.table_height < self.room_size[2],
-            "plan.scene.table_height ({}) must be below the ceiling ({})",
-            self.table_height,
-            self.room_size[2]
-        );
-        for (i, v) in self.placement_size.iter().enumerate() {
-            ensure!(
-                v.is_finite() && *v >= 0.0,
-                "plan.scene.placement_size[{i}] must be >= 0, got {v}"
-            );
+        if !(self.table_height < self.room_size[2]) {
+            return Err(ConfigError::rule(
+                "plan.scene.table_height",
+                format!(
+                    "({}) must be below the ceiling ({})",
+                    self.table_height, self.room_size[2]
+                ),
+            ));
         }
-        ensure!(
-            (0.0..=1.0).contains(&self.upside_down_probability),
-            "plan.scene.upside_down_probability must be in [0, 1], got {}",
-            self.upside_down_probability
-        );
+        for (i, v) in self.placement_size.iter().enumerate() {
+            if !(v.is_finite() && *v >= 0.0) {
+                return Err(ConfigError::rule(
+                    format!("plan.scene.placement_size[{i}]"),
+                    format!("must be >= 0, got {v}"),
+                ));
+            }
+        }
+        if !((0.0..=1.0).contains(&self.upside_down_probability)) {
+            return Err(ConfigError::rule(
+                "plan.scene.upside_down_probability",
+                format!("must be in [0, 1], got {}", self.upside_down_probability),
+            ));
+        }
         Ok(())
     }
 }

@@ -2,9 +2,9 @@
 //! planned or rendered: a typo in `objects` or `parts` would otherwise
 //! quietly select fewer sequences, or none.
 
+use super::error::{PlanError, Result};
 use super::DatasetConfig;
 use crate::catalog::{Catalog, GraspPart, ObjectSpec};
-use anyhow::{bail, Result};
 
 /// Fails naming every unknown object id or part name (with near matches),
 /// or when the selection is empty.
@@ -38,21 +38,23 @@ pub fn check_selection(d: &DatasetConfig, catalog: &Catalog) -> Result<()> {
         }
     }
     if !problems.is_empty() {
-        bail!(
-            "{} (the catalog {} has: {})",
-            problems.join("; "),
-            catalog.dir.display(),
-            ids.join(", ")
-        );
+        return Err(PlanError::Selection {
+            problems,
+            catalog: catalog.dir.clone(),
+            objects: ids.iter().map(|id| id.to_string()).collect(),
+        });
     }
     if d.sequences_per_pair == 0 || d.conditions.is_empty() {
-        bail!("the config selects no sequences: dataset.sequences_per_pair and dataset.conditions must not be 0 or empty");
+        return Err(PlanError::NothingSelected {
+            reason: "the config selects no sequences: dataset.sequences_per_pair and \
+                     dataset.conditions must not be 0 or empty",
+        });
     }
     if selected_pairs(d, catalog).is_empty() {
-        bail!(
-            "the config selects no (object, part) pair: no part named in dataset.parts belongs \
-             to an object of dataset.objects"
-        );
+        return Err(PlanError::NothingSelected {
+            reason: "the config selects no (object, part) pair: no part named in dataset.parts \
+                     belongs to an object of dataset.objects",
+        });
     }
     Ok(())
 }

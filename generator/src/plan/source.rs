@@ -5,10 +5,10 @@
 //! ray casters that must stay on one thread, so it runs on its own thread
 //! and answers plan requests over a channel.
 
+use super::error::{PlanError, Result};
 use super::{sequence_keys, Planner};
 use crate::catalog::Catalog;
 use crate::config::GeneratorConfig;
-use anyhow::{anyhow, Context, Result};
 use grasp_schema::plan::substream_seed;
 use grasp_schema::taxonomy::Preshape;
 use grasp_schema::{SequenceKey, SequencePlan};
@@ -42,7 +42,7 @@ pub struct PlannerSource {
 
 impl PlannerSource {
     pub fn new(config: &GeneratorConfig) -> Result<Self> {
-        let catalog = Catalog::builtin().context("loading the built-in catalog")?;
+        let catalog = Catalog::builtin().map_err(|e| PlanError::BuiltinCatalog(Box::new(e)))?;
         super::check::check(config, &catalog)?;
         let (tx, rx) = channel::<(SequenceKey, PlanReply)>();
         let (ready_tx, ready_rx) = channel::<Result<()>>();
@@ -64,8 +64,8 @@ impl PlannerSource {
         });
         ready_rx
             .recv()
-            .map_err(|_| anyhow!("the planner thread stopped"))?
-            .context("setting up the planner")?;
+            .map_err(|_| PlanError::PlannerStopped)?
+            .map_err(|e| PlanError::Setup(Box::new(e)))?;
         Ok(PlannerSource {
             config: config.clone(),
             catalog,
@@ -79,16 +79,22 @@ impl PlanSource for PlannerSource {
         sequence_keys(&self.config, &self.catalog)
             .into_iter()
             .map(|key| {
-                let spec = self
-                    .catalog
-                    .object(&key.object)
-                    .with_context(|| format!("unknown object '{}'", key.object))?;
+                let spec =
+                    self.catalog
+                        .object(&key.object)
+                        .ok_or_else(|| PlanError::UnknownObject {
+                            object: key.object.clone(),
+                            known: None,
+                        })?;
                 let part = spec
                     .parts
                     .iter()
                     .find(|p| p.name == key.part)
-                    .with_context(|| {
-                        format!("object '{}' has no part '{}'", key.object, key.part)
+                    .ok_or_else(|| PlanError::UnknownPart {
+                        object: key.object.clone(),
+                        part: key.part.clone(),
+                        quoted: true,
+                        parts: None,
                     })?;
                 Ok(PlannedKey {
                     category: spec.category.clone(),
@@ -105,10 +111,8 @@ impl PlanSource for PlannerSource {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .send((key.clone(), tx))
-            .map_err(|_| anyhow!("the planner thread stopped"))?;
-        let mut plan = rx
-            .recv()
-            .map_err(|_| anyhow!("the planner thread stopped"))??;
+            .map_err(|_| PlanError::PlannerStopped)?;
+        let mut plan = rx.recv().map_err(|_| PlanError::PlannerStopped)??;
         if plan.appearance.is_none() {
             let seed = substream_seed(plan.stream_seed, "appearance");
             plan.appearance = Some(crate::appearance::sample(

@@ -4,7 +4,7 @@
 //! `tau` in [0, 1]; nothing is accumulated frame by frame, so the endpoint is
 //! exact for any frame count.
 
-use anyhow::{ensure, Result};
+use crate::config::{ConfigError, Result};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -80,61 +80,78 @@ impl TrajectoryConfig {
     /// Frames of a sequence lasting `duration_s`.
     pub fn frame_count(&self, duration_s: f64) -> Result<usize> {
         let n = (duration_s * self.fps).round();
-        ensure!(
-            (1.0..=10_000_000.0).contains(&n),
-            "a sequence of {duration_s} s at {} fps has {n} frames; it needs 1 to 10^7",
-            self.fps
-        );
+        if !(1.0..=10_000_000.0).contains(&n) {
+            return Err(ConfigError::FrameCount {
+                duration_s,
+                fps: self.fps,
+                frames: n,
+            });
+        }
         Ok(n as usize)
     }
 
+    // Negated comparisons: a NaN must fail these checks.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn validate(&self) -> Result<()> {
-        ensure!(
-            self.fps.is_finite() && self.fps > 0.0,
-            "plan.trajectory.fps must be positive, got {}",
-            self.fps
-        );
-        ensure!(
-            self.duration_s.is_finite() && self.duration_s > 0.0,
-            "plan.trajectory.duration_s must be positive, got {}",
-            self.duration_s
-        );
+        if !(self.fps.is_finite() && self.fps > 0.0) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.fps",
+                format!("must be positive, got {}", self.fps),
+            ));
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.duration_s",
+                format!("must be positive, got {}", self.duration_s),
+            ));
+        }
         self.frame_count(self.duration_s)?;
-        ensure!(
-            self.no_grasp_tail_s >= 0.0 && self.no_grasp_tail_s < self.duration_s,
-            "plan.trajectory.no_grasp_tail_s ({}) must be in [0, duration_s = {})",
-            self.no_grasp_tail_s,
-            self.duration_s
-        );
-        ensure!(
-            self.standoff_m >= 0.0,
-            "plan.trajectory.standoff_m must be >= 0, got {}",
-            self.standoff_m
-        );
-        ensure!(
-            self.authors_frames > 0.0,
-            "plan.trajectory.authors_frames must be positive"
-        );
+        if !(self.no_grasp_tail_s >= 0.0 && self.no_grasp_tail_s < self.duration_s) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.no_grasp_tail_s",
+                format!(
+                    "({}) must be in [0, duration_s = {})",
+                    self.no_grasp_tail_s, self.duration_s
+                ),
+            ));
+        }
+        if !(self.standoff_m >= 0.0) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.standoff_m",
+                format!("must be >= 0, got {}", self.standoff_m),
+            ));
+        }
+        if !(self.authors_frames > 0.0) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.authors_frames",
+                "must be positive",
+            ));
+        }
         for (name, r) in [
             ("ps_onset_frames", self.ps_onset_frames),
             ("ps_duration_frames", self.ps_duration_frames),
             ("ps_fraction", self.ps_fraction),
             ("fe_onset_frames", self.fe_onset_frames),
         ] {
-            ensure!(
-                r[0].is_finite() && r[1].is_finite() && 0.0 <= r[0] && r[0] <= r[1],
-                "plan.trajectory.{name} must be a range [min, max] of non-negative values, got {r:?}"
-            );
+            if !(r[0].is_finite() && r[1].is_finite() && 0.0 <= r[0] && r[0] <= r[1]) {
+                return Err(ConfigError::rule(
+                    format!("plan.trajectory.{name}"),
+                    format!("must be a range [min, max] of non-negative values, got {r:?}"),
+                ));
+            }
         }
-        ensure!(
-            (0.0..=1.0).contains(&self.fe_rate_per_frame),
-            "plan.trajectory.fe_rate_per_frame must be in [0, 1], got {}",
-            self.fe_rate_per_frame
-        );
-        ensure!(
-            self.max_attempts >= 1,
-            "plan.trajectory.max_attempts must be >= 1"
-        );
+        if !((0.0..=1.0).contains(&self.fe_rate_per_frame)) {
+            return Err(ConfigError::rule(
+                "plan.trajectory.fe_rate_per_frame",
+                format!("must be in [0, 1], got {}", self.fe_rate_per_frame),
+            ));
+        }
+        if self.max_attempts == 0 {
+            return Err(ConfigError::rule(
+                "plan.trajectory.max_attempts",
+                "must be >= 1",
+            ));
+        }
         Ok(())
     }
 

@@ -6,7 +6,7 @@
 //! [`RayCaster`], which is trimesh in production and a fake in unit tests.
 //! Mesh queries are batched: one call per batch of candidate paths.
 
-use anyhow::Result;
+use crate::geometry::Result;
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -54,9 +54,7 @@ impl RayCaster for crate::geometry::MeshQuery {
         origins: &[[f64; 3]],
         directions: &[[f64; 3]],
     ) -> Result<Vec<Option<f64>>> {
-        Ok(crate::geometry::MeshQuery::first_hits(
-            self, origins, directions,
-        )?)
+        crate::geometry::MeshQuery::first_hits(self, origins, directions)
     }
 }
 

@@ -3,13 +3,16 @@
 
 use super::{RandomizeConfig, DISTRACTOR_SHAPES, MAX_DISTRACTORS};
 use crate::appearance::AppearanceConfig;
+use crate::config::{ConfigError, Result};
 use crate::look::unseen_config::{UnseenLookConfig, UNSEEN_FAMILIES, UNSEEN_LIGHT_KINDS};
 use crate::look::{check_hdris, check_range};
-use anyhow::{bail, Result};
 
 fn check_probability(field: &str, p: f64) -> Result<()> {
     if !(0.0..=1.0).contains(&p) {
-        bail!("{field}: a probability must be in [0, 1], got {p}");
+        return Err(ConfigError::invalid(
+            field,
+            format!("a probability must be in [0, 1], got {p}"),
+        ));
     }
     Ok(())
 }
@@ -20,7 +23,10 @@ impl RandomizeConfig {
         check_range("[randomize.fov] scale", self.fov.scale, 0.05, 20.0)?;
         let pp = self.principal_point.max_shift;
         if !(0.0..=0.25).contains(&pp) {
-            bail!("[randomize.principal_point] max_shift: must be in [0, 0.25], got {pp}");
+            return Err(ConfigError::invalid(
+                "[randomize.principal_point] max_shift",
+                format!("must be in [0, 0.25], got {pp}"),
+            ));
         }
         check_range(
             "[randomize.sensor_noise] sigma",
@@ -43,10 +49,10 @@ impl RandomizeConfig {
         let j = &self.jpeg;
         check_probability("[randomize.jpeg] probability", j.probability)?;
         if j.quality[0] < 1 || j.quality[1] > 100 || j.quality[0] > j.quality[1] {
-            bail!(
-                "[randomize.jpeg] quality: need 1 <= min <= max <= 100, got {:?}",
-                j.quality
-            );
+            return Err(ConfigError::invalid(
+                "[randomize.jpeg] quality",
+                format!("need 1 <= min <= max <= 100, got {:?}", j.quality),
+            ));
         }
         let w = &self.world_light;
         check_probability("[randomize.world_light] probability", w.probability)?;
@@ -54,10 +60,10 @@ impl RandomizeConfig {
         check_hdris("[randomize.world_light] hdris", &w.hdris)?;
         let o = &self.object_color;
         if !(0.0..=0.5).contains(&o.derived_hue) {
-            bail!(
-                "[randomize.object_color] derived_hue: must be in [0, 0.5] turns, got {}",
-                o.derived_hue
-            );
+            return Err(ConfigError::invalid(
+                "[randomize.object_color] derived_hue",
+                format!("must be in [0, 0.5] turns, got {}", o.derived_hue),
+            ));
         }
         check_range(
             "[randomize.object_color] derived_saturation",
@@ -73,25 +79,34 @@ impl RandomizeConfig {
         )?;
         let d = &self.distractors;
         if d.count[0] > d.count[1] || d.count[1] > MAX_DISTRACTORS {
-            bail!(
-                "[randomize.distractors] count: need min <= max <= {MAX_DISTRACTORS}, got {:?}",
-                d.count
-            );
+            return Err(ConfigError::invalid(
+                "[randomize.distractors] count",
+                format!("need min <= max <= {MAX_DISTRACTORS}, got {:?}", d.count),
+            ));
         }
         check_range("[randomize.distractors] size_m", d.size_m, 0.005, 1.0)?;
         if d.shapes.is_empty() {
-            bail!("[randomize.distractors] shapes: the list is empty");
+            return Err(ConfigError::invalid(
+                "[randomize.distractors] shapes",
+                "the list is empty",
+            ));
         }
         for s in &d.shapes {
             if !DISTRACTOR_SHAPES.contains(&s.as_str()) {
-                bail!(
-                    "[randomize.distractors] shapes: unknown shape '{s}' (expected some of {})",
-                    DISTRACTOR_SHAPES.join(", ")
-                );
+                return Err(ConfigError::invalid(
+                    "[randomize.distractors] shapes",
+                    format!(
+                        "unknown shape '{s}' (expected some of {})",
+                        DISTRACTOR_SHAPES.join(", ")
+                    ),
+                ));
             }
         }
         if !(d.clearance_m.is_finite() && d.clearance_m >= 0.0) || d.attempts == 0 {
-            bail!("[randomize.distractors] clearance_m must be >= 0 and attempts >= 1");
+            return Err(ConfigError::rule(
+                "[randomize.distractors] clearance_m",
+                "must be >= 0 and attempts >= 1",
+            ));
         }
         check_range(
             "[randomize.object_scale] scale",
@@ -102,7 +117,10 @@ impl RandomizeConfig {
         check_range("[randomize.standoff] scale", self.standoff.scale, 0.0, 10.0)?;
         let a = self.aim.fraction;
         if !(0.0..=1.0).contains(&a) {
-            bail!("[randomize.aim] fraction: must be in [0, 1], got {a}");
+            return Err(ConfigError::invalid(
+                "[randomize.aim] fraction",
+                format!("must be in [0, 1], got {a}"),
+            ));
         }
         Ok(())
     }
@@ -127,21 +145,24 @@ pub fn check_unseen_disjoint(
     let at = "[appearance.unseen_look]";
     for f in &training.families {
         if unseen.families.contains(f) || UNSEEN_FAMILIES.contains(&f.as_str()) {
-            bail!(
-                "[appearance] families: '{f}' is reserved for the unseen_look condition and \
-                 may not be drawn in training"
-            );
+            return Err(ConfigError::invalid("[appearance] families", format!("'{f}' is reserved for the unseen_look condition and may not be drawn in training")));
         }
     }
     if unseen.families.contains(&training.held_out_family) {
-        bail!(
-            "{at} families: '{}' is the background condition's held-out family",
-            training.held_out_family
-        );
+        return Err(ConfigError::invalid(
+            format!("{at} families"),
+            format!(
+                "'{}' is the background condition's held-out family",
+                training.held_out_family
+            ),
+        ));
     }
     for k in &training.light_kinds {
         if UNSEEN_LIGHT_KINDS.contains(&k.as_str()) {
-            bail!("[appearance] light_kinds: '{k}' is reserved for the unseen_look condition");
+            return Err(ConfigError::invalid(
+                "[appearance] light_kinds",
+                format!("'{k}' is reserved for the unseen_look condition"),
+            ));
         }
     }
     let unseen_count = [
@@ -150,19 +171,10 @@ pub fn check_unseen_disjoint(
     ];
     let training_count = training.lights.map(f64::from);
     if overlap(training_count, unseen_count) {
-        bail!(
-            "[appearance] lights {:?} overlaps the unseen_look light count {unseen_count:?} \
-             (a sun and ring_lights {:?})",
-            training.lights,
-            unseen.ring_lights
-        );
+        return Err(ConfigError::rule("[appearance] lights", format!("{:?} overlaps the unseen_look light count {unseen_count:?} (a sun and ring_lights {:?})", training.lights, unseen.ring_lights)));
     }
     if overlap(training.color_temperature_k, unseen.color_temperature_k) {
-        bail!(
-            "{at} color_temperature_k {:?} overlaps training's [appearance] color_temperature_k {:?}",
-            unseen.color_temperature_k,
-            training.color_temperature_k
-        );
+        return Err(ConfigError::rule(at, format!("color_temperature_k {:?} overlaps training's [appearance] color_temperature_k {:?}", unseen.color_temperature_k, training.color_temperature_k)));
     }
     if levers.world_light.enabled {
         if let Some(h) = levers
@@ -171,39 +183,48 @@ pub fn check_unseen_disjoint(
             .iter()
             .find(|h| unseen.hdris.contains(h))
         {
-            bail!("[randomize.world_light] hdris: '{h}' is also an unseen_look world ({at} hdris)");
+            return Err(ConfigError::invalid(
+                "[randomize.world_light] hdris",
+                format!("'{h}' is also an unseen_look world ({at} hdris)"),
+            ));
         }
     }
     let fov = levers.training_fov_scale();
     if overlap(fov, unseen.fov_scale) {
-        bail!(
-            "{at} fov_scale {:?} overlaps training's lens range {fov:?} ([randomize.fov] scale, \
-             or 1 with the lever off)",
-            unseen.fov_scale
-        );
+        return Err(ConfigError::rule(at, format!("fov_scale {:?} overlaps training's lens range {fov:?} ([randomize.fov] scale, or 1 with the lever off)", unseen.fov_scale)));
     }
     if unseen.view_transform == render_view_transform {
-        bail!(
-            "{at} view_transform: '{}' is also training's [render] view_transform",
-            unseen.view_transform
-        );
+        return Err(ConfigError::invalid(
+            format!("{at} view_transform"),
+            format!(
+                "'{}' is also training's [render] view_transform",
+                unseen.view_transform
+            ),
+        ));
     }
     if overlap(training.exposure, unseen.exposure) {
-        bail!(
-            "{at} exposure {:?} overlaps training's [appearance] exposure {:?}",
-            unseen.exposure,
-            training.exposure
-        );
+        return Err(ConfigError::rule(
+            at,
+            format!(
+                "exposure {:?} overlaps training's [appearance] exposure {:?}",
+                unseen.exposure, training.exposure
+            ),
+        ));
     }
     if levers.sensor_noise.enabled && overlap(levers.sensor_noise.sigma, unseen.noise_sigma) {
-        bail!(
-            "{at} noise_sigma {:?} overlaps training's [randomize.sensor_noise] sigma {:?}",
-            unseen.noise_sigma,
-            levers.sensor_noise.sigma
-        );
+        return Err(ConfigError::rule(
+            at,
+            format!(
+                "noise_sigma {:?} overlaps training's [randomize.sensor_noise] sigma {:?}",
+                unseen.noise_sigma, levers.sensor_noise.sigma
+            ),
+        ));
     }
     if unseen.blur_sigma_px[0] <= 0.0 {
-        bail!("{at} blur_sigma_px: must be above 0 (training has no defocus blur)");
+        return Err(ConfigError::invalid(
+            format!("{at} blur_sigma_px"),
+            "must be above 0 (training has no defocus blur)",
+        ));
     }
     Ok(())
 }

@@ -9,7 +9,7 @@
 //! quantisation to 8 bits, then an optional JPEG round trip. The PNG is
 //! rewritten through a temporary file and a rename.
 
-use anyhow::{Context, Result};
+use super::error::{RenderError, Result};
 use grasp_schema::appearance::SensorEffects;
 use grasp_schema::plan::substream_seed;
 use image::codecs::jpeg::JpegEncoder;
@@ -59,7 +59,8 @@ pub fn apply(
         }
         out.push((s * 255.0).round().clamp(0.0, 255.0) as u8);
     }
-    let img = RgbImage::from_raw(w, h, out).context("image buffer of the wrong size")?;
+    let img = RgbImage::from_raw(w, h, out)
+        .ok_or(RenderError::BufferSize("image buffer of the wrong size"))?;
     match effects.jpeg_quality {
         Some(q) => jpeg_round_trip(&img, q),
         None => Ok(img),
@@ -78,7 +79,7 @@ pub fn apply_to_frames(
     for (k, name) in frame_files.iter().enumerate() {
         let path = dir.join(name);
         let img = image::open(&path)
-            .with_context(|| format!("cannot read frame {}", path.display()))?
+            .map_err(|e| RenderError::image(format!("cannot read frame {}", path.display()), e))?
             .to_rgb8();
         let out = apply(effects, camera, k as u64, &img)?;
         let bytes = png_bytes(&out)?;
@@ -97,7 +98,7 @@ pub fn png_bytes(img: &RgbImage) -> Result<Vec<u8>> {
             img.height(),
             image::ExtendedColorType::Rgb8,
         )
-        .context("encoding a PNG")?;
+        .map_err(|e| RenderError::image("encoding a PNG", e))?;
     Ok(bytes)
 }
 
@@ -105,10 +106,10 @@ fn jpeg_round_trip(img: &RgbImage, quality: u8) -> Result<RgbImage> {
     let mut bytes = Vec::new();
     JpegEncoder::new_with_quality(&mut bytes, quality.clamp(1, 100))
         .encode_image(img)
-        .context("JPEG encoding")?;
+        .map_err(|e| RenderError::image("JPEG encoding", e))?;
     Ok(
         image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
-            .context("JPEG decoding")?
+            .map_err(|e| RenderError::image("JPEG decoding", e))?
             .to_rgb8(),
     )
 }

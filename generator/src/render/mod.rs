@@ -6,10 +6,10 @@
 //! workers talk JSON lines over pipes ([`protocol`]); finished sequences are
 //! moved into the dataset atomically ([`crate::dataset::writer`]).
 
-pub mod cli;
 pub mod consistency;
 pub mod device;
 pub mod effects;
+pub mod error;
 pub mod orchestrator;
 pub mod parts;
 pub mod planner_source;
@@ -18,12 +18,13 @@ pub mod scene;
 pub mod source;
 pub mod worker;
 
-use anyhow::{bail, Result};
+use crate::config::{ConfigError, Result};
 use grasp_schema::dataset::{CENTER_REGION_KEY, WORLD_KEY};
 use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
 pub use device::Device;
+pub use error::RenderError;
 pub use orchestrator::{render, RenderOptions, RenderSummary};
 pub use scene::SceneGeometry;
 pub use source::RenderSource;
@@ -200,81 +201,87 @@ impl RenderConfig {
     /// Checks values; errors name the `[render]` field.
     pub fn validate(&self) -> Result<()> {
         if self.samples == 0 {
-            bail!("[render] samples: must be at least 1");
+            return Err(ConfigError::invalid(
+                "[render] samples",
+                "must be at least 1",
+            ));
         }
         if self.device.is_gpu() && self.engine != Engine::Cycles {
-            bail!(
-                "[render] device = \"{}\" chooses a Cycles device, but engine is {:?}, which \
-                 draws through Blender's GPU module (use device = \"auto\")",
-                self.device.name(),
-                format!("{:?}", self.engine).to_lowercase()
-            );
+            return Err(ConfigError::rule("[render] device", format!("= \"{}\" chooses a Cycles device, but engine is {:?}, which draws through Blender's GPU module (use device = \"auto\")", self.device.name(), format!("{:?}", self.engine).to_lowercase())));
         }
         if !["openimagedenoise", "none"].contains(&self.denoiser.as_str()) {
-            bail!(
-                "[render] denoiser: unknown '{}' (expected openimagedenoise or none)",
-                self.denoiser
-            );
+            return Err(ConfigError::invalid(
+                "[render] denoiser",
+                format!(
+                    "unknown '{}' (expected openimagedenoise or none)",
+                    self.denoiser
+                ),
+            ));
         }
         if !["none", "fast", "accurate"].contains(&self.denoising_prefilter.as_str()) {
-            bail!(
-                "[render] denoising_prefilter: unknown '{}' (expected none, fast or accurate)",
-                self.denoising_prefilter
-            );
+            return Err(ConfigError::invalid(
+                "[render] denoising_prefilter",
+                format!(
+                    "unknown '{}' (expected none, fast or accurate)",
+                    self.denoising_prefilter
+                ),
+            ));
         }
         if !["AgX", "Standard", "Filmic"].contains(&self.view_transform.as_str()) {
-            bail!(
-                "[render] view_transform: unknown '{}' (expected AgX, Standard or Filmic)",
-                self.view_transform
-            );
+            return Err(ConfigError::invalid(
+                "[render] view_transform",
+                format!(
+                    "unknown '{}' (expected AgX, Standard or Filmic)",
+                    self.view_transform
+                ),
+            ));
         }
         if !self.passes.contains(&Pass::Rgb) {
-            bail!("[render] passes: must include \"rgb\"");
+            return Err(ConfigError::invalid(
+                "[render] passes",
+                "must include \"rgb\"",
+            ));
         }
         if self.png_compression > 100 {
-            bail!("[render] png_compression: must be 0 to 100");
+            return Err(ConfigError::invalid(
+                "[render] png_compression",
+                "must be 0 to 100",
+            ));
         }
         if !(self.center_region > 0.0 && self.center_region <= 1.0) {
-            bail!(
-                "[render] center_region: must be in (0, 1], got {}",
-                self.center_region
-            );
+            return Err(ConfigError::invalid(
+                "[render] center_region",
+                format!("must be in (0, 1], got {}", self.center_region),
+            ));
         }
         if self.center_region < 1.0 && self.passes != [Pass::Rgb] {
-            bail!(
-                "[render] center_region {} renders only part of each frame; the depth, \
-                 instance and part passes need whole frames (use passes = [\"rgb\"] or \
-                 center_region = 1)",
-                self.center_region
-            );
+            return Err(ConfigError::rule("[render] center_region", format!("{} renders only part of each frame; the depth, instance and part passes need whole frames (use passes = [\"rgb\"] or center_region = 1)", self.center_region)));
         }
         if self.world == World::Foreign {
             if self.engine != Engine::Cycles {
-                bail!(
-                    "[render] world = \"foreign\" renders with its own Cycles integrator; \
-                     engine must be \"cycles\", got \"{}\"",
-                    format!("{:?}", self.engine).to_lowercase()
-                );
+                return Err(ConfigError::rule("[render] world", format!("= \"foreign\" renders with its own Cycles integrator; engine must be \"cycles\", got \"{}\"", format!("{:?}", self.engine).to_lowercase())));
             }
             if self.passes != [Pass::Rgb] {
-                bail!(
-                    "[render] world = \"foreign\" distorts its frames through a lens model, \
-                     so depth, instance and part images would not match them; use \
-                     passes = [\"rgb\"]"
-                );
+                return Err(ConfigError::rule("[render] world", "= \"foreign\" distorts its frames through a lens model, so depth, instance and part images would not match them; use passes = [\"rgb\"]"));
             }
         }
         if self.workers == 0 || self.recycle_every == 0 {
-            bail!("[render] workers and recycle_every must be at least 1");
+            return Err(ConfigError::rule(
+                "[render] workers",
+                "and recycle_every must be at least 1",
+            ));
         }
         if !(self.part_tolerance_m >= 0.0 && self.part_tolerance_m < 0.1) {
-            bail!(
-                "[render] part_tolerance_m: must be in [0, 0.1) metres, got {}",
-                self.part_tolerance_m
-            );
+            return Err(ConfigError::invalid(
+                "[render] part_tolerance_m",
+                format!("must be in [0, 0.1) metres, got {}", self.part_tolerance_m),
+            ));
         }
         if !(self.adaptive_threshold >= 0.0 && self.clamp_indirect >= 0.0) {
-            bail!("[render] adaptive_threshold and clamp_indirect must be >= 0");
+            return Err(ConfigError::rule(
+                "[render] adaptive_threshold",
+                "and clamp_indirect must be >= 0",
+            ));
         }
         Ok(())
     }

@@ -13,11 +13,11 @@
 //! the part whose box is nearest, within `tolerance` (inside counts as 0;
 //! ties go to the earlier part).
 
+use super::error::{RenderError, Result};
 use crate::catalog::TriMesh;
 use crate::geometry::TriangleTree;
 use crate::plan::validity::Obb;
 use crate::plan::wrist::from_wxyz;
-use anyhow::{bail, ensure, Context, Result};
 use grasp_schema::plan::{CameraIntrinsics, Pose};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -40,12 +40,12 @@ impl PartBox {
     fn obb(&self) -> Result<Obb> {
         let q = self.rotation_wxyz;
         let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-        ensure!(
-            norm.is_finite() && norm > 1e-9 && self.size.iter().all(|s| *s > 0.0),
-            "part {}: the box (rotation {q:?}, size {:?}) is degenerate",
-            self.name,
-            self.size
-        );
+        if !(norm.is_finite() && norm > 1e-9 && self.size.iter().all(|s| *s > 0.0)) {
+            return Err(RenderError::Labels(format!(
+                "part {}: the box (rotation {q:?}, size {:?}) is degenerate",
+                self.name, self.size
+            )));
+        }
         Ok(Obb {
             center: Vector3::from(self.center),
             rotation: from_wxyz(q),
@@ -69,8 +69,11 @@ pub struct FrameBuffers {
 /// Reads Blender's multilayer EXR (`ViewLayer.Depth.Z`, optionally
 /// `ViewLayer.Object Index.X`).
 pub fn read_exr(path: &Path) -> Result<FrameBuffers> {
-    let image = exr::prelude::read_all_flat_layers_from_file(path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
+    let image =
+        exr::prelude::read_all_flat_layers_from_file(path).map_err(|source| RenderError::Exr {
+            path: path.to_path_buf(),
+            source,
+        })?;
     let mut depth = None;
     let mut index = None;
     let mut size = (0, 0);
@@ -87,14 +90,18 @@ pub fn read_exr(path: &Path) -> Result<FrameBuffers> {
         }
     }
     let Some(depth) = depth else {
-        bail!("{}: no depth channel (*.Depth.Z)", path.display());
+        return Err(RenderError::BadExr {
+            path: path.to_path_buf(),
+            reason: "no depth channel (*.Depth.Z)".into(),
+        });
     };
     let (width, height) = size;
-    ensure!(
-        depth.len() == width * height && index.as_ref().is_none_or(|i| i.len() == depth.len()),
-        "{}: channel sizes do not match the {width}x{height} image",
-        path.display()
-    );
+    if !(depth.len() == width * height && index.as_ref().is_none_or(|i| i.len() == depth.len())) {
+        return Err(RenderError::BadExr {
+            path: path.to_path_buf(),
+            reason: format!("channel sizes do not match the {width}x{height} image"),
+        });
+    }
     Ok(FrameBuffers {
         width,
         height,
@@ -113,11 +120,12 @@ pub struct PartLabeler {
 
 impl PartLabeler {
     pub fn new(parts: &[PartBox], mesh: &TriMesh, tolerance: f64) -> Result<Self> {
-        ensure!(
-            parts.len() < 256,
-            "{} parts do not fit an 8-bit label image",
-            parts.len()
-        );
+        if parts.len() >= 256 {
+            return Err(RenderError::Labels(format!(
+                "{} parts do not fit an 8-bit label image",
+                parts.len()
+            )));
+        }
         Ok(PartLabeler {
             boxes: parts.iter().map(PartBox::obb).collect::<Result<_>>()?,
             mesh: TriangleTree::new(mesh),
@@ -135,18 +143,17 @@ impl PartLabeler {
         object: &Pose,
         scale: f64,
     ) -> Result<Vec<u8>> {
-        ensure!(
-            scale.is_finite() && scale > 0.0,
-            "the object scale {scale} is not a positive number"
-        );
-        ensure!(
-            (buffers.width, buffers.height) == (k.width as usize, k.height as usize),
-            "the depth image is {}x{} but the intrinsics say {}x{}",
-            buffers.width,
-            buffers.height,
-            k.width,
-            k.height
-        );
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(RenderError::Labels(format!(
+                "the object scale {scale} is not a positive number"
+            )));
+        }
+        if (buffers.width, buffers.height) != (k.width as usize, k.height as usize) {
+            return Err(RenderError::Labels(format!(
+                "the depth image is {}x{} but the intrinsics say {}x{}",
+                buffers.width, buffers.height, k.width, k.height
+            )));
+        }
         let cam_q = from_wxyz(camera.rotation_wxyz);
         let cam_p = Vector3::from(camera.position);
         let obj_q = from_wxyz(object.rotation_wxyz);
@@ -213,11 +220,12 @@ impl PartLabeler {
 
 /// Writes an 8-bit grayscale label image.
 pub fn write_labels(path: &Path, width: u32, height: u32, labels: Vec<u8>) -> Result<()> {
-    let img = image::GrayImage::from_raw(width, height, labels)
-        .context("label buffer does not match the image size")?;
+    let img = image::GrayImage::from_raw(width, height, labels).ok_or(RenderError::BufferSize(
+        "label buffer does not match the image size",
+    ))?;
     grasp_support::atomic::write_atomic_with(path, |tmp| -> Result<()> {
         img.save_with_format(tmp, image::ImageFormat::Png)
-            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(|e| RenderError::image(format!("cannot write {}", path.display()), e))
     })
 }
 

@@ -2,13 +2,13 @@
 //! render source: meshes, part boxes and the scene from the catalog and the
 //! config.
 
+use super::error::{RenderError, Result};
 use super::parts::PartBox;
 use super::scene::{Room, Table};
 use super::source::{Mesh, RenderSource};
 use super::SceneGeometry;
 use crate::config::GeneratorConfig;
 use crate::plan::PlannerSource;
-use anyhow::{Context, Result};
 use std::sync::Arc;
 
 /// The catalog-and-planner source of a generator config.
@@ -21,7 +21,9 @@ impl RenderSource for PlannerSource {
         let spec = self
             .catalog
             .object(object)
-            .with_context(|| format!("unknown object '{object}'"))?;
+            .ok_or_else(|| RenderError::UnknownObject {
+                object: object.to_string(),
+            })?;
         let m = spec.mesh()?;
         Ok(Mesh {
             vertices: m.vertices,
@@ -41,7 +43,9 @@ impl RenderSource for PlannerSource {
         let spec = self
             .catalog
             .object(object)
-            .with_context(|| format!("unknown object '{object}'"))?;
+            .ok_or_else(|| RenderError::UnknownObject {
+                object: object.to_string(),
+            })?;
         Ok(spec
             .parts
             .iter()

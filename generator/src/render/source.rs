@@ -3,10 +3,10 @@
 //! the catalog and the planner (`planner_source`); [`StaticSource`] renders
 //! given plans.
 
+use super::error::{RenderError, Result};
 use super::parts::PartBox;
 use super::SceneGeometry;
-use crate::plan::{PlanSource, PlannedKey};
-use anyhow::{bail, Context, Result};
+use crate::plan::{PlanError, PlanSource, PlannedKey};
 use grasp_schema::{SequenceKey, SequencePlan};
 use std::collections::BTreeMap;
 
@@ -44,7 +44,7 @@ pub struct StaticSource {
 }
 
 impl PlanSource for StaticSource {
-    fn keys(&self) -> Result<Vec<PlannedKey>> {
+    fn keys(&self) -> crate::plan::error::Result<Vec<PlannedKey>> {
         Ok(self
             .plans
             .iter()
@@ -56,12 +56,12 @@ impl PlanSource for StaticSource {
             .collect())
     }
 
-    fn plan(&self, key: &SequenceKey) -> Result<SequencePlan> {
+    fn plan(&self, key: &SequenceKey) -> crate::plan::error::Result<SequencePlan> {
         self.plans
             .iter()
             .find(|p| &p.key == key)
             .cloned()
-            .with_context(|| format!("no plan for sequence {}", key.id()))
+            .ok_or_else(|| PlanError::NoPlan { id: key.id() })
     }
 }
 
@@ -69,7 +69,10 @@ impl RenderSource for StaticSource {
     fn mesh(&self, object: &str) -> Result<Mesh> {
         match self.meshes.get(object) {
             Some(m) => Ok(m.clone()),
-            None => bail!("no mesh for object '{object}'"),
+            None => Err(RenderError::NoObjectData {
+                what: "mesh",
+                object: object.to_string(),
+            }),
         }
     }
 
@@ -80,7 +83,10 @@ impl RenderSource for StaticSource {
     fn parts(&self, object: &str) -> Result<Vec<PartBox>> {
         match self.parts.get(object) {
             Some(p) => Ok(p.clone()),
-            None => bail!("no part boxes for object '{object}'"),
+            None => Err(RenderError::NoObjectData {
+                what: "part boxes",
+                object: object.to_string(),
+            }),
         }
     }
 }

@@ -2,12 +2,13 @@
 //! `bpy` once, builds the scene once, then renders the sequences the parent
 //! sends until told to quit or its stdin closes.
 
-use super::device::{self, DeviceUnavailable, Resolved};
+use super::device::{self, Resolved};
+use super::error::{PyFailure, RenderError, Result};
 use super::parts::{read_exr, write_labels, PartLabeler};
 use super::protocol::{MeshFiles, RenderRequest, Request, Response};
 use super::{Device, Engine, World};
 use crate::catalog::TriMesh;
-use anyhow::{anyhow, bail, Context, Result};
+use crate::dataset::error::chain;
 use grasp_schema::dataset::{
     part_file_name, RenderCost, HEAD_CAMERA_FOLDER, WORLD_KEY, WRIST_CAMERA_FOLDER,
 };
@@ -30,16 +31,19 @@ pub fn run() -> Result<()> {
     let Some(first) = lines.next() else {
         return Ok(());
     };
-    let (worker, settings, device) = match init_worker(&first.context("reading the init message")?)
-    {
+    let first = first.map_err(|source| RenderError::Stdin {
+        what: "reading the init message",
+        source,
+    })?;
+    let (worker, settings, device) = match init_worker(&first) {
         Ok(w) => w,
         Err(e) => {
             send(
                 &mut out,
                 &Response::Error {
                     id: None,
-                    message: format!("{e:#}"),
-                    fatal: e.downcast_ref::<DeviceUnavailable>().is_some(),
+                    message: chain(&e),
+                    fatal: matches!(e, RenderError::Device(_)),
                 },
             )?;
             return Err(e);
@@ -54,10 +58,18 @@ pub fn run() -> Result<()> {
         },
     )?;
     for line in lines {
-        let line = line.context("reading a request")?;
-        match serde_json::from_str::<Request>(&line).context("invalid request")? {
+        let line = line.map_err(|source| RenderError::Stdin {
+            what: "reading a request",
+            source,
+        })?;
+        let request =
+            serde_json::from_str::<Request>(&line).map_err(|source| RenderError::Json {
+                what: "invalid request",
+                source,
+            })?;
+        match request {
             Request::Quit => break,
-            Request::Init { .. } => bail!("init sent twice"),
+            Request::Init { .. } => return Err(RenderError::Protocol("init sent twice")),
             Request::Render(req) => {
                 let start = Instant::now();
                 let reply = match render(&worker, &settings, &req) {
@@ -73,7 +85,7 @@ pub fn run() -> Result<()> {
                     },
                     Err(e) => Response::Error {
                         id: Some(req.id.clone()),
-                        message: format!("{e:#}"),
+                        message: chain(&e),
                         fatal: false,
                     },
                 };
@@ -100,17 +112,25 @@ fn protocol_channel() -> Result<File> {
         os.call_method1("dup2", (2, 1))?;
         Ok(fd)
     })
-    .map_err(|e| anyhow!("cannot redirect stdout: {e}"))?;
+    .map_err(|e| RenderError::Blender {
+        doing: "cannot redirect stdout".into(),
+        source: PyFailure {
+            message: e.to_string(),
+        },
+    })?;
     // SAFETY: `fd` was just created by dup() and is owned by nobody else.
     Ok(unsafe { <File as std::os::fd::FromRawFd>::from_raw_fd(fd) })
 }
 
 fn send(out: &mut File, response: &Response) -> Result<()> {
-    let mut line = serde_json::to_string(response)?;
+    let mut line = serde_json::to_string(response).map_err(|source| RenderError::Json {
+        what: "a worker response",
+        source,
+    })?;
     line.push('\n');
     out.write_all(line.as_bytes())
         .and_then(|_| out.flush())
-        .context("cannot write to the parent")
+        .map_err(RenderError::Parent)
 }
 
 /// Peak resident set size of this process (0 where /proc is unavailable).
@@ -141,18 +161,48 @@ fn crash_once_if_asked() {
     }
 }
 
-fn py_err(e: PyErr) -> anyhow::Error {
+/// A Python exception with its traceback, as text.
+fn py_failure(e: PyErr) -> PyFailure {
     Python::attach(|py| {
         let tb = e
             .traceback(py)
             .and_then(|tb| tb.format().ok())
             .unwrap_or_default();
-        anyhow!("{tb}{e}")
+        PyFailure {
+            message: format!("{tb}{e}"),
+        }
     })
 }
 
+fn py_err(e: PyErr) -> RenderError {
+    RenderError::Py(py_failure(e))
+}
+
+/// A Python call that failed while `doing` something.
+fn blender(doing: impl Into<String>) -> impl FnOnce(PyErr) -> RenderError {
+    let doing = doing.into();
+    move |e| RenderError::Blender {
+        doing,
+        source: py_failure(e),
+    }
+}
+
+/// `e`, about the step `what`.
+fn step(what: impl Into<String>) -> impl FnOnce(RenderError) -> RenderError {
+    let what = what.into();
+    move |e| RenderError::Step {
+        what,
+        source: Box::new(e),
+    }
+}
+
+/// A value of the render settings or a message that does not parse.
+fn json(what: &'static str) -> impl FnOnce(serde_json::Error) -> RenderError {
+    move |source| RenderError::Json { what, source }
+}
+
 fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> Result<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(value)?;
+    let text = serde_json::to_string(value).map_err(json("a value for Python"))?;
     py.import("json")
         .and_then(|json| json.call_method1("loads", (text,)))
         .map_err(py_err)
@@ -160,9 +210,9 @@ fn json_to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> Result<Bou
 
 fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value, Resolved)> {
     let Request::Init { geometry, settings } =
-        serde_json::from_str::<Request>(line).context("invalid init message")?
+        serde_json::from_str::<Request>(line).map_err(json("invalid init message"))?
     else {
-        bail!("the first message must be init");
+        return Err(RenderError::Protocol("the first message must be init"));
     };
     let world = world_of(&settings)?;
     crate::python::init(&["bpy", world.worker_module()])?;
@@ -176,8 +226,7 @@ fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value, Resolved)> {
                     json_to_py(py, &settings).map_err(to_pyerr)?,
                 ))
             })
-            .map_err(py_err)
-            .context("building the Blender scene")?;
+            .map_err(blender("building the Blender scene"))?;
         let device = choose_device(py, &settings)?;
         Ok((worker.unbind(), settings.clone(), device))
     })
@@ -187,9 +236,11 @@ fn init_worker(line: &str) -> Result<(Py<PyAny>, serde_json::Value, Resolved)> {
 /// need it, picks one ([`device::resolve`]) and switches Cycles to it.
 fn choose_device(py: Python<'_>, settings: &serde_json::Value) -> Result<Resolved> {
     let engine: Engine = serde_json::from_value(settings["engine"].clone())
-        .context("the render settings' engine")?;
+        .map_err(json("the render settings' engine"))?;
     let requested: Device = match settings.get("device") {
-        Some(d) => serde_json::from_value(d.clone()).context("the render settings' device")?,
+        Some(d) => {
+            serde_json::from_value(d.clone()).map_err(json("the render settings' device"))?
+        }
         None => Device::Auto,
     };
     let render = py.import("blender_scripts.render").map_err(py_err)?;
@@ -198,22 +249,23 @@ fn choose_device(py: Python<'_>, settings: &serde_json::Value) -> Result<Resolve
         true => {
             let found = render
                 .call_method0("cycles_gpu_devices")
-                .map_err(py_err)
-                .context("asking Blender for its GPU devices")?;
+                .map_err(blender("asking Blender for its GPU devices"))?;
             let text: String = py
                 .import("json")
                 .and_then(|json| json.call_method1("dumps", (found,)))
                 .and_then(|t| t.extract())
                 .map_err(py_err)?;
-            serde_json::from_str(&text).context("Blender's GPU device list")?
+            serde_json::from_str(&text).map_err(json("Blender's GPU device list"))?
         }
     };
     let chosen = device::resolve(engine, requested, &reported)?;
     if engine == Engine::Cycles {
         render
             .call_method1("use_device", (chosen.used.as_str(),))
-            .map_err(py_err)
-            .with_context(|| format!("switching Cycles to device {}", chosen.used))?;
+            .map_err(blender(format!(
+                "switching Cycles to device {}",
+                chosen.used
+            )))?;
     }
     Ok(chosen)
 }
@@ -222,12 +274,12 @@ fn choose_device(py: Python<'_>, settings: &serde_json::Value) -> Result<Resolve
 fn world_of(settings: &serde_json::Value) -> Result<World> {
     match settings.get(WORLD_KEY) {
         None => Ok(World::Studio),
-        Some(w) => serde_json::from_value(w.clone()).context("the render settings' world"),
+        Some(w) => serde_json::from_value(w.clone()).map_err(json("the render settings' world")),
     }
 }
 
-fn to_pyerr(e: anyhow::Error) -> PyErr {
-    pyo3::exceptions::PyValueError::new_err(format!("{e:#}"))
+fn to_pyerr(e: RenderError) -> PyErr {
+    pyo3::exceptions::PyValueError::new_err(chain(&e))
 }
 
 /// Prepares the sequence, then renders each camera, timing each step (the
@@ -238,11 +290,12 @@ fn render(
     req: &RenderRequest,
 ) -> Result<RenderCost> {
     let scale = req.plan.object.scale;
-    anyhow::ensure!(
-        scale.is_finite() && scale > 0.0,
-        "sequence {}: plan.object.scale must be positive, got {scale}",
-        req.id
-    );
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(RenderError::BadPlan {
+            id: req.id.clone(),
+            reason: format!("plan.object.scale must be positive, got {scale}"),
+        });
+    }
     let labeler = match req.parts.is_empty() {
         true => None,
         false => Some(part_labeler(settings, req)?),
@@ -262,8 +315,7 @@ fn render(
                 w.call_method1("prepare", (plan.clone(), color, range))
             }
         }
-        .map_err(py_err)
-        .with_context(|| format!("preparing sequence {}", req.id))?;
+        .map_err(blender(format!("preparing sequence {}", req.id)))?;
         let mut cost = RenderCost {
             setup_seconds: start.elapsed().as_secs_f64(),
             ..Default::default()
@@ -281,11 +333,13 @@ fn render(
                 "render_camera",
                 (plan.clone(), camera, out_dir, req.frame_files.clone()),
             )
-            .map_err(py_err)
-            .with_context(|| format!("rendering sequence {} from the {camera} camera", req.id))?;
+            .map_err(blender(format!(
+                "rendering sequence {} from the {camera} camera",
+                req.id
+            )))?;
             if let Some(l) = &labeler {
                 label_parts(l, settings, req, camera == "head", dir)
-                    .with_context(|| format!("part labels of {} ({camera} camera)", req.id))?;
+                    .map_err(step(format!("part labels of {} ({camera} camera)", req.id)))?;
             }
             // The plan's sensor (noise, white balance, JPEG) is training's
             // camera; a foreign world's camera model is its own.
@@ -295,15 +349,14 @@ fn render(
             };
             if let Some(e) = sensor.filter(|e| e.is_active()) {
                 cost.effects_seconds +=
-                    super::effects::apply_to_frames(e, camera, dir, &req.frame_files)
-                        .with_context(|| {
-                            format!("camera effects of {} ({camera} camera)", req.id)
-                        })?;
+                    super::effects::apply_to_frames(e, camera, dir, &req.frame_files).map_err(
+                        step(format!("camera effects of {} ({camera} camera)", req.id)),
+                    )?;
             }
             cost.camera_seconds
                 .insert(folder.to_string(), start.elapsed().as_secs_f64());
         }
-        Ok::<_, anyhow::Error>(cost)
+        Ok::<_, RenderError>(cost)
     })?;
     if let (Some(a), Some(b)) = (cpu_start, process_cpu_seconds()) {
         cost.cpu_seconds = b - a;
@@ -333,7 +386,7 @@ fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result
         return Ok(());
     }
     let read = |p: &std::path::Path| {
-        std::fs::read(p).with_context(|| format!("cannot read mesh file {}", p.display()))
+        std::fs::read(p).map_err(|e| RenderError::io("cannot read mesh file", p, e))
     };
     let (v, f) = (read(&mesh.vertices)?, read(&mesh.faces)?);
     w.call_method1(
@@ -344,14 +397,13 @@ fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result
             PyBytes::new(py, &f),
         ),
     )
-    .map_err(py_err)
-    .with_context(|| format!("loading the mesh of '{}'", mesh.object))?;
+    .map_err(blender(format!("loading the mesh of '{}'", mesh.object)))?;
     Ok(())
 }
 
 fn part_labeler(settings: &serde_json::Value, req: &RenderRequest) -> Result<PartLabeler> {
     let read = |p: &std::path::Path| {
-        std::fs::read(p).with_context(|| format!("cannot read mesh file {}", p.display()))
+        std::fs::read(p).map_err(|e| RenderError::io("cannot read mesh file", p, e))
     };
     let (v, f) = (read(&req.mesh.vertices)?, read(&req.mesh.faces)?);
     let mesh = TriMesh {
@@ -377,14 +429,15 @@ fn part_labeler(settings: &serde_json::Value, req: &RenderRequest) -> Result<Par
         .iter()
         .flatten()
         .any(|&i| i as usize >= mesh.vertices.len());
-    anyhow::ensure!(
-        !bad,
-        "mesh of '{}': a face index is out of range",
-        req.mesh.object
-    );
+    if bad {
+        return Err(RenderError::Labels(format!(
+            "mesh of '{}': a face index is out of range",
+            req.mesh.object
+        )));
+    }
     let tolerance = settings["part_tolerance_m"].as_f64().unwrap_or(0.005);
     PartLabeler::new(&req.parts, &mesh, tolerance)
-        .with_context(|| format!("the parts of object '{}'", req.mesh.object))
+        .map_err(step(format!("the parts of object '{}'", req.mesh.object)))
 }
 
 /// Turns each frame's EXR (depth, object index) into `partNNNNN.png`, and
@@ -404,7 +457,7 @@ fn label_parts(
         let pose = match head {
             true => frame
                 .head_camera
-                .context("a frame without a head camera pose")?,
+                .ok_or(RenderError::Protocol("a frame without a head camera pose"))?,
             false => frame.camera,
         };
         let exr = dir.join(name).with_extension("exr");
@@ -412,8 +465,7 @@ fn label_parts(
         let labels = labeler.label(&buffers, k, &pose, &plan.object.pose, plan.object.scale)?;
         write_labels(&dir.join(part_file_name(name)), k.width, k.height, labels)?;
         if !keep_exr {
-            std::fs::remove_file(&exr)
-                .with_context(|| format!("cannot remove {}", exr.display()))?;
+            std::fs::remove_file(&exr).map_err(|e| RenderError::io("cannot remove", &exr, e))?;
         }
     }
     Ok(())

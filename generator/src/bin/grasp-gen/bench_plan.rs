@@ -2,8 +2,8 @@
 //! planning" section, printed as Markdown. A benchmark of the binary, kept
 //! out of the library.
 
+use crate::plan::{load_inputs, plan_all};
 use anyhow::Result;
-use generator::plan::cli::{load_inputs, plan_all};
 use generator::plan::trajectory::{frame_tau, min_jerk, min_jerk_velocity};
 use generator::plan::{sequence_keys, Planner};
 use grasp_schema::Condition;

@@ -2,9 +2,9 @@
 //! library): timings of the mesh queries the
 //! planner and the validation use, per object and ray backend.
 
+use crate::objects::{load_unchecked, CatalogArg};
 use anyhow::Result;
 use clap::Args;
-use generator::catalog::cli::{load_unchecked, CatalogArg};
 use generator::catalog::Catalog;
 use generator::geometry::{MeshQuery, RayBackend};
 use rand::{Rng, SeedableRng};

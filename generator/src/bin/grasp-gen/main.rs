@@ -1,5 +1,10 @@
 mod bench_plan;
 mod bench_queries;
+mod dataset;
+mod objects;
+mod plan;
+mod preview;
+mod render;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -20,14 +25,14 @@ enum Command {
     #[command(subcommand)]
     Objects(ObjectsCli),
     /// Render the configured sequences with headless Blender workers.
-    Render(generator::render::cli::RenderArgs),
+    Render(render::RenderArgs),
     /// Check a finished dataset, or merge shard outputs.
     #[command(subcommand)]
-    Dataset(generator::dataset::cli::DatasetCommand),
+    Dataset(dataset::DatasetCommand),
     /// Write a contact sheet and an animated GIF of a few sequences.
-    Preview(generator::preview::PreviewArgs),
+    Preview(preview::PreviewArgs),
     /// Plan sequences (camera paths, labels, scene samples) without Blender.
-    Plan(generator::plan::cli::PlanArgs),
+    Plan(plan::PlanArgs),
     /// Time the planner and print the BENCHMARKS.md tables.
     #[command(hide = true)]
     BenchPlan(bench_plan::BenchArgs),
@@ -40,7 +45,7 @@ enum Command {
 #[derive(Subcommand)]
 enum ObjectsCli {
     #[command(flatten)]
-    Lib(generator::catalog::cli::ObjectsCommand),
+    Lib(objects::ObjectsCommand),
     /// Time the mesh queries (rays, inside tests, closest points) per
     /// object, for each ray backend, against trimesh's closest points.
     BenchQueries(bench_queries::BenchArgs),
@@ -52,13 +57,13 @@ fn main() -> std::process::ExitCode {
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),
-            Command::Objects(ObjectsCli::Lib(cmd)) => generator::catalog::cli::run(&cmd),
+            Command::Objects(ObjectsCli::Lib(cmd)) => objects::run(&cmd),
             Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
-            Command::Render(args) => generator::render::cli::run_render(&args),
-            Command::Dataset(cmd) => generator::dataset::cli::run(&cmd),
-            Command::Preview(args) => generator::preview::run(&args),
-            Command::Worker => generator::render::cli::run_worker(),
-            Command::Plan(args) => generator::plan::cli::run(&args),
+            Command::Render(args) => render::run_render(&args),
+            Command::Dataset(cmd) => dataset::run(&cmd),
+            Command::Preview(args) => preview::run(&args),
+            Command::Worker => render::run_worker(),
+            Command::Plan(args) => plan::run(&args),
             Command::BenchPlan(args) => bench_plan::run(&args),
         }
     })

@@ -2,8 +2,8 @@
 //! contents.
 
 use super::holder::Holder;
+use crate::dataset::error::{DatasetError, Result};
 use crate::dataset::shard::Shard;
-use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -39,8 +39,11 @@ pub(super) fn read_holder_patiently(path: &Path) -> Result<Holder, ReadError> {
 }
 
 pub fn read_holder(path: &Path) -> Result<Holder> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_slice(&bytes).with_context(|| format!("invalid lock file {}", path.display()))
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::io("cannot read", path, e))?;
+    serde_json::from_slice(&bytes).map_err(|source| DatasetError::LockFile {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// The current holders of every lock of a work folder (for messages).
@@ -54,7 +57,7 @@ pub fn holders(work_dir: &Path) -> Vec<Holder> {
 
 pub(super) fn lock_files(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot read {}", dir.display()))?
+        .map_err(|e| DatasetError::io("cannot read", dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             let name = p.file_name().unwrap_or_default().to_string_lossy();

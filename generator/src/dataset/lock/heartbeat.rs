@@ -4,7 +4,7 @@
 
 use super::files::read_holder;
 use super::holder::{Holder, Liveness};
-use anyhow::Result;
+use crate::dataset::error::Result;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, RecvTimeoutError, Sender};

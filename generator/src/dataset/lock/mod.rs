@@ -28,8 +28,8 @@ pub use files::{holders, locks_dir, read_holder};
 pub use heartbeat::{heartbeat_interval, OutputLock, HEARTBEAT_ENV};
 pub use holder::{liveness, utc_time, Holder, Liveness};
 
+use super::error::{DatasetError, Result};
 use super::shard::Shard;
-use anyhow::{bail, Context, Result};
 use files::{folder_of, lock_files, lock_name, read_holder_patiently, shard_of, ReadError};
 use heartbeat::{heartbeat_age, heartbeat_verdict, start_heartbeat, SILENT_BEATS};
 use holder::human_duration;
@@ -45,7 +45,7 @@ pub fn acquire(
     break_lock: bool,
 ) -> Result<OutputLock> {
     let dir = locks_dir(work_dir);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(|e| DatasetError::io("cannot create", &dir, e))?;
     let me = Holder::current(shard, purpose);
     let path = dir.join(lock_name(shard));
     let mut created = false;
@@ -57,10 +57,7 @@ pub fn acquire(
         clear_conflict(&path, &me, break_lock)?;
     }
     if !created {
-        bail!(
-            "cannot take the lock {}: other processes keep creating it",
-            path.display()
-        );
+        return Err(DatasetError::LockContended { lock: path });
     }
     let lock = start_heartbeat(path.clone(), me.token.clone());
     // Our file exists now: any later overlapping run sees it.
@@ -81,9 +78,12 @@ pub fn acquire(
 
 /// Creates `path` holding `me` if it does not exist; false if it does.
 fn create_lock_file(path: &Path, me: &Holder) -> Result<bool> {
-    let json = serde_json::to_vec_pretty(me)?;
+    let json = serde_json::to_vec_pretty(me).map_err(|source| DatasetError::Serialise {
+        what: "a lock holder",
+        source,
+    })?;
     let tmp = path.with_file_name(format!(".{}.tmp", me.token));
-    std::fs::write(&tmp, &json).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::write(&tmp, &json).map_err(|e| DatasetError::io("cannot write", &tmp, e))?;
     let linked = std::fs::hard_link(&tmp, path);
     let _ = std::fs::remove_file(&tmp);
     match linked {
@@ -99,11 +99,11 @@ fn create_lock_file(path: &Path, me: &Holder) -> Result<bool> {
                 use std::io::Write;
                 f.write_all(&json)
                     .and_then(|_| f.sync_all())
-                    .with_context(|| format!("cannot write {}", path.display()))?;
+                    .map_err(|e| DatasetError::io("cannot write", path, e))?;
                 Ok(true)
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
-            Err(e) => Err(e).with_context(|| format!("cannot create {}", path.display())),
+            Err(e) => Err(DatasetError::io("cannot create", path, e)),
         },
     }
 }
@@ -114,12 +114,13 @@ fn clear_conflict(path: &Path, me: &Holder, break_lock: bool) -> Result<()> {
     let holder = match read_holder_patiently(path) {
         Ok(h) => h,
         Err(ReadError::Gone) => return Ok(()),
-        Err(ReadError::Unreadable(e)) => bail!(
-            "{} is locked, but the lock file {} is unreadable ({e}); if no grasp-gen is \
-             writing there, remove it",
-            folder_of(path).display(),
-            path.display()
-        ),
+        Err(ReadError::Unreadable(e)) => {
+            return Err(DatasetError::LockUnreadable {
+                folder: folder_of(path).to_path_buf(),
+                lock: path.to_path_buf(),
+                reason: e,
+            })
+        }
     };
     let verdict = match liveness(&holder, me) {
         Liveness::Unknown if break_lock => heartbeat_verdict(path, &holder)?,
@@ -134,26 +135,22 @@ fn clear_conflict(path: &Path, me: &Holder, break_lock: bool) -> Result<()> {
             );
             remove_if_token(path, &holder.token)
         }
-        Liveness::Alive(reason) => bail!(
-            "{} is in use: {}; {reason} (lock {}). Wait for it to finish or stop it first",
-            folder_of(path).display(),
-            holder.describe(),
-            path.display()
-        ),
-        Liveness::Unknown => bail!(
-            "{} is in use: {}; last heartbeat {} ago (lock {}). That host is not this \
-             machine, so it cannot be checked from here. If that process is gone, run \
-             again with --break-lock: it takes the lock over once the heartbeat has \
-             stopped for {} intervals of {} s",
-            folder_of(path).display(),
-            holder.describe(),
-            heartbeat_age(path)
+        Liveness::Alive(reason) => Err(DatasetError::InUse {
+            folder: folder_of(path).to_path_buf(),
+            holder: holder.describe(),
+            reason,
+            lock: path.to_path_buf(),
+        }),
+        Liveness::Unknown => Err(DatasetError::InUseElsewhere {
+            folder: folder_of(path).to_path_buf(),
+            holder: holder.describe(),
+            age: heartbeat_age(path)
                 .map(|d| human_duration(d.as_secs()))
                 .unwrap_or_else(|| "?".into()),
-            path.display(),
-            SILENT_BEATS,
-            heartbeat_interval().as_secs_f64()
-        ),
+            lock: path.to_path_buf(),
+            beats: SILENT_BEATS,
+            interval_s: heartbeat_interval().as_secs_f64(),
+        }),
     }
 }
 
@@ -168,7 +165,7 @@ fn remove_if_token(path: &Path, token: &str) -> Result<()> {
     match std::fs::rename(path, &grave) {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(e).with_context(|| format!("cannot remove {}", path.display())),
+        Err(e) => return Err(DatasetError::io("cannot remove", path, e)),
     }
     if read_holder(&grave).is_ok_and(|h| h.token != token) {
         // Someone else's fresh lock: put it back.

@@ -6,12 +6,12 @@ use super::search::{Accepted, Candidate};
 use super::{ObjectGeometry, Planner, SequenceDraws};
 use crate::catalog::GraspPart;
 use crate::plan::conditions::PathSample;
+use crate::plan::error::Result;
 use crate::plan::head_camera::HeadCamera;
 use crate::plan::scene::Placement;
 use crate::plan::trajectory::frame_tau;
 use crate::plan::wrist::{self, WristAngles};
 use crate::randomize;
-use anyhow::Result;
 use grasp_schema::plan::{
     substream_seed, FramePlan, ObjectPlacement, Pose, SequenceKey, SequencePlan,
     PLAN_SCHEMA_VERSION,

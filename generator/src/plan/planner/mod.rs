@@ -13,8 +13,8 @@ pub use object_geometry::ObjectGeometry;
 use super::selection::selected_pairs;
 use crate::catalog::Catalog;
 use crate::config::GeneratorConfig;
+use crate::plan::error::{PlanError, Result};
 use crate::randomize::{self, ApproachDraw};
-use anyhow::{Context, Result};
 use grasp_schema::plan::{CameraIntrinsics, SequenceKey, SequencePlan};
 use grasp_schema::Condition;
 use std::collections::BTreeMap;
@@ -70,11 +70,15 @@ impl Planner {
             if !seen.insert(object.id.clone()) {
                 continue;
             }
-            let mesh = object
-                .mesh()
-                .with_context(|| format!("loading the mesh of object {}", object.id))?;
-            let query = crate::geometry::MeshQuery::new(&mesh)
-                .with_context(|| format!("building the mesh query of object {}", object.id))?;
+            let mesh = object.mesh().map_err(|e| PlanError::Mesh {
+                object: object.id.clone(),
+                source: Box::new(e),
+            })?;
+            let query =
+                crate::geometry::MeshQuery::new(&mesh).map_err(|source| PlanError::MeshQuery {
+                    object: object.id.clone(),
+                    source,
+                })?;
             geometries.push(ObjectGeometry::new(object.clone(), &mesh, Box::new(query))?);
         }
         Planner::from_geometries(config, geometries)
@@ -108,31 +112,31 @@ impl Planner {
     /// Plans one sequence: a pure function of the key, the dataset seed and
     /// the config.
     pub fn plan(&self, key: &SequenceKey) -> Result<SequencePlan> {
-        let geo = self.objects.get(&key.object).with_context(|| {
-            format!(
-                "unknown object '{}' (planner has: {})",
-                key.object,
-                self.objects.keys().cloned().collect::<Vec<_>>().join(", ")
-            )
-        })?;
+        let geo = self
+            .objects
+            .get(&key.object)
+            .ok_or_else(|| PlanError::UnknownObject {
+                object: key.object.clone(),
+                known: Some(self.objects.keys().cloned().collect::<Vec<_>>().join(", ")),
+            })?;
         let (part_index, part) = geo
             .spec
             .parts
             .iter()
             .enumerate()
             .find(|(_, p)| p.name == key.part)
-            .with_context(|| {
-                format!(
-                    "object {} has no part '{}' (parts: {})",
-                    key.object,
-                    key.part,
+            .ok_or_else(|| PlanError::UnknownPart {
+                object: key.object.clone(),
+                part: key.part.clone(),
+                quoted: false,
+                parts: Some(
                     geo.spec
                         .parts
                         .iter()
                         .map(|p| p.name.as_str())
                         .collect::<Vec<_>>()
-                        .join(", ")
-                )
+                        .join(", "),
+                ),
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
         let draws = self.sequence_draws(key.condition, stream);
@@ -145,7 +149,10 @@ impl Planner {
         };
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
-            .with_context(|| format!("planning {}", key.id()))?;
+            .map_err(|e| PlanError::Planning {
+                id: key.id(),
+                source: Box::new(e),
+            })?;
         self.build_plan(key, geo, part_index, part, stream, &draws, accepted)
     }
 

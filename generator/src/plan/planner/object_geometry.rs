@@ -3,9 +3,9 @@
 //! scaled by `[randomize.object_scale]`.
 
 use crate::catalog::{GraspPart, ObjectSpec, TriMesh};
+use crate::plan::error::{PlanError, Result};
 use crate::plan::validity::{Obb, RayCaster, ScaledCaster};
 use crate::plan::wrist;
-use anyhow::Result;
 use nalgebra::Vector3;
 use std::rc::Rc;
 
@@ -27,11 +27,13 @@ pub struct ObjectGeometry {
 
 impl ObjectGeometry {
     pub fn new(spec: ObjectSpec, mesh: &TriMesh, caster: Box<dyn RayCaster>) -> Result<Self> {
-        anyhow::ensure!(
-            !mesh.vertices.is_empty(),
-            "object {}: the mesh has no vertices",
-            spec.id
-        );
+        if mesh.vertices.is_empty() {
+            return Err(PlanError::BadObject {
+                object: spec.id.clone(),
+                part: None,
+                reason: "the mesh has no vertices".into(),
+            });
+        }
         let mut lo = Vector3::repeat(f64::INFINITY);
         let mut hi = Vector3::repeat(f64::NEG_INFINITY);
         for v in &mesh.vertices {
@@ -101,17 +103,17 @@ impl ObjectGeometry {
 fn part_box(object: &str, p: &GraspPart) -> Result<Obb> {
     let q = p.rotation_wxyz;
     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    anyhow::ensure!(
-        norm.is_finite() && norm > 1e-9,
-        "object {object}, part {}: rotation_wxyz {q:?} is not a rotation",
-        p.name
-    );
-    anyhow::ensure!(
-        p.size.iter().all(|s| s.is_finite() && *s > 0.0),
-        "object {object}, part {}: size {:?} must be positive",
-        p.name,
-        p.size
-    );
+    let bad = |reason: String| PlanError::BadObject {
+        object: object.to_string(),
+        part: Some(p.name.clone()),
+        reason,
+    };
+    if !(norm.is_finite() && norm > 1e-9) {
+        return Err(bad(format!("rotation_wxyz {q:?} is not a rotation")));
+    }
+    if !p.size.iter().all(|s| s.is_finite() && *s > 0.0) {
+        return Err(bad(format!("size {:?} must be positive", p.size)));
+    }
     Ok(Obb {
         center: Vector3::from(p.center),
         rotation: wrist::from_wxyz(q),

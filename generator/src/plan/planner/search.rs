@@ -4,12 +4,12 @@
 
 use super::{ObjectGeometry, Planner, SequenceDraws};
 use crate::plan::conditions::{sample_path, PathContext, PathSample};
+use crate::plan::error::{PlanError, Result};
 use crate::plan::scene::{sample_placement, Placement};
 use crate::plan::validity::{
     aabb, check_batch, Acceptance, Obb, Obstacles, PolylineCheck, Rejection,
 };
 use crate::randomize::ApproachDraw;
-use anyhow::{bail, Result};
 use grasp_schema::plan::{substream_seed, CameraIntrinsics};
 use grasp_schema::Condition;
 use nalgebra::Vector3;
@@ -194,12 +194,13 @@ impl Planner {
             .iter()
             .map(|(r, n)| format!("{n} x {}", r.describe()))
             .collect();
-        bail!(
-            "object {}, part {}: no valid {condition} approach in {max} attempts ({})",
-            geo.spec.id,
-            geo.spec.parts[part_index].name,
-            reasons.join("; ")
-        )
+        Err(PlanError::NoApproach {
+            object: geo.spec.id.clone(),
+            part: geo.spec.parts[part_index].name.clone(),
+            condition,
+            attempts: max,
+            reasons: reasons.join("; "),
+        })
     }
 }
 

@@ -19,7 +19,7 @@ use super::source::RenderSource;
 use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::lock;
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
-use anyhow::{bail, Result};
+use crate::render::error::{RenderError, Result};
 use grasp_schema::dataset::RenderCost;
 use grasp_schema::SequencePlan;
 use grasp_support::atomic::write_atomic;
@@ -187,11 +187,10 @@ pub fn render(
     let finished_count = finished.iter().filter(|f| **f).count();
     refuse_other_sequences(source.as_ref(), &dataset, &in_shard, &finished, config)?;
     if finished_count > 0 && !opts.resume {
-        bail!(
-            "{} already holds {finished_count} finished sequences of this dataset; pass \
-             --resume to keep them and render the rest, or choose an empty folder",
-            opts.out.display()
-        );
+        return Err(RenderError::AlreadyRendered {
+            out: opts.out.clone(),
+            finished: finished_count,
+        });
     }
     dataset.clean_partials(opts.shard)?;
     let mut summary = RenderSummary {
@@ -203,7 +202,11 @@ pub fn render(
     if total > 0 {
         let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
         // Kept for re-renders and the naive benchmark script.
-        let scene_json = serde_json::to_vec_pretty(&source.scene())?;
+        let scene_json =
+            serde_json::to_vec_pretty(&source.scene()).map_err(|source| RenderError::Json {
+                what: "the scene geometry",
+                source,
+            })?;
         write_atomic(&dataset.work_dir().join("scene.json"), &scene_json)?;
         let workers = opts.workers.clamp(1, total);
         let ctx = Arc::new(Shared {

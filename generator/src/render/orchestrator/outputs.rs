@@ -5,10 +5,10 @@
 use super::Job;
 use crate::dataset::lock::{self, OutputLock};
 use crate::dataset::DatasetDir;
+use crate::render::error::{RenderError, Result};
 use crate::render::protocol::MeshFiles;
 use crate::render::source::RenderSource;
 use crate::render::Shard;
-use anyhow::{Context, Result};
 use grasp_schema::dataset::{RenderCost, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_support::atomic::write_atomic;
 use std::collections::{BTreeMap, VecDeque};
@@ -44,16 +44,17 @@ pub(super) fn write_meshes(
     todo: &VecDeque<Job>,
 ) -> Result<BTreeMap<String, MeshFiles>> {
     let dir = dataset.work_dir().join("meshes");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(|e| RenderError::io("cannot create", &dir, e))?;
     let mut out = BTreeMap::new();
     for job in todo {
         let object = &job.assigned.planned.key.object;
         if out.contains_key(object) {
             continue;
         }
-        let mesh = source
-            .mesh(object)
-            .with_context(|| format!("loading the mesh of object '{object}'"))?;
+        let mesh = source.mesh(object).map_err(|e| RenderError::Mesh {
+            object: object.clone(),
+            source: Box::new(e),
+        })?;
         let vertices: Vec<u8> = mesh
             .vertices
             .iter()

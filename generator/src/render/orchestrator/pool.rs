@@ -5,9 +5,10 @@
 use super::outputs::record_settings;
 use super::slot::worker_slot;
 use super::{Event, RenderSummary, Rendered, Shared};
+use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;
-use anyhow::{anyhow, Result};
+use crate::render::error::{RenderError, Result};
 use grasp_schema::dataset::SequenceRecord;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::Ordering;
@@ -69,7 +70,7 @@ pub(super) fn run_pool(
     ctx.stop_and_kill();
     for t in threads {
         if t.join().is_err() {
-            return Err(anyhow!("a worker thread panicked"));
+            return Err(RenderError::WorkerPanicked);
         }
     }
     Ok(interrupted)
@@ -142,11 +143,11 @@ fn on_rendered(
         }
         Err(e) if storage::is_storage_full(&e) => {
             let _ = std::fs::remove_dir_all(&partial);
-            summary.fatal = Some(format!("{id}: {e:#}"));
+            summary.fatal = Some(format!("{id}: {}", chain(&e)));
             return false;
         }
         Err(e) => {
-            let error = format!("{e:#}");
+            let error = chain(&e);
             progress.log(&|| tracing::error!("FAILED {id}: {error}"));
             summary.failed.push((id, error));
         }

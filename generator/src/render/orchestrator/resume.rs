@@ -4,9 +4,9 @@
 
 use super::{Job, RenderSummary};
 use crate::dataset::{Assigned, DatasetDir};
+use crate::render::error::{RenderError, Result};
 use crate::render::source::RenderSource;
 use crate::render::RenderConfig;
-use anyhow::{bail, Context, Result};
 use grasp_schema::SequencePlan;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -65,19 +65,16 @@ pub(super) fn refuse_other_sequences(
         }
     }
     if let Some(first) = other_key.first {
-        bail!(
-            "{first} ({} more such folder(s)): the dataset was rendered with other settings \
-             (sequences per pair, objects, parts or conditions number the folders); render into \
-             a new folder, or back to the old settings",
-            other_key.count - 1
-        );
+        return Err(RenderError::OtherSequences {
+            first,
+            more: other_key.count - 1,
+        });
     }
     if let Some(first) = other_render.first {
-        bail!(
-            "{first} ({} more finished sequence(s) differ); resuming would mix two renders in \
-             one dataset: set the render settings back, or render into a new folder",
-            other_render.count - 1
-        );
+        return Err(RenderError::OtherRender {
+            first,
+            more: other_render.count - 1,
+        });
     }
     match sample {
         Some((dir, recorded)) => refuse_other_plan(source, &dir, &recorded),
@@ -90,11 +87,21 @@ pub(super) fn refuse_other_sequences(
 fn refuse_other_plan(source: &dyn RenderSource, dir: &Path, recorded: &SequencePlan) -> Result<()> {
     let id = recorded.key.id();
     // The same JSON round trip as the record, so floats compare exactly.
-    let fresh = source.plan(&recorded.key).and_then(|p| {
-        let text = serde_json::to_string(&p)?;
-        Ok(serde_json::from_str::<SequencePlan>(&text)?)
-    });
-    let fresh = fresh.with_context(|| format!("re-planning finished sequence {id}"))?;
+    let fresh = source
+        .plan(&recorded.key)
+        .map_err(RenderError::from)
+        .and_then(|p| {
+            let json = |source| RenderError::Json {
+                what: "the JSON round trip of a plan",
+                source,
+            };
+            let text = serde_json::to_string(&p).map_err(json)?;
+            serde_json::from_str::<SequencePlan>(&text).map_err(json)
+        });
+    let fresh = fresh.map_err(|e| RenderError::Replan {
+        id: id.clone(),
+        source: Box::new(e),
+    })?;
     if &fresh == recorded {
         return Ok(());
     }
@@ -110,11 +117,10 @@ fn refuse_other_plan(source: &dyn RenderSource, dir: &Path, recorded: &SequenceP
             size(&fresh)
         ),
     };
-    bail!(
-        "{}: {what}; resuming would mix two datasets in one folder: set the settings back, or \
-         render into a new folder",
-        dir.display()
-    )
+    Err(RenderError::OtherPlan {
+        dir: dir.to_path_buf(),
+        what,
+    })
 }
 
 /// The first of a kind of mismatch, described, and how many there are.

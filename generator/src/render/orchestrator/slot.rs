@@ -2,13 +2,14 @@
 //! into a render request, hands it to its worker process (started on
 //! demand, recycled every `recycle_every` sequences) and reports back.
 
-use super::worker_proc::{CannotStart, WorkerProc};
+use super::worker_proc::WorkerProc;
 use super::{Event, Job, Rendered, Shared};
+use crate::dataset::error::chain;
 use crate::dataset::storage;
 use crate::dataset::writer::frame_files;
 use crate::dataset::DatasetDir;
+use crate::render::error::{RenderError, Result};
 use crate::render::protocol::{RenderRequest, Request, Response};
-use anyhow::{anyhow, bail, Context, Result};
 use grasp_schema::dataset::RenderCost;
 use grasp_schema::SequencePlan;
 use std::path::{Path, PathBuf};
@@ -50,7 +51,7 @@ pub(super) fn worker_slot(slot: usize, ctx: &Shared, tx: &Sender<Event>) {
             Err(e) => {
                 let _ = tx.send(Event::Failed {
                     id,
-                    error: format!("{e:#}"),
+                    error: chain(&e),
                 });
                 continue;
             }
@@ -112,8 +113,10 @@ impl SlotWorker<'_> {
                 tracing::debug!(slot, served, rss_kib, peak_rss_kib, "worker memory");
                 Ok((peak_rss_kib, cost))
             }
-            Ok(Response::Error { message, .. }) => Err(anyhow!(message)),
-            Ok(other) => Err(anyhow!("unexpected worker answer {other:?}")),
+            Ok(Response::Error { message, .. }) => Err(RenderError::WorkerFailed { message }),
+            Ok(other) => Err(RenderError::UnexpectedAnswer {
+                answer: format!("{other:?}"),
+            }),
             Err(e) => {
                 self.proc = None;
                 Err(e)
@@ -137,15 +140,9 @@ impl SlotWorker<'_> {
 /// Reports a failed job: fatal (no worker can start, or a full disk fails
 /// every sequence alike), retried while attempts remain, else failed.
 /// False when the slot must stop.
-fn report_failure(
-    ctx: &Shared,
-    tx: &Sender<Event>,
-    job: Job,
-    id: String,
-    e: anyhow::Error,
-) -> bool {
-    if e.downcast_ref::<CannotStart>().is_some() {
-        let error = format!("{e:#}");
+fn report_failure(ctx: &Shared, tx: &Sender<Event>, job: Job, id: String, e: RenderError) -> bool {
+    if matches!(e, RenderError::WorkerStart { fatal: true, .. }) {
+        let error = chain(&e);
         let _ = tx.send(Event::Fatal { id, error });
         return false;
     }
@@ -155,13 +152,13 @@ fn report_failure(
     };
     if storage::is_storage_full(&e) || full.is_some() {
         let error = match full {
-            Some(f) => format!("{e:#}; {:#}", anyhow::Error::new(f)),
-            None => format!("{e:#}"),
+            Some(f) => format!("{}; {}", chain(&e), chain(&f)),
+            None => chain(&e),
         };
         let _ = tx.send(Event::Fatal { id, error });
         return false;
     }
-    let error = format!("{e:#}");
+    let error = chain(&e);
     if job.attempt < ctx.max_retries {
         let _ = tx.send(Event::Retry { id, error });
         ctx.queue
@@ -180,28 +177,34 @@ fn report_failure(
 /// Plans a job and builds its render request.
 fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
     let key = &job.assigned.planned.key;
-    let plan = ctx
-        .source
-        .plan(key)
-        .with_context(|| format!("planning sequence {}", key.id()))?;
+    let plan = ctx.source.plan(key).map_err(|e| RenderError::Planning {
+        id: key.id(),
+        source: Box::new(e),
+    })?;
     if &plan.key != key {
-        bail!(
-            "the planner returned sequence {} for {}",
-            plan.key.id(),
-            key.id()
-        );
+        return Err(RenderError::WrongSequence {
+            got: plan.key.id(),
+            want: key.id(),
+        });
     }
+    let bad_plan = |reason: &str| RenderError::BadPlan {
+        id: key.id(),
+        reason: reason.to_string(),
+    };
     if plan.appearance.is_none() {
-        bail!("sequence {}: the plan has no appearance", key.id());
+        return Err(bad_plan("the plan has no appearance"));
     }
     if plan.frames.is_empty() {
-        bail!("sequence {}: the plan has no frames", key.id());
+        return Err(bad_plan("the plan has no frames"));
     }
     let mesh = ctx
         .meshes
         .get(&key.object)
         .cloned()
-        .with_context(|| format!("no mesh for object '{}'", key.object))?;
+        .ok_or_else(|| RenderError::NoObjectData {
+            what: "mesh",
+            object: key.object.clone(),
+        })?;
     let out_dir = ctx
         .dataset
         .partial_dir(job.assigned.position, job.attempt)?;
@@ -210,9 +213,14 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
         let parts = ctx
             .source
             .parts(&key.object)
-            .with_context(|| format!("the part boxes of object '{}'", key.object))?;
+            .map_err(|e| RenderError::Step {
+                what: format!("the part boxes of object '{}'", key.object),
+                source: Box::new(e),
+            })?;
         if parts.is_empty() {
-            bail!("object '{}' has no parts to label", key.object);
+            return Err(RenderError::NoParts {
+                object: key.object.clone(),
+            });
         }
         parts
     } else {
@@ -244,16 +252,18 @@ fn head_partial(plan: &SequencePlan, out_dir: &Path) -> Result<Option<PathBuf>> 
         return Ok(None);
     }
     if with_head != plan.frames.len() {
-        bail!(
-            "sequence {}: {with_head} of {} frames have a head camera pose (all or none)",
-            plan.key.id(),
-            plan.frames.len()
-        );
+        return Err(RenderError::BadPlan {
+            id: plan.key.id(),
+            reason: format!(
+                "{with_head} of {} frames have a head camera pose (all or none)",
+                plan.frames.len()
+            ),
+        });
     }
     let dir = DatasetDir::partial_head_dir(out_dir);
     if dir.exists() {
-        std::fs::remove_dir_all(&dir).with_context(|| format!("cannot clear {}", dir.display()))?;
+        std::fs::remove_dir_all(&dir).map_err(|e| RenderError::io("cannot clear", &dir, e))?;
     }
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(|e| RenderError::io("cannot create", &dir, e))?;
     Ok(Some(dir))
 }

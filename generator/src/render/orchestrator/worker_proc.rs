@@ -2,8 +2,8 @@
 //! spoken to one JSON line at a time, killed or asked to quit.
 
 use super::Shared;
+use crate::render::error::{RenderError, Result};
 use crate::render::protocol::{Request, Response};
-use anyhow::{bail, Context, Result};
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::process::CommandExt;
 use std::path::Path;
@@ -19,23 +19,17 @@ pub(super) struct WorkerProc {
     pub(super) note: Option<String>,
 }
 
-/// A worker that cannot start as configured (a `[render] device` Blender
-/// does not offer): every retry would fail the same way.
-#[derive(Debug, thiserror::Error)]
-#[error("worker failed to start: {0}")]
-pub(super) struct CannotStart(String);
-
 impl WorkerProc {
     pub(super) fn spawn(slot: usize, ctx: &Shared) -> Result<Self> {
         let log_path = ctx.worker_log(slot);
         if let Some(logs) = log_path.parent() {
-            std::fs::create_dir_all(logs)?;
+            std::fs::create_dir_all(logs).map_err(|e| RenderError::io("cannot create", logs, e))?;
         }
         let log = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
             .open(&log_path)
-            .with_context(|| format!("cannot open {}", log_path.display()))?;
+            .map_err(|e| RenderError::io("cannot open", &log_path, e))?;
         let mut child = Command::new(&ctx.exe)
             .arg("worker")
             .envs(ctx.worker_env.iter().map(|(k, v)| (k, v)))
@@ -46,9 +40,17 @@ impl WorkerProc {
             // which then stops the workers itself.
             .process_group(0)
             .spawn()
-            .with_context(|| format!("cannot start worker {}", ctx.exe.display()))?;
-        let stdin = child.stdin.take().context("worker stdin")?;
-        let stdout = BufReader::new(child.stdout.take().context("worker stdout")?);
+            .map_err(|e| RenderError::io("cannot start worker", &ctx.exe, e))?;
+        let stdin = child
+            .stdin
+            .take()
+            .ok_or(RenderError::WorkerPipe("worker stdin"))?;
+        let stdout = BufReader::new(
+            child
+                .stdout
+                .take()
+                .ok_or(RenderError::WorkerPipe("worker stdout"))?,
+        );
         let mut proc = WorkerProc {
             child: Arc::new(Mutex::new(child)),
             stdin,
@@ -62,18 +64,20 @@ impl WorkerProc {
         };
         match proc.call(&init, &log_path)? {
             Response::Ready { note, .. } => Ok(WorkerProc { note, ..proc }),
-            Response::Error {
-                message,
-                fatal: true,
-                ..
-            } => Err(CannotStart(message).into()),
-            Response::Error { message, .. } => bail!("worker failed to start: {message}"),
-            other => bail!("unexpected worker answer {other:?}"),
+            Response::Error { message, fatal, .. } => {
+                Err(RenderError::WorkerStart { message, fatal })
+            }
+            other => Err(RenderError::UnexpectedAnswer {
+                answer: format!("{other:?}"),
+            }),
         }
     }
 
     pub(super) fn call(&mut self, request: &Request, log: &Path) -> Result<Response> {
-        let mut line = serde_json::to_string(request)?;
+        let mut line = serde_json::to_string(request).map_err(|source| RenderError::Json {
+            what: "a worker request",
+            source,
+        })?;
         line.push('\n');
         let sent = self
             .stdin
@@ -82,11 +86,18 @@ impl WorkerProc {
         let mut answer = String::new();
         let read = sent.and_then(|_| self.stdout.read_line(&mut answer));
         match read {
-            Ok(n) if n > 0 => serde_json::from_str(&answer)
-                .with_context(|| format!("invalid worker answer '{}'", answer.trim())),
+            Ok(n) if n > 0 => {
+                serde_json::from_str(&answer).map_err(|source| RenderError::InvalidAnswer {
+                    answer: answer.trim().to_string(),
+                    source,
+                })
+            }
             _ => {
                 let status = self.kill();
-                bail!("worker process died ({status}); see {}", log.display())
+                Err(RenderError::WorkerDied {
+                    status,
+                    log: log.to_path_buf(),
+                })
             }
         }
     }

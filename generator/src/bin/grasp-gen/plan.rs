@@ -1,9 +1,9 @@
 //! `grasp-gen plan`: write plans as JSON lines and/or draw them.
 
-use super::{sequence_keys, Planner};
-use crate::catalog::Catalog;
-use crate::config::{ConfigArgs, GeneratorConfig};
 use anyhow::{bail, Context, Result};
+use generator::catalog::Catalog;
+use generator::config::{ConfigArgs, GeneratorConfig};
+use generator::plan::{sequence_keys, Planner};
 use grasp_schema::SequencePlan;
 use grasp_support::atomic::AtomicFile;
 use std::io::Write;
@@ -46,7 +46,7 @@ pub fn load_inputs(
             .with_context(|| format!("loading the catalog {}", dir.display()))?,
         None => Catalog::builtin().context("loading the built-in catalog")?,
     };
-    super::check::check(&config, &catalog)?;
+    generator::plan::check::check(&config, &catalog)?;
     Ok((config, catalog))
 }
 
@@ -92,7 +92,7 @@ pub fn run(args: &PlanArgs) -> Result<()> {
     }
     if let Some(png) = &args.show {
         let shown: Vec<&SequencePlan> = shown.iter().collect();
-        super::plot_paths::draw_paths(&shown, &planner, png)?;
+        generator::plan::plot_paths::draw_paths(&shown, &planner, png)?;
         eprintln!("drew {} paths into {}", shown.len(), png.display());
     }
     Ok(())
@@ -134,21 +134,7 @@ pub fn plan_all(
             bar.inc(1);
             planner.plan(k)
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<Result<Vec<_>, _>>()?;
     bar.finish_and_clear();
     Ok(plans)
-}
-
-/// Reads plans written by `grasp-gen plan --out`, naming the file and line on error.
-pub fn read_jsonl(path: &Path) -> Result<Vec<SequencePlan>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            serde_json::from_str(l)
-                .with_context(|| format!("{}:{}: not a sequence plan", path.display(), i + 1))
-        })
-        .collect()
 }

@@ -5,8 +5,8 @@
 //! reach; under each frame a strip in the colour of its label (legend in
 //! `contact_sheet.txt`, with the sequence of each row).
 
-use crate::dataset::writer::{read_record, sequence_dirs};
 use anyhow::{bail, Context, Result};
+use generator::dataset::writer::{read_record, sequence_dirs};
 use grasp_schema::dataset::{SequenceRecord, SEQUENCE_FILE};
 use grasp_schema::Class;
 use image::codecs::gif::{GifEncoder, Repeat};

@@ -1,9 +1,9 @@
 //! The `render` and hidden `worker` subcommands.
 
-use super::{planner_source, render, RenderOptions, Shard};
-use crate::config::ConfigArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use generator::config::ConfigArgs;
+use generator::render::{planner_source, render, RenderOptions, Shard};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -110,5 +110,5 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
 }
 
 pub fn run_worker() -> Result<()> {
-    super::worker::run()
+    Ok(generator::render::worker::run()?)
 }

@@ -1,8 +1,8 @@
 //! The `dataset verify` and `dataset merge` subcommands.
 
-use crate::config::ConfigArgs;
 use anyhow::{bail, Result};
 use clap::Subcommand;
+use generator::config::ConfigArgs;
 use std::path::PathBuf;
 
 #[derive(Debug, Subcommand)]
@@ -24,7 +24,7 @@ pub enum DatasetCommand {
         /// With --config: the folder is the output of `render --shard K/N`;
         /// only that shard's sequences are expected.
         #[arg(long, default_value = "0/1")]
-        shard: super::shard::Shard,
+        shard: generator::dataset::shard::Shard,
     },
     /// Join shard outputs into OUT (copies, or hard links where possible).
     Merge { out: PathBuf, shards: Vec<PathBuf> },
@@ -48,10 +48,16 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             let report = match config.is_given() {
                 true => {
                     let config = config.load()?;
-                    let source = crate::plan::PlannerSource::new(&config)?;
-                    super::verify::verify_config(dir, &source, &config.render, *decode, *shard)?
+                    let source = generator::plan::PlannerSource::new(&config)?;
+                    generator::dataset::verify::verify_config(
+                        dir,
+                        &source,
+                        &config.render,
+                        *decode,
+                        *shard,
+                    )?
                 }
-                false => super::verify::verify_shard(dir, None, *decode, *shard)?,
+                false => generator::dataset::verify::verify_shard(dir, None, *decode, *shard)?,
             };
             print!("{}", report.render_text());
             if !report.ok() {
@@ -61,7 +67,7 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             Ok(())
         }
         DatasetCommand::Stats { dir, json } => {
-            let s = super::stats::stats(dir)?;
+            let s = generator::dataset::stats::stats(dir)?;
             if *json {
                 println!("{}", serde_json::to_string_pretty(&s)?);
             } else {
@@ -73,7 +79,7 @@ pub fn run(cmd: &DatasetCommand) -> Result<()> {
             if shards.is_empty() {
                 bail!("dataset merge: give at least one shard folder");
             }
-            let s = super::merge::merge(out, shards)?;
+            let s = generator::dataset::merge::merge(out, shards)?;
             println!(
                 "{}: {} sequences copied, {} already present",
                 out.display(),

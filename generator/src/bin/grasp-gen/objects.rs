@@ -1,9 +1,8 @@
 //! `grasp-gen objects ...`: list, check, show and import-ycb.
 
-use super::{validate, ycb, Catalog};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use grasp_schema::GraspType;
+use generator::catalog::{self, compare_grasp_types, validate, ycb, Catalog};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand, Debug)]
@@ -90,8 +89,8 @@ pub fn run(cmd: &ObjectsCommand) -> Result<()> {
 
 /// The catalog of `--catalog` (or the built-in one), its boxes unchecked.
 pub fn load_unchecked(a: &CatalogArg) -> Result<Catalog> {
-    let dir = a.catalog.clone().unwrap_or_else(super::builtin_dir);
-    Catalog::load_dir_unchecked(&dir)
+    let dir = a.catalog.clone().unwrap_or_else(catalog::builtin_dir);
+    Ok(Catalog::load_dir_unchecked(&dir)?)
 }
 
 /// The `objects list` table.
@@ -104,14 +103,14 @@ pub fn table(catalog: &Catalog) -> String {
         for (i, p) in o.parts.iter().enumerate() {
             let mut tags = Vec::new();
             match p.upside_down {
-                super::UpsideDown::Never => {}
-                super::UpsideDown::May => tags.push("may_upside_down"),
-                super::UpsideDown::Must => tags.push("upside_down"),
+                catalog::UpsideDown::Never => {}
+                catalog::UpsideDown::May => tags.push("may_upside_down"),
+                catalog::UpsideDown::Must => tags.push("upside_down"),
             }
             match p.pronation {
-                super::Pronation::Shortest => {}
-                super::Pronation::Supination => tags.push("supination"),
-                super::Pronation::None => tags.push("no_pronation"),
+                catalog::Pronation::Shortest => {}
+                catalog::Pronation::Supination => tags.push("supination"),
+                catalog::Pronation::None => tags.push("no_pronation"),
             }
             if p.table_border {
                 tags.push("table_border");
@@ -165,35 +164,11 @@ fn check(a: &CheckArgs) -> Result<()> {
         }
     }
     if a.mesh_dir.is_some() {
-        let builtin = Catalog::load_dir_unchecked(&super::builtin_dir())?;
+        let builtin = Catalog::load_dir_unchecked(&catalog::builtin_dir())?;
         compare_grasp_types(&builtin, &catalog)?;
         println!("grasp types per object equal the built-in catalog's");
     }
     println!("ok");
-    Ok(())
-}
-
-/// Fails unless both catalogs have the same objects with the same grasp
-/// types, counted per object.
-pub fn compare_grasp_types(a: &Catalog, b: &Catalog) -> Result<()> {
-    let summary = |c: &Catalog| -> Vec<(String, Vec<GraspType>)> {
-        c.objects
-            .iter()
-            .map(|o| {
-                let mut g: Vec<GraspType> = o.parts.iter().map(|p| p.grasp_type).collect();
-                g.sort();
-                (o.id.clone(), g)
-            })
-            .collect()
-    };
-    let (sa, sb) = (summary(a), summary(b));
-    if sa != sb {
-        bail!(
-            "the catalogs differ in grasp types per object:\n  {}: {sa:?}\n  {}: {sb:?}",
-            a.dir.display(),
-            b.dir.display()
-        );
-    }
     Ok(())
 }
 
@@ -203,7 +178,7 @@ fn show(a: &ShowArgs) -> Result<()> {
         let out = a.out.as_ref().context("--all needs --out DIR")?;
         for o in &catalog.objects {
             let path = out.join(format!("{}.png", o.id));
-            crate::raster::write_object_png(o, &path)?;
+            write_object_png(o, &path)?;
             println!("{}", path.display());
         }
         return Ok(());
@@ -217,9 +192,23 @@ fn show(a: &ShowArgs) -> Result<()> {
         )
     })?;
     let png = a.png.as_ref().context("give --png FILE")?;
-    crate::raster::write_object_png(object, png)?;
+    write_object_png(object, png)?;
     println!("{}", png.display());
     Ok(())
+}
+
+/// Draws an object's mesh and boxes from the top, front and side, and
+/// writes the PNG atomically.
+fn write_object_png(object: &catalog::ObjectSpec, path: &Path) -> Result<()> {
+    let mesh = object.mesh()?;
+    let img = generator::raster::render_object(object, &mesh);
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .context("encoding the PNG")?;
+    Ok(grasp_support::atomic::write_atomic(path, &bytes)?)
 }
 
 fn tempdir() -> Result<PathBuf> {
