@@ -17,7 +17,7 @@ pub enum ConfigError {
     Layers {
         config: String,
         #[source]
-        source: Box<dyn std::error::Error + Send + Sync>,
+        source: Box<grasp_support::layers::LayersError>,
     },
     /// The merged table is not a config: an unknown key, a value of the
     /// wrong type.
@@ -141,7 +141,7 @@ impl GeneratorConfig {
         let source = grasp_support::layers::describe(files, sets, "the default config");
         let table = grasp_support::layers::load(files, sets).map_err(|e| ConfigError::Layers {
             config: source.clone(),
-            source: e.into(),
+            source: Box::new(e),
         })?;
         let config: GeneratorConfig =
             toml::Value::Table(table)

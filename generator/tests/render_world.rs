@@ -28,18 +28,16 @@ fn config(dir: &Path, world: &str) -> PathBuf {
 }
 
 fn render(cfg: &Path, out: &Path, workers: &str) {
-    grasp_gen()
-        .ok([
-            "render",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--workers",
-            workers,
-            "--no-progress",
-        ])
-        .stdout;
+    grasp_gen().ok([
+        "render",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--workers",
+        workers,
+        "--no-progress",
+    ]);
 }
 
 /// Mean of a frame's 8-bit values, and the mean absolute difference of two.
