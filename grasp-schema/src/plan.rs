@@ -245,8 +245,10 @@ pub struct ObjectPlacement {
     pub upside_down: bool,
     pub on_table_border: bool,
     /// Uniform scale of the catalog's mesh and part boxes about the object
-    /// frame's origin (`[randomize.object_scale]`); 1 is the catalog's size.
-    /// `pose` places the scaled object.
+    /// frame's origin; 1 is the catalog's size. The planner writes 1 (the
+    /// lever that resized objects was measured and deleted); Blender and
+    /// the part labels honour another value in a plan file, at which size
+    /// `pose` places the object.
     #[serde(default = "unit_scale")]
     pub scale: f64,
 }

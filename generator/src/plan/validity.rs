@@ -58,35 +58,6 @@ impl RayCaster for crate::geometry::MeshQuery {
     }
 }
 
-/// Ray casts against a mesh scaled uniformly about its frame's origin by
-/// `scale`, through the unscaled mesh's caster: a ray's origin shrinks by
-/// the scale (its direction does not), and the hit distance grows by it.
-pub struct ScaledCaster {
-    inner: std::rc::Rc<dyn RayCaster>,
-    scale: f64,
-}
-
-impl ScaledCaster {
-    pub fn new(inner: std::rc::Rc<dyn RayCaster>, scale: f64) -> ScaledCaster {
-        ScaledCaster { inner, scale }
-    }
-}
-
-impl RayCaster for ScaledCaster {
-    fn first_hits(
-        &self,
-        origins: &[[f64; 3]],
-        directions: &[[f64; 3]],
-    ) -> Result<Vec<Option<f64>>> {
-        let shrunk: Vec<[f64; 3]> = origins.iter().map(|o| o.map(|c| c / self.scale)).collect();
-        let hits = self.inner.first_hits(&shrunk, directions)?;
-        Ok(hits
-            .into_iter()
-            .map(|h| h.map(|t| t * self.scale))
-            .collect())
-    }
-}
-
 /// An oriented box: centre, rotation (frame-from-box) and half extents.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Obb {
@@ -370,36 +341,6 @@ mod tests {
             center: Vector3::from(c),
             rotation: UnitQuaternion::identity(),
             half: Vector3::repeat(h),
-        }
-    }
-
-    #[test]
-    fn a_scaled_caster_hits_the_scaled_mesh() {
-        let small = std::rc::Rc::new(BoxMesh(cube([0.0, 0.0, 0.5], 0.5)));
-        let scaled = ScaledCaster::new(small, 2.0);
-        let big = BoxMesh(cube([0.0, 0.0, 1.0], 1.0));
-        let origins = [
-            [-5.0, 0.0, 1.0],
-            [0.0, 0.0, 1.0],
-            [3.0, 3.0, 3.0],
-            [0.5, 0.5, 9.0],
-        ];
-        let directions = [
-            [1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 0.0, -1.0],
-        ];
-        let want = big.first_hits(&origins, &directions).unwrap();
-        let got = scaled.first_hits(&origins, &directions).unwrap();
-        assert_eq!(want.iter().filter(|h| h.is_some()).count(), 3);
-        for (g, w) in got.iter().zip(&want) {
-            match (g, w) {
-                // BoxMesh casts 1e6 m segments: distances are good to about 1e-9.
-                (Some(g), Some(w)) => assert!((g - w).abs() < 1e-6, "{g} against {w}"),
-                (None, None) => {}
-                _ => panic!("{got:?} against {want:?}"),
-            }
         }
     }
 

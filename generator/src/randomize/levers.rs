@@ -25,7 +25,6 @@ pub struct RandomizeConfig {
     pub world_light: WorldLightLever,
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
-    pub object_scale: ObjectScaleLever,
     pub standoff: StandoffLever,
     pub aim: AimLever,
     pub approach_ends: ApproachEndsLever,
@@ -44,7 +43,6 @@ impl Default for RandomizeConfig {
             world_light: Default::default(),
             object_color: Default::default(),
             distractors: Default::default(),
-            object_scale: Default::default(),
             standoff: Default::default(),
             aim: Default::default(),
             approach_ends: Default::default(),
@@ -242,27 +240,6 @@ impl Default for DistractorLever {
     }
 }
 
-/// The object's size: its mesh and part boxes scaled uniformly about the
-/// object frame's origin by a log-uniform factor, so that apparent size
-/// stops naming the object (real ones differ from the catalog's models).
-/// The plan, its validity checks and the part labels use the scaled object.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ObjectScaleLever {
-    pub enabled: bool,
-    /// Factor range; 1 is the catalog's size.
-    pub scale: [f64; 2],
-}
-
-impl Default for ObjectScaleLever {
-    fn default() -> Self {
-        ObjectScaleLever {
-            enabled: false,
-            scale: [0.8, 1.25],
-        }
-    }
-}
-
 /// The standoff (`plan.trajectory.standoff_m`) times a factor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -335,7 +312,6 @@ impl RandomizeConfig {
             r.world_light.enabled = false;
             r.object_color.enabled = false;
             r.distractors.enabled = false;
-            r.object_scale.enabled = false;
             r.standoff.enabled = false;
             r.aim.enabled = false;
             r.approach_ends.enabled = false;

@@ -16,16 +16,6 @@ fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     uniform(rng, [lo.max(1e-12).ln(), hi.max(1e-12).ln()]).exp()
 }
 
-/// A sequence's object scale (1 with the lever off).
-pub fn object_scale(levers: &RandomizeConfig, stream: u64) -> f64 {
-    let lever = &levers.object_scale;
-    if lever.enabled {
-        log_uniform(&mut lever_rng(stream, "object_scale"), lever.scale)
-    } else {
-        1.0
-    }
-}
-
 /// A sequence's camera intrinsics: the preset's lens scaled by the drawn
 /// field-of-view factor, with the principal point moved. Returns the
 /// intrinsics and the drawn factor and shift (fractions of the image size).

@@ -108,12 +108,6 @@ impl RandomizeConfig {
                 "must be >= 0 and attempts >= 1",
             ));
         }
-        check_range(
-            "[randomize.object_scale] scale",
-            self.object_scale.scale,
-            0.1,
-            10.0,
-        )?;
         check_range("[randomize.standoff] scale", self.standoff.scale, 0.0, 10.0)?;
         let a = self.aim.fraction;
         if !(0.0..=1.0).contains(&a) {

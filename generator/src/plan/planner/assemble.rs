@@ -88,7 +88,7 @@ impl Planner {
             fps: traj.fps,
             duration_s: n as f64 / traj.fps,
             intrinsics: draws.intrinsics,
-            object: object_placement(c, draws),
+            object: object_placement(c),
             target: c.target.into(),
             other_end: c.other_end.into(),
             frames,
@@ -172,7 +172,7 @@ impl Planner {
 }
 
 /// Where the accepted scene puts the object, as the plan records it.
-fn object_placement(c: &Candidate, draws: &SequenceDraws) -> ObjectPlacement {
+fn object_placement(c: &Candidate) -> ObjectPlacement {
     ObjectPlacement {
         pose: Pose {
             position: c.placement.position.into(),
@@ -181,7 +181,7 @@ fn object_placement(c: &Candidate, draws: &SequenceDraws) -> ObjectPlacement {
         yaw_deg: c.placement.yaw.to_degrees(),
         upside_down: c.placement.upside_down,
         on_table_border: c.placement.on_border,
-        scale: draws.object_scale,
+        scale: 1.0,
     }
 }
 
@@ -269,9 +269,6 @@ fn sampled_record(
         put("target_end_forced", json!(accepted.attempts <= forced));
     }
     put("fov_scale", json!(draws.fov_scale));
-    if draws.object_scale != 1.0 {
-        put("object_scale", json!(draws.object_scale));
-    }
     put("principal_point_shift", json!(draws.principal_point_shift));
     put(
         "mesh_tolerance_used",

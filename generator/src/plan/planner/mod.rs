@@ -56,8 +56,6 @@ struct SequenceDraws {
     fov_scale: f64,
     principal_point_shift: [f64; 2],
     approach: ApproachDraw,
-    /// `[randomize.object_scale]`'s factor (1 with the lever off).
-    object_scale: f64,
 }
 
 impl Planner {
@@ -140,13 +138,6 @@ impl Planner {
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
         let draws = self.sequence_draws(key.condition, stream);
-        let resized;
-        let geo = if draws.object_scale == 1.0 {
-            geo
-        } else {
-            resized = geo.scaled(draws.object_scale);
-            &resized
-        };
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
             .map_err(|e| PlanError::Planning {
@@ -167,7 +158,6 @@ impl Planner {
             fov_scale,
             principal_point_shift,
             approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
-            object_scale: randomize::object_scale(r, stream),
         }
     }
 

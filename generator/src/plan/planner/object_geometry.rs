@@ -1,10 +1,9 @@
 //! One object's geometry as the planner needs it: the mesh query, extents,
-//! bounding sphere, part boxes and a silhouette outline, at catalog size or
-//! scaled by `[randomize.object_scale]`.
+//! bounding sphere, part boxes and a silhouette outline, at catalog size.
 
 use crate::catalog::{GraspPart, ObjectSpec, TriMesh};
 use crate::plan::error::{PlanError, Result};
-use crate::plan::validity::{Obb, RayCaster, ScaledCaster};
+use crate::plan::validity::{Obb, RayCaster};
 use crate::plan::wrist;
 use nalgebra::Vector3;
 use std::rc::Rc;
@@ -67,36 +66,6 @@ impl ObjectGeometry {
                 .map(|f| f.map(|i| Vector3::from(mesh.vertices[i as usize])))
                 .collect(),
         })
-    }
-}
-
-impl ObjectGeometry {
-    /// The same object scaled uniformly about its frame's origin: mesh,
-    /// part boxes and every derived extent. Ray casts go through the
-    /// catalog-size mesh, so scaling builds no new mesh query.
-    pub fn scaled(&self, scale: f64) -> ObjectGeometry {
-        let mut spec = self.spec.clone();
-        for p in &mut spec.parts {
-            p.center = p.center.map(|c| c * scale);
-            p.size = p.size.map(|c| c * scale);
-        }
-        ObjectGeometry {
-            spec,
-            caster: Rc::new(ScaledCaster::new(self.caster.clone(), scale)),
-            z_range: self.z_range.map(|z| z * scale),
-            sphere_center: self.sphere_center * scale,
-            sphere_radius: self.sphere_radius * scale,
-            boxes: self
-                .boxes
-                .iter()
-                .map(|b| Obb {
-                    center: b.center * scale,
-                    rotation: b.rotation,
-                    half: b.half * scale,
-                })
-                .collect(),
-            outline: self.outline.iter().map(|t| t.map(|v| v * scale)).collect(),
-        }
     }
 }
 
