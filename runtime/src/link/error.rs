@@ -1,0 +1,50 @@
+//! Why a command was not delivered.
+
+use crate::protocol::Status;
+
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    #[error("{command} (seq {seq}) was not acknowledged by the hand on {device} after {attempts} attempts of {timeout_ms} ms each")]
+    NoAck {
+        command: &'static str,
+        seq: u8,
+        attempts: u32,
+        timeout_ms: u64,
+        device: String,
+    },
+    #[error("hand on {device} rejected {command} (seq {seq}) with status {status:?}")]
+    Rejected {
+        command: &'static str,
+        seq: u8,
+        status: Status,
+        device: String,
+    },
+    #[error(
+        "cannot reach the hand on {device} (gave up re-opening after {waited_ms} ms): {last_error}"
+    )]
+    Disconnected {
+        device: String,
+        waited_ms: u64,
+        last_error: String,
+    },
+    /// The command's expiry came before its ACK: it is not transmitted
+    /// again. If `transmissions` > 0 an earlier copy may have reached the
+    /// hand in time (its ACK lost); the hand refuses one that arrives late.
+    #[error("{command} (seq {seq}) expired before the hand on {device} acknowledged it ({transmissions} transmissions); not sent again")]
+    Expired {
+        command: &'static str,
+        seq: u8,
+        transmissions: u32,
+        device: String,
+    },
+    /// A stop was requested (a signal) before the ACK: the command is not
+    /// transmitted again. If `transmissions` > 0 a copy may have reached
+    /// the hand.
+    #[error("{command} (seq {seq}) was not sent again to the hand on {device}: stop requested ({transmissions} transmissions)")]
+    Stopped {
+        command: &'static str,
+        seq: u8,
+        transmissions: u32,
+        device: String,
+    },
+}

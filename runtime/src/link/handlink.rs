@@ -1,0 +1,90 @@
+//! [`HandLink`]: the single-threaded host side of one device, its state
+//! and counters. Connecting is in `connect.rs`, delivery in `send.rs`, one
+//! transmission and its ACK in `exchange.rs`.
+
+use super::{HandClock, LinkConfig, LinkStats};
+use crate::decoder::{Decoder, DecoderStats};
+use crate::transport::{Connector, Duplex};
+use std::time::{Duration, Instant};
+
+/// Single-threaded link. Wrap it in [`super::Hand`] for the heartbeat.
+pub struct HandLink {
+    pub(super) connector: Box<dyn Connector>,
+    pub(super) conn: Option<Box<dyn Duplex>>,
+    pub(super) decoder: Decoder,
+    pub(super) cfg: LinkConfig,
+    next_seq: u8,
+    pub(super) last_tx: Instant,
+    pub(super) stats: LinkStats,
+    decoder_base: DecoderStats,
+    pub(super) clock: HandClock,
+    /// Counts sessions (HELLOs acknowledged): frames are re-encoded for a
+    /// new one, whose hand clock may differ.
+    pub(super) session: u64,
+    /// The loss of the device was logged (once per outage).
+    pub(super) down_reported: bool,
+}
+
+impl HandLink {
+    pub fn new(connector: Box<dyn Connector>, cfg: LinkConfig) -> Self {
+        HandLink {
+            connector,
+            conn: None,
+            decoder: Decoder::new(),
+            cfg,
+            next_seq: 0,
+            last_tx: Instant::now(),
+            stats: LinkStats::default(),
+            decoder_base: DecoderStats::default(),
+            clock: HandClock::new(),
+            session: 0,
+            down_reported: false,
+        }
+    }
+
+    pub fn device(&self) -> String {
+        self.connector.describe()
+    }
+
+    pub fn config(&self) -> &LinkConfig {
+        &self.cfg
+    }
+
+    pub fn is_connected(&self) -> bool {
+        self.conn.is_some()
+    }
+
+    pub fn stats(&self) -> LinkStats {
+        let d = self.decoder.stats();
+        LinkStats {
+            rx_crc_errors: self.decoder_base.crc_errors + d.crc_errors,
+            rx_discarded_bytes: self.decoder_base.discarded_bytes + d.discarded_bytes,
+            ..self.stats
+        }
+    }
+
+    /// Time since the last transmission.
+    pub fn idle(&self) -> Duration {
+        self.last_tx.elapsed()
+    }
+
+    pub(super) fn drop_connection(&mut self) {
+        self.conn = None;
+        self.reset_decoder();
+    }
+
+    /// A fresh decoder (a new connection starts mid-nothing); its counts
+    /// carry over into [`HandLink::stats`].
+    pub(super) fn reset_decoder(&mut self) {
+        let d = self.decoder.stats();
+        self.decoder_base.crc_errors += d.crc_errors;
+        self.decoder_base.discarded_bytes += d.discarded_bytes;
+        self.decoder = Decoder::new();
+    }
+
+    pub(super) fn alloc_seq(&mut self) -> u8 {
+        let seq = self.next_seq;
+        self.next_seq = self.next_seq.wrapping_add(1);
+        seq
+    }
+}
