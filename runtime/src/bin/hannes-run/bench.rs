@@ -2,7 +2,10 @@
 //! host-to-hand link round trip, and trigger-to-command for whole approaches
 //! against a simulated hand on a pseudo-terminal.
 
+use crate::args::BenchArgs;
+use crate::setup::set_lens;
 use anyhow::Result;
+use grasp_model::input::Lens;
 use grasp_schema::taxonomy::Preshape;
 use image::RgbImage;
 use runtime::approach::{actuate, classify_window};
@@ -17,6 +20,56 @@ use runtime::transport::SerialConnector;
 use serde::Serialize;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
+
+pub(crate) fn command(args: BenchArgs) -> Result<()> {
+    let mut classifier = runtime::model::load(&args.checkpoint)?;
+    // A fixed-angle crop is timed through the default lens (42 degrees
+    // across the square frame, the generator's d435 preset).
+    set_lens(
+        &mut classifier,
+        Some(Lens::horizontal_fov(42.0)?),
+        "the benchmark",
+    )?;
+    let frames = synthetic_frames(args.frames.max(1), args.size);
+    let inference = inference(&mut classifier, &frames, args.warmup)?;
+    println!(
+        "inference {}x{} ({} frames): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
+        args.size,
+        args.size,
+        inference.n,
+        inference.p50_ms,
+        inference.p99_ms,
+        inference.mean_ms,
+        inference.max_ms
+    );
+    let link = link_round_trip(args.sends.max(1), args.baud)?;
+    println!(
+        "link PRESHAPE->ACK over a pty at {} baud ({} sends): p50 {:.3} ms, p99 {:.3} ms",
+        link.baud, link.round_trip.n, link.round_trip.p50_ms, link.round_trip.p99_ms
+    );
+    let window = synthetic_frames(60, args.size);
+    let ap = approaches(
+        &mut classifier,
+        window,
+        30.0,
+        args.approaches.max(1),
+        args.baud,
+    )?;
+    println!(
+        "approach (window {} s at {} fps, {} runs): trigger->ACK p50 {:.1} ms, p99 {:.1} ms; \
+         after the window p50 {:.1} ms, p99 {:.1} ms; {} frames classified, {} dropped",
+        ap.window_s,
+        ap.fps,
+        ap.trigger_to_command.n,
+        ap.trigger_to_command.p50_ms,
+        ap.trigger_to_command.p99_ms,
+        ap.after_window.p50_ms,
+        ap.after_window.p99_ms,
+        ap.frames_classified,
+        ap.frames_dropped
+    );
+    Ok(())
+}
 
 /// Order statistics of a sample of durations, in milliseconds.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]

@@ -1,0 +1,169 @@
+//! The command line: each subcommand's flags, and the exit codes its
+//! help lists.
+
+use clap::Args;
+use grasp_cli::LensArgs;
+use runtime::policy::OnInvalid;
+use runtime::simhand::FaultSpec;
+use std::path::PathBuf;
+
+pub(crate) const RUN_EXIT_CODES: &str = "\
+Exit codes:
+  0  every approach ended as decided (pre-shape executed, or no command on a weak vote)
+  1  error outside the approaches (arguments, config, checkpoint, source, report file)
+  2  command-line usage error
+  3  an approach was aborted (frame source or classifier failed, invalid model output)
+  4  the hand could not be reached or did not acknowledge a command
+  5  a decision was older than --max-decision-age-ms before the hand acknowledged it
+     (not executed, no closure; the hand is opened if a copy may have reached it)
+  128+N  stopped by signal N: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; nothing
+     is sent after it, and the hand is opened if a command may have reached it
+With several approaches, the code of the first failed one (a stop counts where it
+came). The last line on stderr says why.";
+
+pub(crate) const REPLAY_EXIT_CODES: &str = "\
+Exit codes (as `run`'s):
+  0  a decision was taken (a pre-shape, or no command on a weak vote)
+  1  error (arguments, config, checkpoint, source)
+  2  command-line usage error
+  3  aborted (frame source or classifier failed, invalid model output)";
+
+#[derive(Args, Clone)]
+pub(crate) struct PolicyArgs {
+    /// Config file (TOML, sections [policy] and [link]); flags override it.
+    #[arg(long)]
+    pub(crate) config: Option<PathBuf>,
+    /// Approach window in seconds.
+    #[arg(long)]
+    pub(crate) window: Option<f64>,
+    /// A decision older than this (ms) is never executed: the pre-shape
+    /// must be acknowledged within it of the vote (not of the frames'
+    /// capture), the closure within it of its trigger (default 300).
+    #[arg(long)]
+    pub(crate) max_decision_age_ms: Option<u64>,
+    /// Decide early once the leading pre-shape is this many votes ahead.
+    #[arg(long)]
+    pub(crate) early_margin: Option<u32>,
+    /// Pre-shape sent on low confidence (power, lateral, pinch, pinch3), or
+    /// `none` to send nothing.
+    #[arg(long)]
+    pub(crate) fallback: Option<String>,
+    /// Minimum mean probability of the winning class.
+    #[arg(long)]
+    pub(crate) min_confidence: Option<f64>,
+    /// What an invalid model output (NaN, Inf) does.
+    #[arg(long, value_enum)]
+    pub(crate) on_invalid: Option<OnInvalid>,
+}
+
+#[derive(Args, Clone)]
+pub(crate) struct SourceArgs {
+    /// Trained checkpoint (from grasp-train).
+    #[arg(long)]
+    pub(crate) checkpoint: PathBuf,
+    /// A sequence folder (PNG frames, optionally sequence.json), or
+    /// `camera[:DEVICE]` (needs the `camera` feature; default /dev/video0).
+    #[arg(long)]
+    pub(crate) source: String,
+    /// Frame rate of a bare PNG folder (default: sequence.json, else 30).
+    #[arg(long)]
+    pub(crate) fps: Option<f64>,
+    #[command(flatten)]
+    pub(crate) lens: LensArgs,
+}
+
+#[derive(Args)]
+pub(crate) struct RunArgs {
+    #[command(flatten)]
+    pub(crate) source: SourceArgs,
+    #[command(flatten)]
+    pub(crate) policy: PolicyArgs,
+    /// Serial device of the hand (USB adapter, /dev/rfcomm0, pty link).
+    #[arg(long)]
+    pub(crate) port: PathBuf,
+    #[arg(long, default_value_t = 115_200)]
+    pub(crate) baud: u32,
+    /// Starts an approach: `stdin` (Enter), `now`, or `timer:SECONDS`.
+    #[arg(long, default_value = "stdin")]
+    pub(crate) trigger: String,
+    /// Closes the fingers after the pre-shape: `delay:SECONDS`, `stdin`, or
+    /// `none`.
+    #[arg(long, default_value = "delay:1.0")]
+    pub(crate) closure: String,
+    /// Number of approaches (default: 1 for a recording, unlimited for a
+    /// camera).
+    #[arg(long)]
+    pub(crate) approaches: Option<usize>,
+    /// Replay a recording as fast as possible instead of at its frame rate.
+    #[arg(long)]
+    pub(crate) as_fast: bool,
+    /// Append one JSON report per approach to this file (with `approach`,
+    /// its number, and `result`: commanded, no_command, aborted, expired,
+    /// hand_failed, stopped).
+    #[arg(long)]
+    pub(crate) report: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub(crate) struct ReplayArgs {
+    #[command(flatten)]
+    pub(crate) source: SourceArgs,
+    #[command(flatten)]
+    pub(crate) policy: PolicyArgs,
+    /// Replay at the recording's frame rate, dropping frames the classifier
+    /// cannot keep up with (default: every frame, as fast as possible).
+    #[arg(long)]
+    pub(crate) realtime: bool,
+    /// Print the report as JSON instead of a table.
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
+#[derive(Args)]
+pub(crate) struct SimArgs {
+    /// Serve an existing serial device.
+    #[arg(long, conflicts_with = "pty", required_unless_present = "pty")]
+    pub(crate) port: Option<PathBuf>,
+    /// Create a pseudo-terminal and link its host side at this path (with
+    /// PATH.owner naming this process; both are removed when it stops).
+    #[arg(long)]
+    pub(crate) pty: Option<PathBuf>,
+    #[arg(long, default_value_t = 115_200)]
+    pub(crate) baud: u32,
+    /// Inject link faults, e.g. `drop=0.1,corrupt=0.05,duplicate=0.1,
+    /// delay=0.2:400,disconnect=0.05:1500,outage=1500:7500,after=1000,
+    /// until=20000,on=preshape+close,seed=7` (probabilities per frame, times
+    /// in ms; docs/hannes-protocol.md).
+    #[arg(long, value_parser = parse_faults)]
+    pub(crate) faults: Option<FaultSpec>,
+}
+
+pub(crate) fn parse_faults(s: &str) -> Result<FaultSpec, String> {
+    s.parse()
+}
+
+#[derive(Args)]
+pub(crate) struct BenchArgs {
+    /// Checkpoint with an FC head (from grasp-train). Latency does not
+    /// depend on weight values: `grasp-train stand-in --out DIR` builds one
+    /// without a dataset.
+    #[arg(long)]
+    pub(crate) checkpoint: PathBuf,
+    /// Timed inference frames (224x224).
+    #[arg(long, default_value_t = 200)]
+    pub(crate) frames: usize,
+    /// Untimed warm-up frames.
+    #[arg(long, default_value_t = 10)]
+    pub(crate) warmup: usize,
+    /// Link round trips to time.
+    #[arg(long, default_value_t = 500)]
+    pub(crate) sends: usize,
+    /// Whole approaches (2 s window at 30 fps each) to time.
+    #[arg(long, default_value_t = 5)]
+    pub(crate) approaches: usize,
+    #[arg(long, default_value_t = 115_200)]
+    pub(crate) baud: u32,
+    /// Input size of the timed frames.
+    #[arg(long, default_value_t = 224)]
+    pub(crate) size: u32,
+}
