@@ -33,9 +33,8 @@ use crate::link::{Hand, LinkError};
 use crate::policy::{Decision, Outcome, PolicyConfig, Step, Vote};
 use crate::protocol::{preshape_command, Command, HandState, Status};
 use crate::signals::Signal;
-use crate::source::FrameSource;
-use crate::trigger::Trigger;
-use anyhow::Result;
+use crate::source::{FrameSource, SourceError};
+use crate::trigger::{Trigger, TriggerError};
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::Serialize;
 use std::fmt;
@@ -179,7 +178,7 @@ pub fn classify_window(
     policy: &PolicyConfig,
     t0: Instant,
     on_frame: &mut dyn FnMut(&FramePrediction),
-) -> Result<(StoppedFeed, WindowReport)> {
+) -> Result<(StoppedFeed, WindowReport), SourceError> {
     let never = AtomicBool::new(false);
     classify_window_until(source, mode, classifier, policy, t0, &never, on_frame)
 }
@@ -194,7 +193,7 @@ pub fn classify_window_until(
     t0: Instant,
     stop: &AtomicBool,
     on_frame: &mut dyn FnMut(&FramePrediction),
-) -> Result<(StoppedFeed, WindowReport)> {
+) -> Result<(StoppedFeed, WindowReport), SourceError> {
     let feed = FrameFeed::start(source, mode)?;
     let window = Duration::from_secs_f64(policy.window_s);
     let deadline = match mode {
@@ -217,8 +216,9 @@ pub fn classify_window_until(
         let raw = match classifier.classify(&frame.image) {
             Ok(raw) => raw,
             Err(e) => {
-                tracing::error!(frame = frame.index, "classifier failed: {e:#}");
-                break vote.abort(format!("classifier failed on frame {}: {e:#}", frame.index));
+                let e = grasp_support::error_chain(&e);
+                tracing::error!(frame = frame.index, "classifier failed: {e}");
+                break vote.abort(format!("classifier failed on frame {}: {e}", frame.index));
             }
         };
         let prediction = FramePrediction {
@@ -300,7 +300,7 @@ pub fn actuate(
     stop: &AtomicBool,
     t0: Instant,
     max_age: Duration,
-) -> Result<ApproachReport> {
+) -> Result<ApproachReport, TriggerError> {
     let mut report = ApproachReport {
         window,
         preshape: None,

@@ -2,8 +2,7 @@
 //! `linuxvideo` crate: no libv4l or other system library is needed.
 //! YUYV is preferred (no decoding cost); MJPG is decoded with `image`.
 
-use crate::source::{Frame, FrameSource};
-use anyhow::{bail, Context, Result};
+use crate::source::{Frame, FrameSource, SourceError};
 use image::RgbImage;
 use linuxvideo::format::{PixFormat, PixelFormat};
 use linuxvideo::stream::ReadStream;
@@ -22,28 +21,31 @@ pub struct Camera {
 impl Camera {
     /// Opens `path` (e.g. `/dev/video0`) asking for `width` x `height` at
     /// `fps`; the driver may pick the nearest mode it supports.
-    pub fn open(path: &Path, width: u32, height: u32, fps: u32) -> Result<Camera> {
-        let device =
-            Device::open(path).with_context(|| format!("cannot open camera {}", path.display()))?;
+    pub fn open(path: &Path, width: u32, height: u32, fps: u32) -> Result<Camera, SourceError> {
+        let device = Device::open(path).map_err(|source| SourceError::OpenCamera {
+            device: path.to_path_buf(),
+            source,
+        })?;
         let formats = device
             .formats(BufType::VIDEO_CAPTURE)
             .map(|f| f.map(|f| f.pixel_format()))
             .collect::<std::io::Result<Vec<_>>>()
-            .with_context(|| format!("{}: cannot list pixel formats", path.display()))?;
+            .map_err(failed(path, "cannot list pixel formats"))?;
         let Some(format) = [PixelFormat::YUYV, PixelFormat::MJPG]
             .into_iter()
             .find(|f| formats.contains(f))
         else {
-            bail!(
-                "{}: supports neither YUYV nor MJPG (it offers {formats:?})",
-                path.display()
-            );
+            return Err(SourceError::CameraFormat {
+                device: path.to_path_buf(),
+                offered: format!("{formats:?}"),
+            });
         };
         let capture = device
             .video_capture(PixFormat::new(width, height, format))
-            .with_context(|| {
-                format!("{}: cannot set {width}x{height} {format:?}", path.display())
-            })?;
+            .map_err(failed(
+                path,
+                format!("cannot set {width}x{height} {format:?}"),
+            ))?;
         if let Err(e) = capture.set_frame_interval(Fract::new(1, fps.max(1))) {
             tracing::warn!(
                 "{}: cannot set {fps} fps ({e}); using the driver's rate",
@@ -56,7 +58,7 @@ impl Camera {
         let format = negotiated.pixel_format();
         let stream = capture
             .into_stream()
-            .with_context(|| format!("{}: cannot start streaming", path.display()))?;
+            .map_err(failed(path, "cannot start streaming"))?;
         tracing::info!("{}: {width}x{height} {format:?}", path.display());
         Ok(Camera {
             path: path.to_path_buf(),
@@ -74,22 +76,29 @@ impl Camera {
 }
 
 impl FrameSource for Camera {
-    fn begin(&mut self) -> Result<()> {
+    fn begin(&mut self) -> Result<(), SourceError> {
         // Frames queued by the driver before the trigger are stale.
-        while !self.stream.will_block()? {
-            self.stream.dequeue(|_| Ok(()))?;
+        let stale = failed(
+            &self.path,
+            "cannot drop the frames queued before the trigger",
+        );
+        while !self.stream.will_block().map_err(&stale)? {
+            self.stream.dequeue(|_| Ok(())).map_err(&stale)?;
         }
         self.start = Instant::now();
         self.next = 0;
         Ok(())
     }
 
-    fn next_frame(&mut self) -> Result<Option<Frame>> {
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         let decode = &self.decode;
         let image = self
             .stream
             .dequeue(|buf| decode.convert(&buf))
-            .with_context(|| format!("{}: capture failed", self.path.display()))?;
+            .map_err(|source| SourceError::Capture {
+                device: self.path.clone(),
+                source,
+            })?;
         let index = self.next;
         self.next += 1;
         Ok(Some(Frame {
@@ -107,6 +116,16 @@ impl FrameSource for Camera {
             self.decode.height,
             self.decode.format
         )
+    }
+}
+
+/// The error of a camera step that failed (`doing`: what it tried).
+fn failed(device: &Path, doing: impl Into<String>) -> impl Fn(std::io::Error) -> SourceError {
+    let (device, doing) = (device.to_path_buf(), doing.into());
+    move |source| SourceError::Camera {
+        device: device.clone(),
+        doing: doing.clone(),
+        source,
     }
 }
 

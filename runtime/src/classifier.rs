@@ -2,17 +2,29 @@
 //! runs on, and the validation every model output goes through before it may
 //! influence the hand.
 
+use grasp_model::error::ModelError;
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
 
 /// Anything that turns one camera frame into class probabilities, indexed by
 /// [`Class`] (power 0, lateral 1, pinch 2, pinch3 3, no_grasp 4).
 pub trait FrameClassifier {
-    fn classify(&mut self, frame: &RgbImage) -> anyhow::Result<[f32; Class::COUNT]>;
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError>;
+}
+
+/// Why a frame got no output at all (an output that is not a distribution
+/// is an [`InvalidOutput`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ClassifyError {
+    /// The model failed on the frame (its input, a tensor operation).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("classifier returned {got} outputs for one frame")]
+    Outputs { got: usize },
 }
 
 impl<T: FrameClassifier + ?Sized> FrameClassifier for Box<T> {
-    fn classify(&mut self, frame: &RgbImage) -> anyhow::Result<[f32; Class::COUNT]> {
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError> {
         (**self).classify(frame)
     }
 }

@@ -18,9 +18,59 @@
 
 use crate::link::LinkConfig;
 use crate::policy::PolicyConfig;
-use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Why a config file was not used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config {}", path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not TOML, an unknown field, a value of the wrong type.
+    #[error("invalid config {}", path.display())]
+    Parse {
+        path: PathBuf,
+        #[source]
+        source: toml::de::Error,
+    },
+    /// Read, but a setting is outside its range.
+    #[error("invalid config {}", path.display())]
+    Invalid {
+        path: PathBuf,
+        #[source]
+        source: InvalidSetting,
+    },
+}
+
+/// A setting outside its allowed range, named as in the config file
+/// (`policy.window_s`, `link.watchdog_ms`); a flag that overrides it is
+/// checked the same way.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field} {rule}")]
+pub struct InvalidSetting {
+    pub field: &'static str,
+    /// The rule it breaks, with the value found.
+    pub rule: String,
+}
+
+/// `Err` naming `field` and its `rule` unless `ok`.
+pub(crate) fn ensure(
+    ok: bool,
+    field: &'static str,
+    rule: impl FnOnce() -> String,
+) -> Result<(), InvalidSetting> {
+    match ok {
+        true => Ok(()),
+        false => Err(InvalidSetting {
+            field,
+            rule: rule(),
+        }),
+    }
+}
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -30,17 +80,24 @@ pub struct RuntimeConfig {
 }
 
 impl RuntimeConfig {
-    pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read config {}", path.display()))?;
-        let cfg: RuntimeConfig =
-            toml::from_str(&text).with_context(|| format!("invalid config {}", path.display()))?;
-        cfg.validate()
-            .with_context(|| format!("invalid config {}", path.display()))?;
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let path_buf = || path.to_path_buf();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path_buf(),
+            source,
+        })?;
+        let cfg: RuntimeConfig = toml::from_str(&text).map_err(|source| ConfigError::Parse {
+            path: path_buf(),
+            source,
+        })?;
+        cfg.validate().map_err(|source| ConfigError::Invalid {
+            path: path_buf(),
+            source,
+        })?;
         Ok(cfg)
     }
 
-    pub fn validate(&self) -> Result<()> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
         self.policy.validate()?;
         self.link.validate()
     }
@@ -62,7 +119,7 @@ mod tests {
         assert_eq!(cfg.link.retries, LinkConfig::default().retries);
 
         std::fs::write(&p, "[policy]\nwindow = 2\n").unwrap();
-        let err = format!("{:#}", RuntimeConfig::load(&p).unwrap_err());
+        let err = grasp_support::error_chain(&RuntimeConfig::load(&p).unwrap_err());
         assert!(err.contains("window") && err.contains("run.toml"), "{err}");
 
         std::fs::write(
@@ -70,7 +127,7 @@ mod tests {
             "[link]\nheartbeat_interval_ms = 900\nwatchdog_ms = 1000\n",
         )
         .unwrap();
-        let err = format!("{:#}", RuntimeConfig::load(&p).unwrap_err());
+        let err = grasp_support::error_chain(&RuntimeConfig::load(&p).unwrap_err());
         assert!(err.contains("heartbeat_interval_ms"), "{err}");
     }
 }

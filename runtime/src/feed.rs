@@ -12,8 +12,7 @@
 //! decision must not wait for that; the source is handed back later by
 //! [`StoppedFeed::join`].
 
-use crate::source::{Frame, FrameSource};
-use anyhow::Result;
+use crate::source::{Frame, FrameSource, SourceError};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -72,7 +71,10 @@ pub struct FrameFeed {
 
 impl FrameFeed {
     /// Calls `source.begin()` and starts capturing.
-    pub fn start(mut source: Box<dyn FrameSource>, mode: FeedMode) -> Result<FrameFeed> {
+    pub fn start(
+        mut source: Box<dyn FrameSource>,
+        mode: FeedMode,
+    ) -> Result<FrameFeed, SourceError> {
         source.begin()?;
         let shared = Arc::new(Shared {
             slot: Mutex::new(Slot::default()),
@@ -86,7 +88,8 @@ impl FrameFeed {
                 .spawn(move || {
                     produce(&mut *source, &shared, mode);
                     source
-                })?
+                })
+                .map_err(SourceError::FeedThread)?
         };
         Ok(FrameFeed {
             shared,
@@ -213,7 +216,7 @@ fn produce(source: &mut dyn FrameSource, shared: &Shared, mode: FeedMode) {
                 }
             }
             Ok(None) => slot.ended = true,
-            Err(e) => slot.error = Some(format!("{e:#}")),
+            Err(e) => slot.error = Some(grasp_support::error_chain(&e)),
         }
         let done = slot.ended || slot.error.is_some();
         drop(slot);
@@ -282,10 +285,10 @@ mod tests {
     }
 
     impl FrameSource for Held {
-        fn begin(&mut self) -> Result<()> {
+        fn begin(&mut self) -> Result<(), SourceError> {
             Ok(())
         }
-        fn next_frame(&mut self) -> Result<Option<Frame>> {
+        fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
             if self.next == 1 {
                 self.holding.send(()).unwrap();
                 let opened = self.gate.recv_timeout(Duration::from_secs(10)).is_ok();
@@ -337,11 +340,14 @@ mod tests {
     fn deadline_and_source_errors_are_reported() {
         struct Failing;
         impl FrameSource for Failing {
-            fn begin(&mut self) -> Result<()> {
+            fn begin(&mut self) -> Result<(), SourceError> {
                 Ok(())
             }
-            fn next_frame(&mut self) -> Result<Option<Frame>> {
-                anyhow::bail!("camera unplugged")
+            fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
+                Err(SourceError::Capture {
+                    device: "/dev/video9".into(),
+                    source: std::io::Error::other("camera unplugged"),
+                })
             }
             fn describe(&self) -> String {
                 "failing".into()

@@ -11,6 +11,7 @@
 //! - [`session`]: the `run` loop (approach after approach) and its
 //!   outcome, [`signals`]: stopping on SIGINT, SIGTERM and SIGHUP;
 //! - [`model`]: the trained checkpoint as a [`classifier::FrameClassifier`];
+//! - [`error`]: what all of it can fail with, one typed error per concept.
 
 pub mod approach;
 #[cfg(feature = "camera")]
@@ -18,6 +19,7 @@ pub mod camera;
 pub mod classifier;
 pub mod config;
 pub mod decoder;
+pub mod error;
 pub mod feed;
 pub mod link;
 pub mod model;

@@ -1,15 +1,53 @@
 //! The trained checkpoint (`grasp-model`) as a [`FrameClassifier`], on the
 //! CPU.
 
-use crate::classifier::FrameClassifier;
-use anyhow::Result;
+use crate::classifier::{ClassifyError, FrameClassifier};
 use grasp_model::checkpoint::Classifier;
+use grasp_model::error::ModelError;
 use grasp_model::heads::HeadKind;
 use grasp_model::input::{InputSpec, Lens};
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+
+/// Why a checkpoint cannot drive the hand.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    // The model's error is boxed to keep this `Err` small (it is large).
+    /// Nothing there: train first, or fix the path.
+    #[error("no checkpoint at {}", path.display())]
+    Missing {
+        path: PathBuf,
+        #[source]
+        source: Box<ModelError>,
+    },
+    /// Something there that cannot be used: re-create it.
+    #[error("corrupt checkpoint {}", path.display())]
+    Corrupt {
+        path: PathBuf,
+        #[source]
+        source: Box<ModelError>,
+    },
+    #[error("cannot load checkpoint {}", path.display())]
+    Load {
+        path: PathBuf,
+        #[source]
+        source: Box<ModelError>,
+    },
+    #[error(
+        "checkpoint {} has an {head} head; hannes-run classifies frame by frame and needs an FC \
+         head (train with --head fc)",
+        path.display()
+    )]
+    NotFc { path: PathBuf, head: &'static str },
+    #[error(
+        "checkpoint {}: classes {classes:?} are not the runtime's {:?} in index order",
+        path.display(),
+        Class::names()
+    )]
+    Classes { path: PathBuf, classes: Vec<Class> },
+}
 
 /// What every report of `run` and `replay` says about the model: the
 /// checkpoint, its input record, and the lens its crop was cut through.
@@ -43,47 +81,44 @@ impl ModelRecord {
 /// Only FC heads classify frames independently, as the streaming loop
 /// needs; an LSTM head would have to re-read the whole window for every new
 /// frame, so it is refused with an explanation.
-pub fn load(path: &Path) -> Result<Classifier> {
+pub fn load(path: &Path) -> Result<Classifier, CheckpointError> {
     let classifier = Classifier::load(path, &candle_core::Device::Cpu).map_err(|e| {
-        let what = if e.is_missing() {
-            "no checkpoint at"
-        } else if e.is_corrupt() {
-            "corrupt checkpoint"
+        let path = path.to_path_buf();
+        let source = Box::new(e);
+        if source.is_missing() {
+            CheckpointError::Missing { path, source }
+        } else if source.is_corrupt() {
+            CheckpointError::Corrupt { path, source }
         } else {
-            "cannot load checkpoint"
-        };
-        anyhow::Error::new(e).context(format!("{what} {}", path.display()))
+            CheckpointError::Load { path, source }
+        }
     })?;
     check(&classifier, path)?;
     Ok(classifier)
 }
 
-fn check(c: &Classifier, path: &Path) -> Result<()> {
-    anyhow::ensure!(
-        c.meta.head.kind == HeadKind::Fc,
-        "checkpoint {} has an {} head; hannes-run classifies frame by frame and needs an FC head \
-         (train with --head fc)",
-        path.display(),
-        c.meta.head.kind.name()
-    );
-    anyhow::ensure!(
-        c.classes() == Class::ALL,
-        "checkpoint {}: classes {:?} are not the runtime's {:?} in index order",
-        path.display(),
-        c.classes(),
-        Class::names()
-    );
+fn check(c: &Classifier, path: &Path) -> Result<(), CheckpointError> {
+    if c.meta.head.kind != HeadKind::Fc {
+        return Err(CheckpointError::NotFc {
+            path: path.to_path_buf(),
+            head: c.meta.head.kind.name(),
+        });
+    }
+    if c.classes() != Class::ALL {
+        return Err(CheckpointError::Classes {
+            path: path.to_path_buf(),
+            classes: c.classes().to_vec(),
+        });
+    }
     Ok(())
 }
 
 impl FrameClassifier for Classifier {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT]> {
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError> {
         let mut out = self.predict(std::slice::from_ref(frame))?;
-        anyhow::ensure!(
-            out.len() == 1,
-            "classifier returned {} outputs for one frame",
-            out.len()
-        );
+        if out.len() != 1 {
+            return Err(ClassifyError::Outputs { got: out.len() });
+        }
         Ok(out.remove(0))
     }
 }

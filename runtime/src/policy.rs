@@ -7,6 +7,7 @@
 //! never reaches the vote: it aborts the approach (default) or is skipped.
 
 use crate::classifier::{InvalidOutput, Probabilities};
+use crate::config::{ensure, InvalidSetting};
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -75,32 +76,35 @@ impl Default for PolicyConfig {
 }
 
 impl PolicyConfig {
-    pub fn validate(&self) -> anyhow::Result<()> {
-        anyhow::ensure!(
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        ensure(
             self.window_s.is_finite() && self.window_s > 0.0,
-            "policy.window_s must be a positive number of seconds, got {}",
-            self.window_s
-        );
-        anyhow::ensure!(
+            "policy.window_s",
+            || {
+                format!(
+                    "must be a positive number of seconds, got {}",
+                    self.window_s
+                )
+            },
+        )?;
+        ensure(
             (0.0..=1.0).contains(&self.min_share),
-            "policy.min_share must be in [0, 1], got {}",
-            self.min_share
-        );
-        anyhow::ensure!(
+            "policy.min_share",
+            || format!("must be in [0, 1], got {}", self.min_share),
+        )?;
+        ensure(
             (0.0..=1.0).contains(&self.min_confidence),
-            "policy.min_confidence must be in [0, 1], got {}",
-            self.min_confidence
-        );
-        anyhow::ensure!(
-            self.early_margin != Some(0),
-            "policy.early_margin must be at least 1 vote"
-        );
-        anyhow::ensure!(
+            "policy.min_confidence",
+            || format!("must be in [0, 1], got {}", self.min_confidence),
+        )?;
+        ensure(self.early_margin != Some(0), "policy.early_margin", || {
+            "must be at least 1 vote".into()
+        })?;
+        ensure(
             (1..=60_000).contains(&self.max_decision_age_ms),
-            "policy.max_decision_age_ms must be in [1, 60000], got {}",
-            self.max_decision_age_ms
-        );
-        Ok(())
+            "policy.max_decision_age_ms",
+            || format!("must be in [1, 60000], got {}", self.max_decision_age_ms),
+        )
     }
 
     /// [`PolicyConfig::max_decision_age_ms`] as a duration.

@@ -10,11 +10,45 @@
 //! opens a link to a pseudo-terminal only if its owner is alive and
 //! still claims that target.
 
-use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use std::ffi::OsString;
 use std::io;
 use std::path::{Path, PathBuf};
+
+/// Why a pseudo-terminal link was not made.
+#[derive(Debug, thiserror::Error)]
+pub enum PtyError {
+    #[error("cannot create a pseudo-terminal pair")]
+    Pair(#[source] serialport::Error),
+    #[error("the pseudo-terminal has no slave name")]
+    SlaveName,
+    #[error("cannot open {}", path.display())]
+    OpenSlave {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("cannot encode the owner record of {}", link.display())]
+    EncodeOwner {
+        link: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+    #[error(transparent)]
+    WriteOwner(#[from] grasp_support::atomic::WriteError),
+    #[error("cannot create symlink {}", path.display())]
+    Symlink {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("cannot move symlink into place at {}", path.display())]
+    PlaceSymlink {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+}
 
 /// Who made a link, as recorded in [`owner_path`].
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -63,26 +97,28 @@ pub struct PtyLink {
 impl PtyLink {
     /// A new pseudo-terminal pair whose slave side is reachable at `link`;
     /// returns its master side.
-    pub fn create(link: &Path) -> anyhow::Result<(serialport::TTYPort, PtyLink)> {
+    pub fn create(link: &Path) -> Result<(serialport::TTYPort, PtyLink), PtyError> {
         use std::os::unix::fs::OpenOptionsExt;
-        let (master, slave) =
-            serialport::TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
-        let target = serialport::SerialPort::name(&slave)
-            .context("the pseudo-terminal has no slave name")?;
+        let (master, slave) = serialport::TTYPort::pair().map_err(PtyError::Pair)?;
+        let target = serialport::SerialPort::name(&slave).ok_or(PtyError::SlaveName)?;
+        let target = PathBuf::from(target);
         let keep = std::fs::OpenOptions::new()
             .read(true)
             .write(true)
             .custom_flags(libc::O_NOCTTY)
             .open(&target)
-            .with_context(|| format!("cannot open {target}"))?;
+            .map_err(|source| PtyError::OpenSlave {
+                path: target.clone(),
+                source,
+            })?;
         drop(slave);
-        let target = PathBuf::from(target);
         // The record first: a host never sees the link without it.
         let owner = LinkOwner::this_process(&target);
-        grasp_support::atomic::write_atomic(
-            &owner_path(link),
-            &serde_json::to_vec_pretty(&owner)?,
-        )?;
+        let record = serde_json::to_vec_pretty(&owner).map_err(|source| PtyError::EncodeOwner {
+            link: link.to_path_buf(),
+            source,
+        })?;
+        grasp_support::atomic::write_atomic(&owner_path(link), &record)?;
         let made = PtyLink {
             link: link.to_path_buf(),
             target,
@@ -118,17 +154,21 @@ impl Drop for PtyLink {
 
 /// A pseudo-terminal pair whose slave side is reachable at `link_path`.
 /// Returns the master and the link (drop it to unplug).
-pub fn pty_pair(link_path: &Path) -> anyhow::Result<(serialport::TTYPort, PtyLink)> {
+pub fn pty_pair(link_path: &Path) -> Result<(serialport::TTYPort, PtyLink), PtyError> {
     PtyLink::create(link_path)
 }
 
 /// Points `link` at `target`, atomically (temp link + rename).
-pub fn replace_symlink(target: &Path, link: &Path) -> anyhow::Result<()> {
+pub fn replace_symlink(target: &Path, link: &Path) -> Result<(), PtyError> {
     let tmp = grasp_support::atomic::temp_path(link);
-    std::os::unix::fs::symlink(target, &tmp)
-        .with_context(|| format!("cannot create symlink {}", tmp.display()))?;
-    std::fs::rename(&tmp, link)
-        .with_context(|| format!("cannot move symlink into place at {}", link.display()))
+    std::os::unix::fs::symlink(target, &tmp).map_err(|source| PtyError::Symlink {
+        path: tmp.clone(),
+        source,
+    })?;
+    std::fs::rename(&tmp, link).map_err(|source| PtyError::PlaceSymlink {
+        path: link.to_path_buf(),
+        source,
+    })
 }
 
 fn read_owner(record: &Path) -> io::Result<LinkOwner> {

@@ -20,13 +20,13 @@
 use crate::approach::{actuate, classify_window_until, ApproachReport, FramePrediction};
 use crate::classifier::FrameClassifier;
 use crate::feed::FeedMode;
-use crate::link::{Hand, LinkError};
+use crate::link::{Hand, StartError};
 use crate::policy::{Outcome, PolicyConfig};
 use crate::signals::Signal;
-use crate::source::FrameSource;
-use crate::trigger::Trigger;
-use anyhow::Result;
+use crate::source::{FrameSource, SourceError};
+use crate::trigger::{Trigger, TriggerError};
 use serde::Serialize;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -49,12 +49,12 @@ fn stopped_by(signal: Option<Signal>) -> String {
     }
 }
 
-/// The exit code of an error that stopped `run` before any approach:
-/// [`EXIT_HAND`] if the hand could not be reached, else 1.
-pub fn exit_code_before_approaches(e: &anyhow::Error) -> u8 {
-    match e.chain().any(|c| c.downcast_ref::<LinkError>().is_some()) {
-        true => EXIT_HAND,
-        false => 1,
+/// The exit code of a link that did not start, before any approach:
+/// [`EXIT_HAND`] if the hand could not be reached, else 1 (a setting).
+pub fn exit_code_before_approaches(e: &StartError) -> u8 {
+    match e {
+        StartError::Link(_) => EXIT_HAND,
+        StartError::Config(_) | StartError::Heartbeat(_) => 1,
     }
 }
 
@@ -264,13 +264,38 @@ impl SessionSummary {
     }
 }
 
+/// Why a run ended before its approaches did (an approach's own failure
+/// is its outcome, not an error).
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The trigger failed.
+    #[error(transparent)]
+    Trigger(#[from] TriggerError),
+    /// The frame feed did not start.
+    #[error(transparent)]
+    Source(#[from] SourceError),
+    /// An observer could not record an approach.
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
+
+/// A report file that cannot be written (`doing`: open or write).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot {doing} report {}", path.display())]
+pub struct ReportError {
+    pub doing: &'static str,
+    pub path: PathBuf,
+    #[source]
+    pub source: std::io::Error,
+}
+
 /// Sees a run's progress (the CLI prints it).
 pub trait SessionObserver {
     fn waiting(&mut self, _approach: usize, _trigger: &str) {}
     /// The trigger fired: the approach window starts.
     fn triggered(&mut self, _approach: usize) {}
     fn frame(&mut self, _prediction: &FramePrediction) {}
-    fn approach(&mut self, _approach: usize, _report: &ApproachReport) -> Result<()> {
+    fn approach(&mut self, _approach: usize, _report: &ApproachReport) -> Result<(), ReportError> {
         Ok(())
     }
 }
@@ -280,7 +305,7 @@ pub trait SessionObserver {
 pub struct ReportLog(pub Vec<ApproachReport>);
 
 impl SessionObserver for ReportLog {
-    fn approach(&mut self, _approach: usize, report: &ApproachReport) -> Result<()> {
+    fn approach(&mut self, _approach: usize, report: &ApproachReport) -> Result<(), ReportError> {
         self.0.push(report.clone());
         Ok(())
     }
@@ -306,7 +331,7 @@ impl Session<'_> {
         trigger: &mut dyn Trigger,
         mut closure: Option<&mut dyn Trigger>,
         observer: &mut dyn SessionObserver,
-    ) -> Result<(Box<dyn FrameSource>, SessionSummary)> {
+    ) -> Result<(Box<dyn FrameSource>, SessionSummary), SessionError> {
         let mut summary = SessionSummary::default();
         for n in 1..=approaches {
             observer.waiting(n, &trigger.describe());

@@ -2,11 +2,31 @@
 //! The paper's demo used a keyboard key and timers; an EMG onset detector
 //! plugs in by implementing [`Trigger`] (or by feeding a [`ChannelTrigger`]).
 
-use anyhow::Result;
+use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+
+/// Why a trigger cannot be had, or cannot fire.
+#[derive(Debug, thiserror::Error)]
+pub enum TriggerError {
+    #[error("unknown trigger '{spec}' (expected stdin, now, timer:SECONDS)")]
+    Unknown { spec: String },
+    #[error("trigger '{spec}': '{secs}' is not a number of seconds")]
+    NotSeconds { spec: String, secs: String },
+    #[error("trigger '{spec}': seconds must be in [0, 3600]")]
+    OutOfRange { spec: String },
+    #[error("cannot start the stdin reader")]
+    Stdin(#[source] io::Error),
+    /// The device behind a trigger failed (an EMG amplifier unplugged).
+    #[error("trigger {trigger} failed")]
+    Device {
+        trigger: String,
+        #[source]
+        source: io::Error,
+    },
+}
 
 /// How often a waiting trigger looks at the stop flag.
 const POLL: Duration = Duration::from_millis(10);
@@ -14,7 +34,7 @@ const POLL: Duration = Duration::from_millis(10);
 pub trait Trigger: Send {
     /// Blocks until the trigger fires (`Ok(true)`), or until `stop` is set or
     /// the trigger can never fire again (`Ok(false)`).
-    fn wait(&mut self, stop: &AtomicBool) -> Result<bool>;
+    fn wait(&mut self, stop: &AtomicBool) -> Result<bool, TriggerError>;
     fn describe(&self) -> String;
 }
 
@@ -23,7 +43,7 @@ pub trait Trigger: Send {
 pub struct Timer(pub Duration);
 
 impl Trigger for Timer {
-    fn wait(&mut self, stop: &AtomicBool) -> Result<bool> {
+    fn wait(&mut self, stop: &AtomicBool) -> Result<bool, TriggerError> {
         let due = Instant::now() + self.0;
         loop {
             if stop.load(Ordering::Relaxed) {
@@ -68,7 +88,7 @@ impl ChannelTrigger {
 }
 
 impl Trigger for ChannelTrigger {
-    fn wait(&mut self, stop: &AtomicBool) -> Result<bool> {
+    fn wait(&mut self, stop: &AtomicBool) -> Result<bool, TriggerError> {
         let rx = self.rx.lock().unwrap_or_else(|p| p.into_inner());
         self.drain(&rx);
         loop {
@@ -90,7 +110,7 @@ impl Trigger for ChannelTrigger {
 
 /// A trigger fired by each line (Enter) on standard input. The reader
 /// thread ends with stdin; the trigger then reports that it cannot fire.
-pub fn stdin_trigger() -> Result<ChannelTrigger> {
+pub fn stdin_trigger() -> Result<ChannelTrigger, TriggerError> {
     let (tx, trigger) = ChannelTrigger::new("stdin (press Enter)");
     std::thread::Builder::new()
         .name("stdin-trigger".into())
@@ -102,12 +122,16 @@ pub fn stdin_trigger() -> Result<ChannelTrigger> {
                     break;
                 }
             }
-        })?;
+        })
+        .map_err(TriggerError::Stdin)?;
     Ok(trigger)
 }
 
 /// Parses `stdin`, `now` or `timer:SECONDS` / `delay:SECONDS`.
-pub fn parse_trigger(spec: &str, stdin: &mut Option<ChannelTrigger>) -> Result<Box<dyn Trigger>> {
+pub fn parse_trigger(
+    spec: &str,
+    stdin: &mut Option<ChannelTrigger>,
+) -> Result<Box<dyn Trigger>, TriggerError> {
     if spec == "stdin" {
         if stdin.is_none() {
             *stdin = Some(stdin_trigger()?);
@@ -120,16 +144,14 @@ pub fn parse_trigger(spec: &str, stdin: &mut Option<ChannelTrigger>) -> Result<B
     let secs = spec
         .strip_prefix("timer:")
         .or_else(|| spec.strip_prefix("delay:"))
-        .ok_or_else(|| {
-            anyhow::anyhow!("unknown trigger '{spec}' (expected stdin, now, timer:SECONDS)")
-        })?;
-    let s: f64 = secs
-        .parse()
-        .map_err(|_| anyhow::anyhow!("trigger '{spec}': '{secs}' is not a number of seconds"))?;
-    anyhow::ensure!(
-        s.is_finite() && (0.0..=3600.0).contains(&s),
-        "trigger '{spec}': seconds must be in [0, 3600]"
-    );
+        .ok_or_else(|| TriggerError::Unknown { spec: spec.into() })?;
+    let s: f64 = secs.parse().map_err(|_| TriggerError::NotSeconds {
+        spec: spec.into(),
+        secs: secs.into(),
+    })?;
+    if !(s.is_finite() && (0.0..=3600.0).contains(&s)) {
+        return Err(TriggerError::OutOfRange { spec: spec.into() });
+    }
     Ok(Box::new(Timer(Duration::from_secs_f64(s))))
 }
 

@@ -15,12 +15,12 @@ mod common;
 use common::{fast_link, frames_of, start_hand, FakeModel};
 use grasp_schema::taxonomy::{Class, Preshape};
 use image::RgbImage;
-use runtime::classifier::FrameClassifier;
+use runtime::classifier::{ClassifyError, FrameClassifier};
 use runtime::feed::FeedMode;
 use runtime::policy::{Outcome, PolicyConfig};
 use runtime::session::{ApproachResult, ReportLog, Session};
 use runtime::simhand::{HandEvent, PtyHand};
-use runtime::source::{Frame, FrameSource, MemorySource, Pacing};
+use runtime::source::{Frame, FrameSource, MemorySource, Pacing, SourceError};
 use runtime::trigger::Timer;
 use std::sync::atomic::AtomicBool;
 use std::sync::mpsc::{Receiver, Sender};
@@ -63,12 +63,12 @@ struct HeldAfterWindow {
 }
 
 impl FrameSource for HeldAfterWindow {
-    fn begin(&mut self) -> anyhow::Result<()> {
+    fn begin(&mut self) -> Result<(), SourceError> {
         self.next = 0;
         self.frames.begin()
     }
 
-    fn next_frame(&mut self) -> anyhow::Result<Option<Frame>> {
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         if self.next >= WINDOW_FRAMES {
             let _ = self.holding.send(());
             let how = match self.gate.recv_timeout(HELD_AT_MOST) {
@@ -97,7 +97,7 @@ struct WaitsForTheHold {
 }
 
 impl FrameClassifier for WaitsForTheHold {
-    fn classify(&mut self, frame: &RgbImage) -> anyhow::Result<[f32; 5]> {
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; 5], ClassifyError> {
         self.calls += 1;
         if self.calls == WINDOW_FRAMES - 1 {
             self.holding

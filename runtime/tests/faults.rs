@@ -30,7 +30,7 @@ use runtime::protocol::HandState;
 use runtime::session::{SessionSummary, EXIT_EXPIRED};
 use runtime::simhand::{FaultKind, FaultSpec, HandEvent, PtyHand};
 use runtime::source::{MemorySource, Pacing};
-use runtime::trigger::Trigger;
+use runtime::trigger::{Trigger, TriggerError};
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
@@ -63,7 +63,7 @@ struct RecordingTimer {
 }
 
 impl Trigger for RecordingTimer {
-    fn wait(&mut self, stop: &AtomicBool) -> anyhow::Result<bool> {
+    fn wait(&mut self, stop: &AtomicBool) -> Result<bool, TriggerError> {
         let fired = runtime::trigger::Timer(self.delay).wait(stop)?;
         self.fired = Some(Instant::now());
         Ok(fired)

@@ -55,10 +55,9 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
         serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     meta["backbone"]["pooled_blocks"] = serde_json::json!([99]);
     std::fs::write(&json, serde_json::to_vec(&meta).unwrap()).unwrap();
-    let err = format!(
-        "{:#}",
-        runtime::model::load(ckpt).err().expect("loaded block 99")
-    );
+    // As hannes-run prints it: the error and its causes on one line.
+    let err = runtime::model::load(ckpt).err().expect("loaded block 99");
+    let err = grasp_support::error_chain(&err);
     assert!(
         err.contains(&json.display().to_string()) && err.contains("pooled block 99"),
         "{err}"

@@ -1,5 +1,6 @@
 //! The link's timing settings (`[link]` in the config file).
 
+use crate::config::{ensure, InvalidSetting};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
@@ -41,15 +42,20 @@ impl LinkConfig {
 
     /// Rejects settings under which the hand would open itself between two
     /// heartbeats.
-    pub fn validate(&self) -> anyhow::Result<()> {
-        anyhow::ensure!(self.ack_timeout_ms > 0, "link.ack_timeout_ms must be > 0");
-        anyhow::ensure!(
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
+        ensure(self.ack_timeout_ms > 0, "link.ack_timeout_ms", || {
+            "must be > 0".into()
+        })?;
+        ensure(
             self.heartbeat_interval_ms > 0
                 && self.heartbeat_interval_ms * 2 <= u64::from(self.watchdog_ms),
-            "link.heartbeat_interval_ms ({}) must be > 0 and at most half of link.watchdog_ms ({})",
-            self.heartbeat_interval_ms,
-            self.watchdog_ms
-        );
-        Ok(())
+            "link.heartbeat_interval_ms",
+            || {
+                format!(
+                    "({}) must be > 0 and at most half of link.watchdog_ms ({})",
+                    self.heartbeat_interval_ms, self.watchdog_ms
+                )
+            },
+        )
     }
 }

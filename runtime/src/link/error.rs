@@ -1,5 +1,6 @@
-//! Why a command was not delivered.
+//! Why a command was not delivered, or the link not started.
 
+use crate::config::InvalidSetting;
 use crate::protocol::Status;
 
 #[derive(Debug, thiserror::Error)]
@@ -47,4 +48,17 @@ pub enum LinkError {
         transmissions: u32,
         device: String,
     },
+}
+
+/// Why [`super::Hand::start`] gave no hand.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// Timing under which the hand would open itself between heartbeats.
+    #[error(transparent)]
+    Config(#[from] InvalidSetting),
+    /// The hand could not be reached, or did not acknowledge HELLO.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    #[error("cannot start the heartbeat thread")]
+    Heartbeat(#[source] std::io::Error),
 }

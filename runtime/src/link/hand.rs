@@ -1,7 +1,7 @@
 //! [`Hand`]: the link shared with a heartbeat thread that keeps the
 //! hand's watchdog fed.
 
-use super::{Delivery, HandLink, LinkError, LinkStats};
+use super::{Delivery, HandLink, LinkError, LinkStats, StartError};
 use crate::protocol::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -17,7 +17,7 @@ pub struct Hand {
 
 impl Hand {
     /// Connects (HELLO) and starts the heartbeat.
-    pub fn start(mut link: HandLink) -> anyhow::Result<Hand> {
+    pub fn start(mut link: HandLink) -> Result<Hand, StartError> {
         link.cfg.validate()?;
         link.connect()?;
         let interval = Duration::from_millis(link.cfg.heartbeat_interval_ms);
@@ -27,7 +27,8 @@ impl Hand {
             let (link, stop) = (link.clone(), stop.clone());
             std::thread::Builder::new()
                 .name("hannes-heartbeat".into())
-                .spawn(move || heartbeat_loop(&link, &stop, interval))?
+                .spawn(move || heartbeat_loop(&link, &stop, interval))
+                .map_err(StartError::Heartbeat)?
         };
         Ok(Hand {
             link,

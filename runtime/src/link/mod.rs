@@ -32,7 +32,7 @@ mod send;
 
 pub use clock::HandClock;
 pub use config::LinkConfig;
-pub use error::LinkError;
+pub use error::{LinkError, StartError};
 pub use hand::Hand;
 pub use handlink::HandLink;
 

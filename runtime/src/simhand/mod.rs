@@ -17,7 +17,7 @@ mod server;
 
 pub use crate::ptylink::{pty_pair, replace_symlink};
 pub use faults::{FaultKind, FaultSpec, Toward};
-pub use pty::{PtyHand, PtyPlug};
+pub use pty::{PtyHand, PtyHandError, PtyPlug};
 pub use server::{DevicePort, OpenPort, Plug, RunningHand};
 
 use crate::protocol::{cmd, Ack, Command, HandState, HandTime, Packet, Status};

@@ -6,10 +6,19 @@
 use super::faults::FaultSpec;
 use super::server::{Plug, RunningHand};
 use super::HandEvent;
-use crate::ptylink::PtyLink;
+use crate::ptylink::{PtyError, PtyLink};
 use crate::transport::Duplex;
 use std::io;
 use std::path::{Path, PathBuf};
+
+/// Why a simulated hand on a pseudo-terminal did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum PtyHandError {
+    #[error(transparent)]
+    Pty(#[from] PtyError),
+    #[error("cannot start the simulated hand")]
+    Start(#[source] io::Error),
+}
 
 /// Makes a fresh pseudo-terminal, linked at a fixed path, on every plug.
 pub struct PtyPlug {
@@ -21,7 +30,7 @@ pub struct PtyPlug {
 }
 
 impl PtyPlug {
-    pub fn new(link: &Path) -> anyhow::Result<PtyPlug> {
+    pub fn new(link: &Path) -> Result<PtyPlug, PtyError> {
         let (master, current) = PtyLink::create(link)?;
         Ok(PtyPlug {
             link: link.to_path_buf(),
@@ -66,7 +75,7 @@ impl PtyHand {
     pub fn plug(
         link_path: &Path,
         sink: impl FnMut(&HandEvent) + Send + 'static,
-    ) -> anyhow::Result<PtyHand> {
+    ) -> Result<PtyHand, PtyHandError> {
         Self::plug_with_faults(link_path, FaultSpec::default(), sink)
     }
 
@@ -75,9 +84,9 @@ impl PtyHand {
         link_path: &Path,
         faults: FaultSpec,
         sink: impl FnMut(&HandEvent) + Send + 'static,
-    ) -> anyhow::Result<PtyHand> {
+    ) -> Result<PtyHand, PtyHandError> {
         let plug = PtyPlug::new(link_path)?;
-        let hand = RunningHand::start(Box::new(plug), faults, sink)?;
+        let hand = RunningHand::start(Box::new(plug), faults, sink).map_err(PtyHandError::Start)?;
         Ok(PtyHand {
             hand,
             path: link_path.to_path_buf(),

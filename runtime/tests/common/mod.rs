@@ -3,7 +3,7 @@
 
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
-use runtime::classifier::FrameClassifier;
+use runtime::classifier::{ClassifyError, FrameClassifier};
 use runtime::link::{Hand, HandLink, LinkConfig};
 use runtime::transport::SerialConnector;
 use std::path::Path;
@@ -70,7 +70,7 @@ impl FakeModel {
 }
 
 impl FrameClassifier for FakeModel {
-    fn classify(&mut self, frame: &RgbImage) -> anyhow::Result<[f32; 5]> {
+    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; 5], ClassifyError> {
         std::thread::sleep(self.delay);
         let class = (frame.get_pixel(0, 0)[0] / 40) as usize;
         let mut p = [0.05; 5];

@@ -4,12 +4,12 @@
 use crate::args::RunArgs;
 use crate::setup::{config, open_source, stop_flag};
 use crate::table::votes;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use grasp_support::cli::Failure;
 use runtime::approach::{ApproachReport, FramePrediction};
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink, LinkConfig};
-use runtime::session::{ApproachResult, Session, SessionObserver};
+use runtime::session::{ApproachResult, ReportError, Session, SessionObserver};
 use runtime::source::Pacing;
 use runtime::transport::SerialConnector;
 use runtime::trigger::{parse_trigger, Trigger};
@@ -93,7 +93,8 @@ fn start_hand(args: &RunArgs, cfg: LinkConfig) -> Result<Hand> {
         Ok(hand) => Ok(hand),
         Err(e) => {
             let code = runtime::session::exit_code_before_approaches(&e);
-            Err(e.context(Failure::new(code, "cannot start the link to the hand")))
+            Err(anyhow::Error::new(e)
+                .context(Failure::new(code, "cannot start the link to the hand")))
         }
     }
 }
@@ -139,7 +140,7 @@ impl SessionObserver for RunPrinter<'_> {
         tracing::debug!(frame = p.index, class = ?p.class, "classified");
     }
 
-    fn approach(&mut self, n: usize, report: &ApproachReport) -> Result<()> {
+    fn approach(&mut self, n: usize, report: &ApproachReport) -> Result<(), ReportError> {
         let d = &report.window.decision;
         println!(
             "approach {n}: {} | votes {} | {} frames, {} dropped{}",
@@ -179,12 +180,17 @@ impl SessionObserver for RunPrinter<'_> {
     }
 }
 
-fn append_json_line(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+fn append_json_line(path: &Path, value: &impl serde::Serialize) -> Result<(), ReportError> {
+    let failed = |doing, source| ReportError {
+        doing,
+        path: path.to_path_buf(),
+        source,
+    };
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(path)
-        .with_context(|| format!("cannot open report {}", path.display()))?;
-    writeln!(f, "{}", serde_json::to_string(value)?)
-        .with_context(|| format!("cannot write report {}", path.display()))
+        .map_err(|e| failed("open", e))?;
+    let line = serde_json::to_string(value).map_err(|e| failed("write", e.into()))?;
+    writeln!(f, "{line}").map_err(|e| failed("write", e))
 }

@@ -2,14 +2,19 @@
 //! `sequence.json`, or bare PNGs), replayed at its real frame rate or as fast
 //! as possible, and in-memory frames for tests and benchmarks. The live
 //! camera is in `camera.rs` (feature `camera`).
+//!
+//! `folder.rs` replays a folder, `record.rs` reads its `sequence.json`,
+//! `error.rs` says what goes wrong.
 
-use anyhow::{bail, Context, Result};
-use grasp_model::input::Lens;
-use grasp_schema::dataset::SEQUENCE_FILE;
-use grasp_schema::taxonomy::{Class, Preshape};
+mod error;
+mod folder;
+mod record;
+
+pub use error::{BadFrameRate, SourceError};
+pub use folder::SequenceFolder;
+pub use record::{Pinhole, SequenceInfo};
+
 use image::RgbImage;
-use serde::Deserialize;
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Frame rate assumed for bare PNG folders without `--fps`.
@@ -30,9 +35,9 @@ pub struct Frame {
 pub trait FrameSource: Send {
     /// Called when an approach window opens: a recording restarts from its
     /// first frame, a camera drops frames captured before now.
-    fn begin(&mut self) -> Result<()>;
+    fn begin(&mut self) -> Result<(), SourceError>;
     /// The next frame; `None` once a recording is exhausted.
-    fn next_frame(&mut self) -> Result<Option<Frame>>;
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError>;
     fn describe(&self) -> String;
 }
 
@@ -69,172 +74,6 @@ impl Clock {
     }
 }
 
-/// What `sequence.json` says about a recording, when present.
-#[derive(Debug, Clone, Default)]
-pub struct SequenceInfo {
-    pub fps: Option<f64>,
-    /// The sequence's pre-shape label.
-    pub preshape: Option<Preshape>,
-    /// Per-frame ground truth, in frame order.
-    pub labels: Vec<Class>,
-    /// `render.center_region`: only the centred square of this fraction of
-    /// the shorter side was rendered (the rest is black); None: all of it.
-    pub center_region: Option<f64>,
-    /// `plan.intrinsics`, the lens a model that crops a fixed angle needs:
-    /// None when absent, an error when present but unusable.
-    pub intrinsics: Option<Result<Pinhole, String>>,
-    /// The `sequence.json` these come from.
-    pub path: Option<PathBuf>,
-}
-
-impl SequenceInfo {
-    /// The recording's lens, from `plan.intrinsics` (None without one); an
-    /// unusable one is an error naming its field.
-    pub fn lens(&self) -> Result<Option<Lens>> {
-        match &self.intrinsics {
-            None => Ok(None),
-            Some(Err(why)) => bail!("{why}"),
-            Some(Ok(k)) => Ok(Some(
-                Lens::from_pinhole(k.fx, k.fy, k.width, k.height)
-                    .map_err(|e| anyhow::anyhow!("{}: {e}", self.record()))?,
-            )),
-        }
-    }
-
-    fn record(&self) -> String {
-        self.path
-            .as_ref()
-            .map_or_else(|| SEQUENCE_FILE.to_string(), |p| p.display().to_string())
-    }
-
-    /// Refuses a model that looks further out than the recording was
-    /// rendered: it would see the black surround. `crop` is the model's
-    /// centre crop (None: whole frames).
-    pub fn check_crop(&self, crop: Option<f64>, dir: &Path) -> Result<()> {
-        let why = self
-            .center_region
-            .and_then(|region| grasp_schema::dataset::crop_outside_region(region, crop));
-        match why {
-            Some(why) => bail!("{}: {why}", dir.display()),
-            None => Ok(()),
-        }
-    }
-}
-
-/// The part of `plan.intrinsics` a lens needs.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-pub struct Pinhole {
-    pub width: u32,
-    pub height: u32,
-    pub fx: f64,
-    pub fy: f64,
-}
-
-/// A folder of PNG frames replayed from disk, decoded one at a time.
-pub struct SequenceFolder {
-    dir: PathBuf,
-    files: Vec<PathBuf>,
-    info: SequenceInfo,
-    clock: Clock,
-    next: u64,
-}
-
-impl SequenceFolder {
-    /// Opens `dir`. The frame rate is `fps` if given, else `plan.fps` from
-    /// `sequence.json`, else [`DEFAULT_FPS`].
-    pub fn open(dir: &Path, fps: Option<f64>, pacing: Pacing) -> Result<Self> {
-        anyhow::ensure!(dir.is_dir(), "{} is not a directory", dir.display());
-        let record = dir.join(SEQUENCE_FILE);
-        let (files, info) = if record.exists() {
-            read_sequence_json(&record)?
-        } else {
-            (list_pngs(dir)?, SequenceInfo::default())
-        };
-        if files.is_empty() {
-            bail!("{} holds no PNG frames", dir.display());
-        }
-        let files: Vec<PathBuf> = files.into_iter().map(|f| dir.join(f)).collect();
-        if let Some(missing) = files.iter().find(|f| !f.is_file()) {
-            bail!(
-                "frame {} listed in {} is missing",
-                missing.display(),
-                record.display()
-            );
-        }
-        let fps = fps.or(info.fps).unwrap_or(DEFAULT_FPS);
-        check_fps(fps).with_context(|| format!("frame rate of {}", dir.display()))?;
-        Ok(SequenceFolder {
-            dir: dir.to_path_buf(),
-            files,
-            info,
-            clock: Clock {
-                fps,
-                pacing,
-                start: Instant::now(),
-            },
-            next: 0,
-        })
-    }
-
-    pub fn info(&self) -> &SequenceInfo {
-        &self.info
-    }
-
-    /// Width and height of the recording's first frame (read from its
-    /// header only).
-    pub fn frame_size(&self) -> Result<(u32, u32)> {
-        let first = &self.files[0];
-        image::image_dimensions(first)
-            .with_context(|| format!("cannot read the size of frame {}", first.display()))
-    }
-
-    pub fn fps(&self) -> f64 {
-        self.clock.fps
-    }
-
-    pub fn len(&self) -> usize {
-        self.files.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.files.is_empty()
-    }
-}
-
-impl FrameSource for SequenceFolder {
-    fn begin(&mut self) -> Result<()> {
-        self.next = 0;
-        self.clock.start = Instant::now();
-        Ok(())
-    }
-
-    fn next_frame(&mut self) -> Result<Option<Frame>> {
-        let Some(path) = self.files.get(self.next as usize) else {
-            return Ok(None);
-        };
-        let index = self.next;
-        self.clock.wait_for(index);
-        let image = image::open(path)
-            .with_context(|| format!("cannot decode frame {}", path.display()))?
-            .to_rgb8();
-        self.next += 1;
-        Ok(Some(Frame {
-            index,
-            time_s: self.clock.time_of(index),
-            image,
-        }))
-    }
-
-    fn describe(&self) -> String {
-        format!(
-            "{} ({} frames at {} fps)",
-            self.dir.display(),
-            self.files.len(),
-            self.clock.fps
-        )
-    }
-}
-
 /// Frames held in memory (tests, benchmarks).
 pub struct MemorySource {
     frames: Vec<RgbImage>,
@@ -243,7 +82,7 @@ pub struct MemorySource {
 }
 
 impl MemorySource {
-    pub fn new(frames: Vec<RgbImage>, fps: f64, pacing: Pacing) -> Result<Self> {
+    pub fn new(frames: Vec<RgbImage>, fps: f64, pacing: Pacing) -> Result<Self, BadFrameRate> {
         check_fps(fps)?;
         Ok(MemorySource {
             frames,
@@ -258,13 +97,13 @@ impl MemorySource {
 }
 
 impl FrameSource for MemorySource {
-    fn begin(&mut self) -> Result<()> {
+    fn begin(&mut self) -> Result<(), SourceError> {
         self.next = 0;
         self.clock.start = Instant::now();
         Ok(())
     }
 
-    fn next_frame(&mut self) -> Result<Option<Frame>> {
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         let Some(image) = self.frames.get(self.next as usize) else {
             return Ok(None);
         };
@@ -287,112 +126,20 @@ impl FrameSource for MemorySource {
     }
 }
 
-fn check_fps(fps: f64) -> Result<()> {
-    anyhow::ensure!(
-        fps.is_finite() && fps > 0.0 && fps <= 1000.0,
-        "frame rate must be in (0, 1000] fps, got {fps}"
-    );
-    Ok(())
-}
-
-fn list_pngs(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    for entry in std::fs::read_dir(dir).with_context(|| format!("cannot list {}", dir.display()))? {
-        let path = entry?.path();
-        let is_png = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-        if is_png && path.is_file() {
-            files.push(PathBuf::from(
-                path.file_name().expect("listed file has a name"),
-            ));
-        }
+fn check_fps(fps: f64) -> Result<(), BadFrameRate> {
+    match fps.is_finite() && fps > 0.0 && fps <= 1000.0 {
+        true => Ok(()),
+        false => Err(BadFrameRate { fps }),
     }
-    // Zero-padded names sort in frame order.
-    files.sort();
-    Ok(files)
-}
-
-/// Reads the fields the runtime needs from `sequence.json`, leniently: a
-/// newer generator may add fields, and only these must be right.
-fn read_sequence_json(path: &Path) -> Result<(Vec<PathBuf>, SequenceInfo)> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not valid JSON", path.display()))?;
-    let files = v
-        .get("frame_files")
-        .and_then(|f| f.as_array())
-        .with_context(|| {
-            format!(
-                "{}: field `frame_files` is missing or not a list",
-                path.display()
-            )
-        })?
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            f.as_str()
-                .map(PathBuf::from)
-                .with_context(|| format!("{}: `frame_files[{i}]` is not a string", path.display()))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let plan = v.get("plan");
-    let fps = match plan.and_then(|p| p.get("fps")) {
-        None => None,
-        Some(f) => Some(
-            f.as_f64()
-                .with_context(|| format!("{}: `plan.fps` is not a number", path.display()))?,
-        ),
-    };
-    let preshape = plan
-        .and_then(|p| p.get("preshape"))
-        .and_then(|p| serde_json::from_value(p.clone()).ok());
-    let labels = plan
-        .and_then(|p| p.get("frames"))
-        .and_then(|f| f.as_array())
-        .map(|frames| {
-            frames
-                .iter()
-                .filter_map(|f| serde_json::from_value(f.get("class")?.clone()).ok())
-                .collect()
-        })
-        .unwrap_or_default();
-    let center_region = match v.get("render").and_then(|r| r.get("center_region")) {
-        None => None,
-        Some(c) => Some(
-            c.as_f64()
-                .filter(|c| *c > 0.0 && *c <= 1.0)
-                .with_context(|| {
-                    format!(
-                        "{}: `render.center_region` is not a fraction in (0, 1]",
-                        path.display()
-                    )
-                })?,
-        ),
-    };
-    let intrinsics = plan
-        .and_then(|p| p.get("intrinsics"))
-        .filter(|k| !k.is_null())
-        .map(|k| {
-            Pinhole::deserialize(k).map_err(|e| format!("{}: plan.intrinsics: {e}", path.display()))
-        });
-    Ok((
-        files,
-        SequenceInfo {
-            fps,
-            preshape,
-            labels,
-            center_region,
-            intrinsics,
-            path: Some(path.to_path_buf()),
-        },
-    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use grasp_model::input::Lens;
+    use grasp_schema::dataset::SEQUENCE_FILE;
+    use grasp_schema::taxonomy::{Class, Preshape};
+    use std::path::Path;
 
     fn write_frames(dir: &Path, n: usize) {
         for i in 0..n {
