@@ -15,6 +15,7 @@ use grasp_model::error::ModelError;
 use grasp_model::input::InputError;
 use grasp_schema::taxonomy::Preshape;
 use grasp_support::atomic::WriteError;
+use grasp_support::error_chain as chain;
 use std::path::{Path, PathBuf};
 
 /// A recipe, a configuration or an option that cannot be used.
@@ -421,15 +422,3 @@ pub enum PlotError {
 }
 
 pub type Result<T, E = TrainError> = std::result::Result<T, E>;
-
-/// `e` and its causes on one line (`a: b: c`), as the binary prints them.
-fn chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        text.push_str(": ");
-        text.push_str(&c.to_string());
-        cause = c.source();
-    }
-    text
-}

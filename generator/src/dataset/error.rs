@@ -174,15 +174,5 @@ impl DatasetError {
     }
 }
 
-/// An error and its sources, joined by ": " (as anyhow's `{:#}` prints
-/// them), for problems collected as text.
-pub fn chain(e: &(dyn std::error::Error + 'static)) -> String {
-    let mut out = e.to_string();
-    let mut next = e.source();
-    while let Some(s) = next {
-        out.push_str(": ");
-        out.push_str(&s.to_string());
-        next = s.source();
-    }
-    out
-}
+/// An error and its sources on one line, for problems collected as text.
+pub use grasp_support::error_chain as chain;
