@@ -17,16 +17,9 @@ use std::time::{Duration, Instant};
 #[test]
 fn run_exits_3_with_a_reason_when_a_frame_cannot_be_read() {
     let dir = tempfile::tempdir().unwrap();
-    let seq = sequence(dir.path(), 8, Some(3));
-    let config = quick_link_config(dir.path());
+    let run = Approach::new(dir.path(), 8, Some(3));
     let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let out = hannes_run(&run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        pty.path().to_str().unwrap(),
-        config.to_str().unwrap(),
-    ));
+    let out = hannes_run(&run.args(pty.path().to_str().unwrap()));
     assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
     let reason = last_line(&out.stderr);
     assert!(
@@ -45,16 +38,9 @@ fn run_exits_3_with_a_reason_when_a_frame_cannot_be_read() {
 #[test]
 fn run_exits_4_with_a_reason_when_the_hand_cannot_be_reached() {
     let dir = tempfile::tempdir().unwrap();
-    let seq = sequence(dir.path(), 4, None);
-    let config = quick_link_config(dir.path());
+    let run = Approach::new(dir.path(), 4, None);
     let missing = dir.path().join("no-hand-here");
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let out = hannes_run(&run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        missing.to_str().unwrap(),
-        config.to_str().unwrap(),
-    ));
+    let out = hannes_run(&run.args(missing.to_str().unwrap()));
     assert_eq!(out.status.code(), Some(4), "{}", text(&out.stderr));
     let reason = last_line(&out.stderr);
     assert!(
@@ -66,22 +52,14 @@ fn run_exits_4_with_a_reason_when_the_hand_cannot_be_reached() {
 #[test]
 fn run_exits_5_and_reports_a_decision_too_old_to_execute() {
     let dir = tempfile::tempdir().unwrap();
-    let seq = sequence(dir.path(), 4, None);
-    let config = quick_link_config(dir.path());
+    let run = Approach::new(dir.path(), 4, None);
     // Every PRESHAPE is held 600 ms on its way: no decision can be
     // acknowledged within a 100 ms limit, and the hand refuses late copies.
     let faults: FaultSpec = "delay=1:600,on=preshape".parse().unwrap();
     let pty = PtyHand::plug_with_faults(&dir.path().join("hand"), faults, |_| {}).unwrap();
-    let report = dir.path().join("report.jsonl");
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let mut args = run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        pty.path().to_str().unwrap(),
-        config.to_str().unwrap(),
-    );
+    let mut args = run.args(pty.path().to_str().unwrap());
     args.extend(["--max-decision-age-ms", "100", "--report"]);
-    args.push(report.to_str().unwrap());
+    args.push(run.report.to_str().unwrap());
     let out = hannes_run(&args);
     assert_eq!(out.status.code(), Some(5), "{}", text(&out.stderr));
     let reason = last_line(&out.stderr);
@@ -92,7 +70,7 @@ fn run_exits_5_and_reports_a_decision_too_old_to_execute() {
     let stderr = text(&out.stderr);
     assert!(stderr.contains("1 expired (stale decision)"), "{stderr}");
     let line: serde_json::Value =
-        serde_json::from_str(std::fs::read_to_string(&report).unwrap().trim()).unwrap();
+        serde_json::from_str(std::fs::read_to_string(&run.report).unwrap().trim()).unwrap();
     assert_eq!(line["result"], "expired");
     assert_eq!(line["expired"]["command"], "PRESHAPE");
     assert_eq!(line["expired"]["limit_ms"], 100.0);
@@ -152,15 +130,8 @@ fn run_refuses_a_link_left_by_a_killed_simulated_hand() {
     }
     let other = runtime::simhand::RunningHand::spawn(Box::new(master), |_| {}).unwrap();
 
-    let seq = sequence(dir.path(), 4, None);
-    let config = quick_link_config(dir.path());
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let out = hannes_run(&run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        link.to_str().unwrap(),
-        config.to_str().unwrap(),
-    ));
+    let run = Approach::new(dir.path(), 4, None);
+    let out = hannes_run(&run.args(link.to_str().unwrap()));
     assert_eq!(out.status.code(), Some(4), "{}", text(&out.stderr));
     let reason = last_line(&out.stderr);
     assert!(reason.contains("hand.pty"), "{reason}");

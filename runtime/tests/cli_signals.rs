@@ -16,21 +16,13 @@ use std::time::Duration;
 fn a_signal_during_the_window_sends_nothing_and_exits_with_its_code() {
     let dir = tempfile::tempdir().unwrap();
     // One frame a second, a 30 s window: the signal comes in the window.
-    let seq = sequence(dir.path(), 40, None);
-    let config = quick_link_config(dir.path());
+    let approach = Approach::new(dir.path(), 40, None);
     let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
-    let report = dir.path().join("report.jsonl");
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let mut args = run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        pty.path().to_str().unwrap(),
-        config.to_str().unwrap(),
-    );
+    let mut args = approach.args(pty.path().to_str().unwrap());
     args.retain(|a| *a != "--as-fast");
     set(&mut args, "--closure", "delay:30");
     args.extend(["--fps", "1", "--window", "30"]);
-    args.extend(["--report", report.to_str().unwrap()]);
+    args.extend(["--report", approach.report.to_str().unwrap()]);
     let run = Running::spawn(&args);
     run.wait_for_line(&["approach 1: triggered"]);
     run.signal(libc::SIGTERM);
@@ -44,7 +36,7 @@ fn a_signal_during_the_window_sends_nothing_and_exits_with_its_code() {
     assert!(stderr.contains("1 stopped"), "{stderr}");
     let events = pty.hand.events();
     assert!(movements(&events).is_empty(), "{events:?}");
-    let line = report_line(&report);
+    let line = report_line(&approach.report);
     assert_eq!(line["result"], "stopped");
     assert_eq!(line["stopped"]["signal"], "SIGTERM");
     assert_eq!(line["stopped"]["phase"], "window");
@@ -57,16 +49,16 @@ fn a_signal_during_the_window_sends_nothing_and_exits_with_its_code() {
 #[test]
 fn a_signal_while_the_preshape_is_in_flight_stops_retransmissions_and_opens_the_hand() {
     let dir = tempfile::tempdir().unwrap();
-    let seq = sequence(dir.path(), 4, None);
     // One attempt waits 1.5 s for its ACK; the hand holds every PRESHAPE
     // (and what follows it) 3 s: the first copy is in flight when the
     // signal comes, and a retransmission would follow 1.5 s after it.
-    let config = dir.path().join("run.toml");
+    let config = dir.path().join("slow-link.toml");
     std::fs::write(
         &config,
         "[link]\nack_timeout_ms = 1500\nretries = 5\nwatchdog_ms = 20000\n",
     )
     .unwrap();
+    let approach = Approach::new(dir.path(), 4, None).with_config(config);
     let faults: FaultSpec = "delay=1:3000,on=preshape".parse().unwrap();
     let received = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
     let pty = {
@@ -83,17 +75,10 @@ fn a_signal_while_the_preshape_is_in_flight_stops_retransmissions_and_opens_the_
         })
         .unwrap()
     };
-    let report = dir.path().join("report.jsonl");
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let mut args = run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        pty.path().to_str().unwrap(),
-        config.to_str().unwrap(),
-    );
+    let mut args = approach.args(pty.path().to_str().unwrap());
     set(&mut args, "--closure", "delay:30");
     args.extend(["--max-decision-age-ms", "30000"]);
-    args.extend(["--report", report.to_str().unwrap()]);
+    args.extend(["--report", approach.report.to_str().unwrap()]);
     let run = Running::spawn(&args);
     let arrived = eventually(Duration::from_secs(60), || {
         received.load(std::sync::atomic::Ordering::SeqCst) > 0
@@ -117,7 +102,7 @@ fn a_signal_while_the_preshape_is_in_flight_stops_retransmissions_and_opens_the_
     // The copy in flight was executed when the hand let it through; the
     // OPEN sent after the signal came behind it.
     assert_eq!(movements(&pty.hand.events()), vec!["preshape", "open"]);
-    let line = report_line(&report);
+    let line = report_line(&approach.report);
     assert_eq!(line["result"], "stopped");
     assert_eq!(line["stopped"]["phase"], "preshape");
     assert_eq!(line["stopped"]["may_have_moved"], true);
@@ -130,19 +115,11 @@ fn a_signal_while_the_preshape_is_in_flight_stops_retransmissions_and_opens_the_
 #[test]
 fn ctrl_c_during_the_closure_delay_opens_the_hand_and_exits_130() {
     let dir = tempfile::tempdir().unwrap();
-    let seq = sequence(dir.path(), 4, None);
-    let config = quick_link_config(dir.path());
+    let approach = Approach::new(dir.path(), 4, None);
     let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
-    let report = dir.path().join("report.jsonl");
-    let ckpt = checkpoint().to_string_lossy().into_owned();
-    let mut args = run_args(
-        &ckpt,
-        seq.to_str().unwrap(),
-        pty.path().to_str().unwrap(),
-        config.to_str().unwrap(),
-    );
+    let mut args = approach.args(pty.path().to_str().unwrap());
     set(&mut args, "--closure", "delay:30");
-    args.extend(["--report", report.to_str().unwrap()]);
+    args.extend(["--report", approach.report.to_str().unwrap()]);
     let run = Running::spawn(&args);
     run.wait_for_line(&["acknowledged", "PRESHAPE"]);
     run.signal(libc::SIGINT);
@@ -153,7 +130,7 @@ fn ctrl_c_during_the_closure_delay_opens_the_hand_and_exits_130() {
         "Error: approach 1: stopped by SIGINT while waiting for the closure: hand opened"
     );
     assert_eq!(movements(&pty.hand.events()), vec!["preshape", "open"]);
-    let line = report_line(&report);
+    let line = report_line(&approach.report);
     assert_eq!(line["result"], "stopped");
     assert_eq!(line["stopped"]["signal"], "SIGINT");
     assert_eq!(line["stopped"]["phase"], "closure_delay");

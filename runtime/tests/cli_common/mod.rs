@@ -86,23 +86,52 @@ pub fn last_line(stderr: &[u8]) -> String {
     text(stderr).lines().last().unwrap_or_default().to_string()
 }
 
-pub fn run_args<'a>(ckpt: &'a str, seq: &'a str, port: &'a str, config: &'a str) -> Vec<&'a str> {
-    vec![
-        "run",
-        "--checkpoint",
-        ckpt,
-        "--source",
-        seq,
-        "--port",
-        port,
-        "--config",
-        config,
-        "--trigger",
-        "now",
-        "--closure",
-        "none",
-        "--as-fast",
-    ]
+/// What one `hannes-run run` approach of a test reads and writes in its
+/// folder: the frames, a link config (quick to give up unless replaced),
+/// the report and the stand-in checkpoint.
+pub struct Approach {
+    pub seq: PathBuf,
+    pub config: PathBuf,
+    pub report: PathBuf,
+    ckpt: String,
+}
+
+impl Approach {
+    /// `frames` frames in `dir` (frame `broken`, if any, truncated).
+    pub fn new(dir: &Path, frames: usize, broken: Option<usize>) -> Approach {
+        Approach {
+            seq: sequence(dir, frames, broken),
+            config: quick_link_config(dir),
+            report: dir.join("report.jsonl"),
+            ckpt: checkpoint().to_string_lossy().into_owned(),
+        }
+    }
+
+    /// The same approach with another link config file.
+    pub fn with_config(self, config: PathBuf) -> Approach {
+        Approach { config, ..self }
+    }
+
+    /// `run` now, to the hand at `port`, without a closure, as fast as the
+    /// frames load.
+    pub fn args<'a>(&'a self, port: &'a str) -> Vec<&'a str> {
+        vec![
+            "run",
+            "--checkpoint",
+            &self.ckpt,
+            "--source",
+            self.seq.to_str().unwrap(),
+            "--port",
+            port,
+            "--config",
+            self.config.to_str().unwrap(),
+            "--trigger",
+            "now",
+            "--closure",
+            "none",
+            "--as-fast",
+        ]
+    }
 }
 
 pub fn spawn_simulated_hand(link: &Path) -> std::process::Child {
