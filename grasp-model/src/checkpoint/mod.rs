@@ -371,12 +371,17 @@ impl Classifier {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        let prepared = frames
-            .iter()
-            .map(|f| self.prepare(f))
-            .collect::<Result<Vec<_>>>()?;
-        let feats = self.backbone.extract(&prepared)?;
-        self.predict_features(&feats)
+        // On a worker of the tensor kernels' pool: every parallel kernel of
+        // the frame then splits its work there, instead of waking the pool
+        // and putting the caller to sleep once per layer.
+        rayon::scope(|_| {
+            let prepared = frames
+                .iter()
+                .map(|f| self.prepare(f))
+                .collect::<Result<Vec<_>>>()?;
+            let feats = self.backbone.extract(&prepared)?;
+            self.predict_features(&feats)
+        })
     }
 
     /// Per-frame probabilities from precomputed features `(T, D)`.
