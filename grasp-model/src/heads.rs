@@ -30,6 +30,22 @@ impl HeadKind {
             HeadKind::Lstm => "lstm",
         }
     }
+
+    /// The head by its [`name`](HeadKind::name).
+    pub fn from_name(name: &str) -> Option<HeadKind> {
+        HeadKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Whether the head classifies each frame on its own, as the hand's
+    /// streaming loop (`hannes-run`) needs: an LSTM head reads a sequence
+    /// at the frame rate it was trained on, which a live camera's dropped
+    /// frames do not keep.
+    pub fn classifies_frames(self) -> bool {
+        match self {
+            HeadKind::Fc => true,
+            HeadKind::Lstm => false,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -4,7 +4,6 @@
 use crate::classifier::{ClassifyError, FrameClassifier};
 use grasp_model::checkpoint::Classifier;
 use grasp_model::error::ModelError;
-use grasp_model::heads::HeadKind;
 use grasp_model::input::{InputSpec, Lens};
 use grasp_schema::taxonomy::Class;
 use image::RgbImage;
@@ -98,7 +97,7 @@ pub fn load(path: &Path) -> Result<Classifier, CheckpointError> {
 }
 
 fn check(c: &Classifier, path: &Path) -> Result<(), CheckpointError> {
-    if c.meta.head.kind != HeadKind::Fc {
+    if !c.meta.head.kind.classifies_frames() {
         return Err(CheckpointError::NotFc {
             path: path.to_path_buf(),
             head: c.meta.head.kind.name(),

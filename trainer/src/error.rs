@@ -393,6 +393,11 @@ pub enum SummaryError {
     ShipNeedsConditions,
     #[error("model {model} has no report on test set {set}: every model is judged on every set")]
     MissingSet { model: String, set: String },
+    #[error(
+        "no model can ship: the hand classifies frame by frame and every head here reads \
+         sequences ({heads}); add a model with an FC head"
+    )]
+    NothingShippable { heads: String },
     #[error("report `{label}`: x = {x} cannot go on a log axis")]
     LogAxis { label: String, x: f64 },
     #[error("cannot create {}", path.display())]

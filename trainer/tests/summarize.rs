@@ -225,6 +225,56 @@ fn the_shipped_model_is_chosen_by_its_worst_test_set() {
     assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("--by-condition"));
 }
 
+/// A head that reads sequences cannot drive the hand, so it never ships,
+/// however good its worst set; with nothing else, the choice is refused.
+#[test]
+fn only_a_head_that_classifies_frames_ships() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = |name: &str, v: f64, head: &str| {
+        let dir = write_report(&dir.path().join(name), &[(v, 0.5)]);
+        let file = dir.join("report.json");
+        let mut report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+        report["head"] = head.into();
+        std::fs::write(&file, report.to_string()).unwrap();
+        dir
+    };
+    let spec = |reports| SummarySpec {
+        by_condition: true,
+        ship_by_worst: true,
+        reports,
+        ..Default::default()
+    };
+    let s = Summary::load(spec(vec![
+        entry("lstm/default", None, &r("ld", 0.95, "lstm")),
+        entry("lstm/world_foreign", None, &r("lw", 0.9, "lstm")),
+        entry("fc/default", None, &r("fd", 0.9, "fc")),
+        entry("fc/world_foreign", None, &r("fw", 0.8, "fc")),
+    ]))
+    .unwrap();
+    let choice = s.choice.as_ref().unwrap();
+    assert_eq!(choice.shipped, "fc");
+    assert_eq!(choice.standings[0].model, "lstm");
+    assert!(!choice.standings[0].runs_on_hand && choice.standings[1].runs_on_hand);
+    let md = s.markdown();
+    assert!(
+        md.contains("| lstm (not shippable: its lstm head does not run on the hand) |")
+            && md.contains("| fc (shipped) |"),
+        "{md}"
+    );
+    let err = Summary::load(spec(vec![entry(
+        "lstm/default",
+        None,
+        &r("only", 0.95, "lstm"),
+    )]))
+    .unwrap_err();
+    assert!(
+        format!("{err:#}").contains("no model can ship")
+            && format!("{err:#}").contains("lstm (lstm)"),
+        "{err:#}"
+    );
+}
+
 /// The error of summarizing the one report `e`, with its causes.
 fn load_error(e: Entry) -> String {
     let spec = SummarySpec {

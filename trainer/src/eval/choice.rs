@@ -3,10 +3,13 @@
 //! (another renderer, real meshes, another reach), so the choice looks at
 //! every test set of a by-condition summary and ranks each model by its
 //! lowest per-video accuracy (mean over seeds); ties go to the higher
-//! mean over all sets, then to the model listed first.
+//! mean over all sets, then to the model listed first. Only a model whose
+//! head classifies frame by frame can ship, because the hand's loop
+//! (`hannes-run`) runs nothing else; the others are ranked and marked.
 
 use super::summary::Summary;
 use crate::error::SummaryError;
+use grasp_model::heads::HeadKind;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -17,6 +20,10 @@ pub struct Standing {
     pub worst_set: String,
     pub worst_accuracy: f64,
     pub mean_accuracy: f64,
+    /// The head of its reports (`fc`, `lstm`).
+    pub head: String,
+    /// Whether the hand's loop can run it ([`HeadKind::classifies_frames`]).
+    pub runs_on_hand: bool,
 }
 
 /// The choice and every model's standing, best first.
@@ -34,6 +41,7 @@ impl Choice {
         let mut standings = Vec::new();
         for model in summary.models() {
             let mut accuracies = Vec::new();
+            let mut head = String::new();
             for set in &sets {
                 let Some(row) = summary
                     .rows
@@ -44,6 +52,7 @@ impl Choice {
                     return Err(SummaryError::MissingSet { model, set });
                 };
                 accuracies.push((set, row.video_accuracy.mean));
+                head = row.head.clone();
             }
             let (worst_set, worst_accuracy) = accuracies
                 .iter()
@@ -54,11 +63,14 @@ impl Choice {
                 .expect("a summary has at least one report");
             let mean_accuracy =
                 accuracies.iter().map(|(_, a)| a).sum::<f64>() / accuracies.len() as f64;
+            let runs_on_hand = HeadKind::from_name(&head).is_some_and(HeadKind::classifies_frames);
             standings.push(Standing {
                 model,
                 worst_set: worst_set.clone(),
                 worst_accuracy,
                 mean_accuracy,
+                head,
+                runs_on_hand,
             });
         }
         // Stable: equal standings keep the order given.
@@ -67,8 +79,15 @@ impl Choice {
                 .total_cmp(&a.worst_accuracy)
                 .then(b.mean_accuracy.total_cmp(&a.mean_accuracy))
         });
+        let Some(shipped) = standings.iter().find(|s| s.runs_on_hand) else {
+            let heads = standings
+                .iter()
+                .map(|s| format!("{} ({})", s.model, s.head));
+            let heads = heads.collect::<Vec<_>>().join(", ");
+            return Err(SummaryError::NothingShippable { heads });
+        };
         Ok(Choice {
-            shipped: standings[0].model.clone(),
+            shipped: shipped.model.clone(),
             standings,
         })
     }
@@ -81,9 +100,14 @@ impl Choice {
         );
         for st in &self.standings {
             let mark = if st.model == self.shipped {
-                " (shipped)"
+                " (shipped)".to_string()
+            } else if !st.runs_on_hand {
+                format!(
+                    " (not shippable: its {} head does not run on the hand)",
+                    st.head
+                )
             } else {
-                ""
+                String::new()
             };
             let _ = writeln!(
                 s,

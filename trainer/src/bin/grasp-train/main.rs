@@ -198,7 +198,8 @@ struct SummarizeArgs {
     #[arg(long)]
     by_condition: bool,
     /// With --by-condition: choose the model to ship, the one whose worst
-    /// test set scores best; its name goes to OUT/shipped.txt.
+    /// test set scores best among those the hand can run (FC heads); its
+    /// name goes to OUT/shipped.txt.
     #[arg(long)]
     ship_by_worst: bool,
     /// Logarithmic x axis on the error plot.
