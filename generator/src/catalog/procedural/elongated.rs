@@ -4,13 +4,9 @@
 use crate::catalog::mesh::TriMesh;
 use crate::catalog::shapes::*;
 
-/// Length of the banana's stem along its axis.
-const STEM_LENGTH: f64 = 0.022;
-
 pub(super) fn banana(length: f64, bend: f64, radius: f64) -> TriMesh {
-    // Circular arc with sagitta `bend`; the stem and the knob take the
-    // rest of the length.
-    let half = (length - STEM_LENGTH - 0.011) / 2.0;
+    // Circular arc with chord `length - 2 radius` and sagitta `bend`.
+    let half = (length - 0.021) / 2.0;
     let rc = (half * half + bend * bend) / (2.0 * bend);
     let theta = (half / rc).asin();
     let n = 40;
@@ -25,34 +21,26 @@ pub(super) fn banana(length: f64, bend: f64, radius: f64) -> TriMesh {
         path.push([rc * phi.sin(), rc * phi.cos() - rc, z]);
         radii.push((rr, rr * 0.95));
     }
-    // Stem: a thin neck at -X that narrows out of the body, rises as it
-    // leaves it and ends in a blunt cut, as a real banana's does.
+    // Stem: a short thin continuation at -X.
     let last = path[0];
-    // Along the body's end, turned part way back towards the long axis.
     let dir = {
         let d = [path[0][0] - path[1][0], path[0][1] - path[1][1], 0.0];
         let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
-        let d = [d[0] / n - 0.5, d[1] / n, 0.0];
-        let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
         [d[0] / n, d[1] / n, 0.0]
     };
-    let steps = 8;
-    let stem: Vec<V3> = (0..=steps)
+    let stem_r = radius * 0.3;
+    let stem: Vec<V3> = (0..=4)
         .map(|k| {
-            let s = STEM_LENGTH * k as f64 / steps as f64;
-            let rise = 0.25 * s * s / STEM_LENGTH;
-            [last[0] + dir[0] * s, last[1] + dir[1] * s, last[2] + rise]
-        })
-        .collect();
-    let stem_radii: Vec<(f64, f64)> = (0..=steps)
-        .map(|k| {
-            let u = k as f64 / steps as f64;
-            let rr = radius * (0.45 - 0.25 * u.min(0.5) + 0.06 * (u - 0.85).max(0.0) / 0.15);
-            (rr, rr)
+            let s = 0.004 * k as f64;
+            [
+                last[0] + dir[0] * s,
+                last[1] + dir[1] * s,
+                last[2] + 0.2 * s,
+            ]
         })
         .collect();
     let mut full_path: Vec<V3> = stem.iter().rev().copied().collect();
-    let mut full_radii: Vec<(f64, f64)> = stem_radii.iter().rev().copied().collect();
+    let mut full_radii = vec![(stem_r, stem_r); stem.len()];
     full_path.extend(path.iter().skip(1));
     full_radii.extend(radii.iter().skip(1));
     let mut m = tube(&full_path, &full_radii, [0.0, 0.0, 1.0], false, 16);

@@ -7,14 +7,10 @@ use std::f64::consts::PI;
 
 pub(super) fn mug(r: f64, h: f64, wall: f64, reach: f64) -> TriMesh {
     let bottom = wall * 1.5;
-    // A rolled lip at the rim, as on enamel and stoneware mugs.
-    let lip = 0.0015;
     let profile = [
         (0.0, 0.0),
         (r - 0.003, 0.0),
         (r, 0.003),
-        (r, h - 2.0 * lip),
-        (r + lip, h - lip),
         (r, h),
         (r - wall, h),
         (r - wall, bottom + 0.004),
@@ -22,22 +18,20 @@ pub(super) fn mug(r: f64, h: f64, wall: f64, reach: f64) -> TriMesh {
         (0.0, bottom),
     ];
     let mut m = lathe(&profile, SEGMENTS * 2);
-    // The handle: a flat strap in a D from just under the rim out to
-    // `reach` beyond the wall and back near the bottom, sunk 2 mm into the
-    // wall at both ends (real handles span most of the height and are
-    // thinner than they are wide).
-    let (zt, zb) = (h * 0.88, h * 0.16);
+    // The handle: a C from near the rim out to `reach` beyond the wall and
+    // back near the bottom, sunk 2 mm into the wall at both ends.
+    let (zt, zb) = (h * 0.82, h * 0.25);
     let zc = (zt + zb) / 2.0;
     let rz = (zt - zb) / 2.0;
-    let t = 0.0045;
-    let path: Vec<V3> = (0..=28)
+    let t = 0.006;
+    let path: Vec<V3> = (0..=24)
         .map(|i| {
-            let a = PI / 2.0 - PI * i as f64 / 28.0;
-            let x = r - wall / 2.0 + (reach - t) * a.cos().max(0.0).powf(0.45);
+            let a = PI / 2.0 - PI * i as f64 / 24.0;
+            let x = r - wall / 2.0 + (reach - t) * a.cos().max(0.0).powf(0.8);
             [x, 0.0, zc + rz * a.sin()]
         })
         .collect();
-    let radii = vec![(t, 0.008); path.len()];
+    let radii = vec![(t, 0.0075); path.len()];
     m.append(tube(&path, &radii, [0.0, 1.0, 0.0], false, 20));
     m
 }
