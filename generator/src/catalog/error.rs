@@ -9,13 +9,8 @@ use std::path::PathBuf;
 pub enum CatalogError {
     /// A file or folder that cannot be read or written; `action` says what
     /// was being done ("reading object file").
-    #[error("{action} {}", path.display())]
-    Io {
-        action: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Io(#[from] grasp_support::IoAt),
     /// A file cannot be written (atomically).
     #[error(transparent)]
     Write(#[from] grasp_support::atomic::WriteError),
@@ -107,11 +102,7 @@ impl CatalogError {
         path: impl Into<PathBuf>,
         source: std::io::Error,
     ) -> Self {
-        CatalogError::Io {
-            action,
-            path: path.into(),
-            source,
-        }
+        CatalogError::Io(grasp_support::IoAt::new(action, path, source))
     }
 
     pub(crate) fn invalid(what: impl Into<String>, reason: impl Into<String>) -> Self {

@@ -10,13 +10,8 @@ use std::path::PathBuf;
 pub enum DatasetError {
     /// A file or folder operation failed; `action` says which ("cannot
     /// read", "cannot create", ...).
-    #[error("{action} {}", path.display())]
-    Io {
-        action: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Io(#[from] grasp_support::IoAt),
     /// A folder cannot be renamed into place.
     #[error("cannot move {} to {}", from.display(), to.display())]
     Move {
@@ -166,11 +161,7 @@ impl DatasetError {
         path: impl Into<PathBuf>,
         source: std::io::Error,
     ) -> Self {
-        DatasetError::Io {
-            action,
-            path: path.into(),
-            source,
-        }
+        DatasetError::Io(grasp_support::IoAt::new(action, path, source))
     }
 }
 

@@ -13,13 +13,8 @@ use std::path::PathBuf;
 pub enum RenderError {
     /// A file or folder operation failed; `action` says which ("cannot
     /// read", "cannot create", ...).
-    #[error("{action} {}", path.display())]
-    Io {
-        action: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Io(#[from] grasp_support::IoAt),
     /// A file cannot be written atomically.
     #[error(transparent)]
     Write(#[from] grasp_support::atomic::WriteError),
@@ -223,11 +218,7 @@ impl RenderError {
         path: impl Into<PathBuf>,
         source: std::io::Error,
     ) -> Self {
-        RenderError::Io {
-            action,
-            path: path.into(),
-            source,
-        }
+        RenderError::Io(grasp_support::IoAt::new(action, path, source))
     }
 
     pub(crate) fn image(what: impl Into<String>, source: image::ImageError) -> Self {
