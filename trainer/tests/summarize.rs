@@ -168,18 +168,23 @@ fn conditions_as_columns() {
     assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("MODEL/CONDITION"));
 }
 
+/// A by-condition summary of `reports` that chooses the model to ship.
+fn shipping(reports: Vec<Entry>) -> SummarySpec {
+    SummarySpec {
+        by_condition: true,
+        ship_by_worst: true,
+        reports,
+        ..Default::default()
+    }
+}
+
 /// The shipped model is the one whose worst test set is best, not the one
 /// best on its own conditions; ties go to the higher mean.
 #[test]
 fn the_shipped_model_is_chosen_by_its_worst_test_set() {
     let dir = tempfile::tempdir().unwrap();
     let r = |name: &str, v: f64| write_report(&dir.path().join(name), &[(v, 0.5)]);
-    let spec = |reports| SummarySpec {
-        by_condition: true,
-        ship_by_worst: true,
-        reports,
-        ..Default::default()
-    };
+    let spec = shipping;
     // tuned: best at home (0.98) but 0.75 abroad; frozen: 0.9 and 0.8;
     // even: 0.8 on both (the same worst as frozen, a lower mean).
     let s = Summary::load(spec(vec![
@@ -239,12 +244,7 @@ fn only_a_head_that_classifies_frames_ships() {
         std::fs::write(&file, report.to_string()).unwrap();
         dir
     };
-    let spec = |reports| SummarySpec {
-        by_condition: true,
-        ship_by_worst: true,
-        reports,
-        ..Default::default()
-    };
+    let spec = shipping;
     let s = Summary::load(spec(vec![
         entry("lstm/default", None, &r("ld", 0.95, "lstm")),
         entry("lstm/world_foreign", None, &r("lw", 0.9, "lstm")),
@@ -255,7 +255,7 @@ fn only_a_head_that_classifies_frames_ships() {
     let choice = s.choice.as_ref().unwrap();
     assert_eq!(choice.shipped, "fc");
     assert_eq!(choice.standings[0].model, "lstm");
-    assert!(!choice.standings[0].runs_on_hand && choice.standings[1].runs_on_hand);
+    assert!(!choice.standings[0].runs_on_hand() && choice.standings[1].runs_on_hand());
     let md = s.markdown();
     assert!(
         md.contains("| lstm (not shippable: its lstm head does not run on the hand) |")

@@ -22,8 +22,13 @@ pub struct Standing {
     pub mean_accuracy: f64,
     /// The head of its reports (`fc`, `lstm`).
     pub head: String,
+}
+
+impl Standing {
     /// Whether the hand's loop can run it ([`HeadKind::classifies_frames`]).
-    pub runs_on_hand: bool,
+    pub fn runs_on_hand(&self) -> bool {
+        HeadKind::from_name(&self.head).is_some_and(HeadKind::classifies_frames)
+    }
 }
 
 /// The choice and every model's standing, best first.
@@ -63,14 +68,12 @@ impl Choice {
                 .expect("a summary has at least one report");
             let mean_accuracy =
                 accuracies.iter().map(|(_, a)| a).sum::<f64>() / accuracies.len() as f64;
-            let runs_on_hand = HeadKind::from_name(&head).is_some_and(HeadKind::classifies_frames);
             standings.push(Standing {
                 model,
                 worst_set: worst_set.clone(),
                 worst_accuracy,
                 mean_accuracy,
                 head,
-                runs_on_hand,
             });
         }
         // Stable: equal standings keep the order given.
@@ -79,7 +82,7 @@ impl Choice {
                 .total_cmp(&a.worst_accuracy)
                 .then(b.mean_accuracy.total_cmp(&a.mean_accuracy))
         });
-        let Some(shipped) = standings.iter().find(|s| s.runs_on_hand) else {
+        let Some(shipped) = standings.iter().find(|s| s.runs_on_hand()) else {
             let heads = standings
                 .iter()
                 .map(|s| format!("{} ({})", s.model, s.head));
@@ -101,7 +104,7 @@ impl Choice {
         for st in &self.standings {
             let mark = if st.model == self.shipped {
                 " (shipped)".to_string()
-            } else if !st.runs_on_hand {
+            } else if !st.runs_on_hand() {
                 format!(
                     " (not shippable: its {} head does not run on the hand)",
                     st.head
