@@ -54,6 +54,65 @@ pub struct HeadConfig {
     pub feature_dim: usize,
     pub classes: usize,
     pub lstm_hidden: usize,
+    /// A sequence head's step rate: the frame rate of the sequences it was
+    /// trained on (frames/s). Sequences at another rate are resampled to it
+    /// ([`HeadConfig::steps`]); a head that classifies frames has none, and
+    /// neither do checkpoints written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step_hz: Option<f64>,
+}
+
+impl HeadConfig {
+    /// The frames of a sequence, at times `times_s` (seconds, ascending),
+    /// that this head reads: all of them for a head that classifies frames
+    /// or has no step rate; otherwise the frame nearest each tick of its
+    /// step rate from the first frame on, each at most once. A sequence
+    /// recorded faster than training's is thinned to training's rate, so
+    /// that the recurrence covers the same time per step; a slower one
+    /// keeps every frame.
+    pub fn steps(&self, times_s: &[f64]) -> Vec<usize> {
+        match self.step_hz {
+            Some(hz) if !self.kind.classifies_frames() => frames_at_rate(times_s, hz),
+            _ => (0..times_s.len()).collect(),
+        }
+    }
+}
+
+/// The indices of `times_s` (ascending) nearest each tick `t0 + k / hz`
+/// up to the last frame's time, without repeats; every index for a rate
+/// that is not positive and finite.
+pub fn frames_at_rate(times_s: &[f64], hz: f64) -> Vec<usize> {
+    let n = times_s.len();
+    if n == 0 || !(hz.is_finite() && hz > 0.0) {
+        return (0..n).collect();
+    }
+    let period = 1.0 / hz;
+    let (first, last) = (times_s[0], times_s[n - 1]);
+    // Ticks far denser than the frames pick every frame; this also bounds
+    // the loop below for a rate out of all proportion (a corrupt file).
+    if (last - first) * hz > 2.0 * n as f64 {
+        return (0..n).collect();
+    }
+    let mut picked: Vec<usize> = Vec::new();
+    let mut i = 0;
+    // A closed form for each tick's time, not a running sum: no drift.
+    for k in 0.. {
+        let tick = first + k as f64 * period;
+        // No tick after the last frame (up to rounding): a recording that
+        // ends between two ticks is read to its last tick.
+        if tick - last > 1e-6 * period {
+            break;
+        }
+        // The nearest frame to the tick among those not passed yet; a tie
+        // goes to the later frame.
+        while i + 1 < n && (times_s[i + 1] - tick).abs() <= (times_s[i] - tick).abs() {
+            i += 1;
+        }
+        if picked.last() != Some(&i) {
+            picked.push(i);
+        }
+    }
+    picked
 }
 
 /// The recurrent state carried between chunks of a sequence.
@@ -248,5 +307,71 @@ impl Lstm {
             c: last.narrow(1, h, h)?,
         };
         Ok((out.narrow(2, 0, h)?, state))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn times(n: usize, fps: f64) -> Vec<f64> {
+        (0..n).map(|i| i as f64 / fps).collect()
+    }
+
+    #[test]
+    fn a_faster_sequence_is_thinned_to_the_step_rate() {
+        // 5 and 30 frames/s read at 2.5: every 2nd and every 12th frame.
+        assert_eq!(frames_at_rate(&times(9, 5.0), 2.5), vec![0, 2, 4, 6, 8]);
+        let picked = frames_at_rate(&times(61, 30.0), 2.5);
+        assert_eq!(picked, (0..=60).step_by(12).collect::<Vec<_>>());
+        // Starting late (a trimmed lead-in) changes nothing but the origin.
+        let late: Vec<f64> = times(9, 5.0).iter().map(|t| t + 3.7).collect();
+        assert_eq!(frames_at_rate(&late, 2.5), vec![0, 2, 4, 6, 8]);
+    }
+
+    #[test]
+    fn the_same_or_a_slower_rate_keeps_every_frame() {
+        for fps in [2.5, 2.0, 1.0] {
+            assert_eq!(
+                frames_at_rate(&times(7, fps), 2.5),
+                (0..7).collect::<Vec<_>>()
+            );
+        }
+        assert_eq!(
+            frames_at_rate(&times(7, 30.0), 1e12),
+            (0..7).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn jittered_frames_pick_the_nearest_to_each_tick() {
+        // A live camera's irregular times, ticks at 0, 0.4, 0.8 and 1.2:
+        // 1.21 is nearer the last than 1.18.
+        let t = [0.0, 0.13, 0.31, 0.38, 0.52, 0.79, 0.95, 1.18, 1.21];
+        assert_eq!(frames_at_rate(&t, 2.5), vec![0, 3, 5, 8]);
+    }
+
+    #[test]
+    fn degenerate_inputs_keep_every_frame() {
+        assert!(frames_at_rate(&[], 2.5).is_empty());
+        assert_eq!(frames_at_rate(&[4.2], 2.5), vec![0]);
+        for hz in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(frames_at_rate(&times(3, 5.0), hz), vec![0, 1, 2]);
+        }
+    }
+
+    #[test]
+    fn only_a_sequence_head_with_a_step_rate_is_resampled() {
+        let cfg = |kind, step_hz| HeadConfig {
+            kind,
+            feature_dim: 4,
+            classes: 5,
+            lstm_hidden: 8,
+            step_hz,
+        };
+        let t = times(5, 5.0);
+        assert_eq!(cfg(HeadKind::Lstm, Some(2.5)).steps(&t), vec![0, 2, 4]);
+        assert_eq!(cfg(HeadKind::Lstm, None).steps(&t), vec![0, 1, 2, 3, 4]);
+        assert_eq!(cfg(HeadKind::Fc, Some(2.5)).steps(&t), vec![0, 1, 2, 3, 4]);
     }
 }

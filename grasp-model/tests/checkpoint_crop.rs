@@ -43,6 +43,7 @@ fn checkpoint(dir: &Path, name: &str, input: InputSpec) -> PathBuf {
             feature_dim: 1280,
             classes: Class::COUNT,
             lstm_hidden: 256,
+            step_hz: None,
         },
         input,
         backbone: info,

@@ -30,6 +30,7 @@ fn checkpoint(dir: &Path) -> PathBuf {
         feature_dim: 1280,
         classes: Class::COUNT,
         lstm_hidden: 256,
+        step_hz: None,
     };
     let meta = CheckpointMeta {
         format_version: FORMAT_VERSION,

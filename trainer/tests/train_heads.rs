@@ -98,6 +98,78 @@ fn fc_head_trains_end_to_end_and_reloads() {
     train_and_check(HeadKind::Fc);
 }
 
+/// An LSTM records the frame rate it was trained at and reads a video
+/// recorded faster at that rate: the same frames at twice the rate (each
+/// shown twice) get the same probabilities as the original. A head stepped
+/// on every frame of the faster video reads another sequence.
+#[test]
+fn lstm_reads_a_faster_video_at_its_training_rate() {
+    use trainer::data::{read_dataset, BadData, Dataset, OnBadData, ReaderOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = setup(dir.path());
+    cfg.head = HeadKind::Lstm;
+    cfg.max_epochs = 3;
+    let outcome = trainer::experiment::run(&cfg, 1).unwrap();
+    let ckpt = &outcome.runs[0].checkpoint;
+    let mut clf = Classifier::load(ckpt, &candle_core::Device::Cpu).unwrap();
+    assert_eq!(
+        clf.meta.head.step_hz,
+        Some(10.0),
+        "the synthetic set's rate"
+    );
+
+    let bad = BadData::new(OnBadData::Fail);
+    let mut original = read_dataset(&cfg.data, &ReaderOptions::default(), &bad).unwrap();
+    original.sequences.truncate(3);
+    let doubled = Dataset {
+        root: original.root.clone(),
+        sequences: original
+            .sequences
+            .iter()
+            .map(|s| {
+                let mut d = s.clone();
+                d.fps = 2.0 * s.fps;
+                d.frames = s
+                    .frames
+                    .iter()
+                    .flat_map(|f| [f.clone(), f.clone()])
+                    .collect();
+                d.labels = s.labels.iter().flat_map(|l| [*l, *l]).collect();
+                d
+            })
+            .collect(),
+    };
+    let cache = trainer::features::FeatureCache::new(dir.path().join("cache"), 16);
+    let predict = |clf: &Classifier, data: &Dataset| {
+        trainer::eval::predict::predict_dataset(clf, data, &cache, &bad).unwrap()
+    };
+    let (slow, fast) = (predict(&clf, &original), predict(&clf, &doubled));
+    for (s, f) in slow.iter().zip(&fast) {
+        assert_eq!(s.probs.len(), 10);
+        assert_eq!((&s.labels, &s.times_s), (&f.labels, &f.times_s));
+        for (a, b) in s.probs.iter().zip(&f.probs) {
+            assert!(
+                a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5),
+                "{a:?} {b:?}"
+            );
+        }
+    }
+    // Without its step rate the head steps on all 20 frames.
+    clf.meta.head.step_hz = None;
+    let every = predict(&clf, &doubled);
+    assert!(every.iter().all(|v| v.probs.len() == 20));
+    let moved = slow.iter().zip(&every).any(|(s, e)| {
+        s.probs
+            .iter()
+            .zip(e.probs.iter().step_by(2))
+            .any(|(a, b)| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-4))
+    });
+    assert!(
+        moved,
+        "stepping twice per frame should change the LSTM's outputs"
+    );
+}
+
 #[test]
 fn lstm_head_trains_end_to_end_and_reloads() {
     train_and_check(HeadKind::Lstm);

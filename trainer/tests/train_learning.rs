@@ -60,6 +60,7 @@ fn prepared(train: usize, noise: f32) -> Prepared {
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
         tail: None,
         damping: None,
+        step_hz: None,
     }
 }
 

@@ -14,6 +14,7 @@ fn lstm(feature_dim: usize) -> (Head, candle_nn::VarMap) {
         feature_dim,
         classes: 5,
         lstm_hidden: 256,
+        step_hz: None,
     };
     let vm = trainer::init::head_varmap(&cfg, 0, &Device::Cpu).unwrap();
     let head = Head::new(cfg, VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu)).unwrap();
@@ -91,6 +92,7 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
         tail: None,
         damping: None,
+        step_hz: None,
     }
 }
 

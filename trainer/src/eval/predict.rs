@@ -10,7 +10,9 @@ use grasp_model::extractor::FeatureExtractor;
 
 /// Per-frame probabilities of every video of `data`. Frozen-pretrained
 /// checkpoints read features through `cache` (shared with training);
-/// from-scratch ones run their own backbone.
+/// from-scratch ones run their own backbone. A sequence head reads each
+/// video at the frame rate it was trained at (`HeadConfig::steps`), and
+/// only the frames it read are scored.
 pub fn predict_dataset(
     clf: &Classifier,
     data: &Dataset,
@@ -32,13 +34,25 @@ pub fn predict_dataset(
             }
             TrainMode::FromScratch => extract(clf, seq, cache.batch, bad)?,
         };
-        let probs = if valid.iter().any(|v| *v) {
-            clf.predict_features(&rows)?
-        } else {
-            Vec::new()
-        };
         let keep = |i: &usize| valid[*i];
-        let idx: Vec<usize> = (0..seq.frames.len()).filter(keep).collect();
+        let readable: Vec<usize> = (0..seq.frames.len()).filter(keep).collect();
+        let times: Vec<f64> = readable.iter().map(|i| seq.time_s(*i)).collect();
+        let steps = clf.meta.head.steps(&times);
+        let (rows, idx) = if steps.len() == readable.len() {
+            (rows, readable)
+        } else {
+            let at = Tensor::new(
+                steps.iter().map(|s| *s as u32).collect::<Vec<_>>(),
+                rows.device(),
+            )?;
+            let idx = steps.iter().map(|s| readable[*s]).collect();
+            (rows.index_select(&at, 0)?, idx)
+        };
+        let probs = if idx.is_empty() {
+            Vec::new()
+        } else {
+            clf.predict_features(&rows)?
+        };
         out.push(VideoPrediction {
             id: seq.id.clone(),
             object: seq.object.clone(),

@@ -36,6 +36,8 @@ pub struct Prepared {
     pub tail: Option<TailStart>,
     /// Frozen mode with `view_damping`: the map the features went through.
     pub damping: Option<ViewDamping>,
+    /// A sequence head's step rate: the training sequences' frame rate.
+    pub step_hz: Option<f64>,
 }
 
 /// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
@@ -99,6 +101,39 @@ pub fn detect_architecture(path: &Path) -> Result<Architecture> {
     })
 }
 
+/// The frame rate a sequence head steps at: the one rate of the training
+/// sequences, which evaluation and any later reader resample to
+/// (`HeadConfig::steps`). None for a head that classifies frames.
+fn step_rate(cfg: &TrainConfig, splits: &Splits) -> Result<Option<f64>> {
+    if cfg.head.classifies_frames() {
+        return Ok(None);
+    }
+    let mut rates: Vec<f64> = Vec::new();
+    for seq in &splits.train.sequences {
+        if !rates.iter().any(|r| (r - seq.fps).abs() <= 1e-6 * r.abs()) {
+            rates.push(seq.fps);
+        }
+    }
+    match rates.as_slice() {
+        [] => Ok(None),
+        [one] => Ok(Some(*one)),
+        _ => {
+            rates.sort_by(f64::total_cmp);
+            let reason = format!(
+                "an {} head steps at one frame rate, and the training sequences have {} \
+                 (frames/s): train it on sequences of one rate",
+                cfg.head.name(),
+                rates
+                    .iter()
+                    .map(|r| format!("{r}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            Err(ConfigError::invalid("head", reason).into())
+        }
+    }
+}
+
 /// Loads the backbone and computes (or reads cached) features in frozen
 /// mode, or decodes the frames for training from scratch.
 pub fn prepare(
@@ -108,6 +143,7 @@ pub fn prepare(
     dev: &Device,
 ) -> Result<Prepared> {
     let real_data = splits.train.is_real();
+    let step_hz = step_rate(cfg, splits)?;
     match cfg.mode {
         TrainMode::FrozenPretrained => {
             let (info, pre) = frozen_backbone(cfg)?;
@@ -124,6 +160,7 @@ pub fn prepare(
                 backbone: Some(bb.info),
                 tail: None,
                 damping,
+                step_hz,
             })
         }
         TrainMode::FineTuned => {
@@ -158,6 +195,7 @@ pub fn prepare(
                 backbone: Some(info),
                 tail: Some(start),
                 damping: None,
+                step_hz,
             })
         }
         TrainMode::FromScratch => {
@@ -176,6 +214,7 @@ pub fn prepare(
                 preprocess: Preprocess::imagenet(cfg.input_size),
                 tail: None,
                 damping: None,
+                step_hz,
             })
         }
     }
@@ -268,6 +307,7 @@ pub(super) fn build_net(
         feature_dim,
         classes: Class::COUNT,
         lstm_hidden: cfg.lstm_hidden,
+        step_hz: prep.step_hz,
     };
     let head_vars = crate::init::head_varmap(&head_cfg, seed, dev)?;
     let head = Head::new(

@@ -55,6 +55,7 @@ pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
         preprocess: grasp_model::backbone::Preprocess::imagenet(224),
         tail: None,
         damping: None,
+        step_hz: None,
     };
     let dir = std::env::temp_dir().join(format!("grasp-bench-{}", std::process::id()));
     let cfg = TrainConfig {
