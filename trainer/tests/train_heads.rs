@@ -175,6 +175,50 @@ fn lstm_head_trains_end_to_end_and_reloads() {
     train_and_check(HeadKind::Lstm);
 }
 
+/// An LSTM steps at one frame rate: a training set of two rates is refused,
+/// naming them; an FC head trains on it.
+#[test]
+fn lstm_refuses_training_sequences_of_two_frame_rates() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = setup(dir.path());
+    // Every other sequence recorded at 20 frames/s: both rates in training.
+    let records = walk(&cfg.data)
+        .into_iter()
+        .filter(|p| p.ends_with("sequence.json"));
+    for record in records.step_by(2) {
+        let text = std::fs::read_to_string(&record).unwrap();
+        let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        json["plan"]["fps"] = serde_json::json!(20.0);
+        std::fs::write(&record, serde_json::to_string(&json).unwrap()).unwrap();
+    }
+    cfg.head = HeadKind::Lstm;
+    let err = trainer::experiment::run(&cfg, 1)
+        .err()
+        .expect("two rates refused");
+    let msg = format!("{err:#}");
+    assert!(
+        msg.contains("one frame rate") && msg.contains("10, 20"),
+        "{msg}"
+    );
+    cfg.head = HeadKind::Fc;
+    cfg.max_epochs = 2;
+    trainer::experiment::run(&cfg, 1).unwrap();
+}
+
+fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out.sort();
+    out
+}
+
 fn cache_files(dir: &Path) -> Vec<(std::path::PathBuf, std::time::SystemTime)> {
     let mut out = Vec::new();
     for key in std::fs::read_dir(dir).unwrap() {
