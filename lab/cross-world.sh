@@ -2,7 +2,11 @@
 # The lab's cross-world table (issue 41, EXPERIMENTS.md "Across worlds"):
 # the shipped recipes and variants of the FC recipe, each without one of
 # its levers, trained on a finished main job's training set (3 seeds) and
-# scored on every test set it rendered, with the choice by worst world.
+# scored on every test set, with the choice by worst world. Besides the
+# main job's test sets it renders the ones the main job leaves out for
+# time: looks B-D and the foreign scene alone, with the built-in objects
+# (world_foreign) and with the real meshes (world_foreign_ycb, when the
+# main job imported them).
 #
 #   lab/cross-world.sh MAIN_OUT [VARIANT...]
 #
@@ -10,7 +14,8 @@
 # model-*/ are reused; a recipe it did not train, such as fc-tuned, is
 # trained here). Variants: fc-no-damping, fc-no-views, fc-plain (no
 # pooled blocks either), fc-no-denoise, fc-crop-fraction (default: the first
-# three). Writes MAIN_OUT/lab/VARIANT and MAIN_OUT/cross-world/summary.md.
+# three). Writes MAIN_OUT/data/test-*, MAIN_OUT/lab/VARIANT and
+# MAIN_OUT/cross-world/summary.md. CONFIG: the main job's render config.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:?usage: lab/cross-world.sh MAIN_OUT [VARIANT...]} && shift
@@ -25,6 +30,17 @@ declare -A SETS=(
   [fc-no-denoise]="--set reader.denoise=false"
   [fc-crop-fraction]="--set reader.crop={fraction=0.42}"
 )
+# The lab's test sets, drawn as the main job draws its own (scripts/main.sh).
+TEST=(--set dataset.seed=3 --set "dataset.sequences_per_pair=${TEST_SEQ:-2}")
+lab_render() { # name, then config arguments over the main job's config
+  local name=$1 && shift
+  $BIN/grasp-gen render --config "${CONFIG:-configs/main.toml}" "$@" "${TEST[@]}" \
+    --out "$OUT/data/test-$name" --resume --no-progress
+}
+for look in look_b look_c look_d; do lab_render "$look" --config "configs/test-${look/_/-}.toml"; done
+lab_render world_foreign --config configs/test-world-foreign.toml
+[ ! -d "$OUT/ycb-objects" ] || GRASP_OBJECTS="$OUT/ycb-objects" \
+  lab_render world_foreign_ycb --config configs/test-world-foreign.toml
 TEST_SETS=()
 for dir in "$OUT"/data/test-*; do TEST_SETS+=("${dir##*/test-}"); done
 REPORTS=()

@@ -638,6 +638,9 @@ fn a_held_out_world_is_recorded_in_every_plan_and_changes_nothing_else() {
     };
     let (train, test) = (standoff(&base), standoff(&reach));
     assert!(test[1] < train[0], "reach {test:?} vs training {train:?}");
+    // Seen at another frame rate than the main job's training set.
+    let main = GeneratorConfig::load_layers(&[dir.join("main.toml")], &[]).unwrap();
+    assert_eq!(reach.plan.trajectory.fps, 2.0 * main.plan.trajectory.fps);
 }
 
 /// The fourth held-out look (`configs/test-look-d.toml`) has a lens and
