@@ -182,7 +182,7 @@ fn lstm_refuses_training_sequences_of_two_frame_rates() {
     let dir = tempfile::tempdir().unwrap();
     let mut cfg = setup(dir.path());
     // Every other sequence recorded at 20 frames/s: both rates in training.
-    let records = walk(&cfg.data)
+    let records = grasp_test_support::files_under(&cfg.data)
         .into_iter()
         .filter(|p| p.ends_with("sequence.json"));
     for record in records.step_by(2) {
@@ -203,20 +203,6 @@ fn lstm_refuses_training_sequences_of_two_frame_rates() {
     cfg.head = HeadKind::Fc;
     cfg.max_epochs = 2;
     trainer::experiment::run(&cfg, 1).unwrap();
-}
-
-fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let p = entry.unwrap().path();
-        if p.is_dir() {
-            out.extend(walk(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out.sort();
-    out
 }
 
 fn cache_files(dir: &Path) -> Vec<(std::path::PathBuf, std::time::SystemTime)> {

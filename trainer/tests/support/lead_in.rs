@@ -10,7 +10,7 @@ pub fn sequence_json(root: &Path, part: &str) -> PathBuf {
         let rec: serde_json::Value = serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
         rec["plan"]["key"]["part"] == part
     };
-    walk(root)
+    grasp_test_support::files_under(root)
         .into_iter()
         .filter(|p| p.ends_with("sequence.json"))
         .find(shows)
@@ -36,18 +36,4 @@ pub fn look_away_first(json: &Path, away: usize) {
         });
     }
     std::fs::write(json, serde_json::to_vec(&rec).unwrap()).unwrap();
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(walk(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out.sort();
-    out
 }
