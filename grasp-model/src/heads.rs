@@ -88,6 +88,9 @@ pub fn frames_at_rate(times_s: &[f64], hz: f64) -> Vec<usize> {
     }
     let period = 1.0 / hz;
     let (first, last) = (times_s[0], times_s[n - 1]);
+    if !(first.is_finite() && last.is_finite()) {
+        return (0..n).collect(); // a recording without a usable clock
+    }
     // Ticks far denser than the frames pick every frame; this also bounds
     // the loop below for a rate out of all proportion (a corrupt file).
     if (last - first) * hz > 2.0 * n as f64 {
@@ -357,6 +360,10 @@ mod tests {
         assert_eq!(frames_at_rate(&[4.2], 2.5), vec![0]);
         for hz in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert_eq!(frames_at_rate(&times(3, 5.0), hz), vec![0, 1, 2]);
+        }
+        // A recording whose frame rate reads 0 or NaN: times without end.
+        for fps in [0.0, f64::NAN] {
+            assert_eq!(frames_at_rate(&times(3, fps), 2.5), vec![0, 1, 2]);
         }
     }
 
