@@ -34,14 +34,27 @@ struct Args {
     /// Write the inputs here as `<name>.png`.
     #[arg(long)]
     save: Option<std::path::PathBuf>,
+    /// Also time the centre square of these images (rendered or recorded
+    /// frames: the input the filter meets in use).
+    #[arg(long, num_args = 1..)]
+    frame: Vec<std::path::PathBuf>,
 }
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let inputs = [
-        ("scene", noisy(&scene(args.size, args.size), args.noise, 7)),
-        ("bench_frame", bench_frame_crop(args.size)),
+    let mut inputs = vec![
+        (
+            "scene".to_string(),
+            noisy(&scene(args.size, args.size), args.noise, 7),
+        ),
+        ("bench_frame".to_string(), bench_frame_crop(args.size)),
     ];
+    for (i, path) in args.frame.iter().enumerate() {
+        let img = image::open(path)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            .to_rgb8();
+        inputs.push((format!("frame_{i}"), centre_square(&img, args.size)));
+    }
     for (name, img) in &inputs {
         if let Some(dir) = &args.save {
             std::fs::create_dir_all(dir)?;
@@ -102,6 +115,13 @@ fn cpu_seconds() -> Option<f64> {
     let utime: f64 = fields.next()?.parse().ok()?;
     let stime: f64 = fields.next()?.parse().ok()?;
     Some((utime + stime) / 100.0)
+}
+
+/// The centre `n` x `n` of `img` (all of it when smaller).
+fn centre_square(img: &RgbImage, n: u32) -> RgbImage {
+    let (w, h) = (n.min(img.width()), n.min(img.height()));
+    let (x, y) = ((img.width() - w) / 2, (img.height() - h) / 2);
+    image::imageops::crop_imm(img, x, y, w, h).to_image()
 }
 
 /// The centre `n` x `n` of `hannes-run bench`'s first synthetic 224 px frame

@@ -81,7 +81,10 @@ pub fn denoise(img: &RgbImage) -> RgbImage {
 /// mirrored.
 ///
 /// Each pair's patch distance is computed once and serves both pixels (half
-/// the window's offsets); rows are worked in blocks of 16 floats, compiled
+/// the window's offsets), from patch sums slid down the image in exact
+/// integer arithmetic; blocks of pairs whose patches are all unlike (most
+/// of a rendered frame) skip their exponentials and their sums. Rows are
+/// worked in blocks of 16 floats, compiled
 /// for AVX-512 or AVX2 when the CPU has them, without fused multiply-adds,
 /// and two threads take alternate offsets whose sums are added in a fixed
 /// order: the same result to the bit on any x86-64 CPU and thread count.
@@ -164,7 +167,7 @@ impl Planes {
             for x in 0..width {
                 let i = (sy * w + mirror(x as isize - pad as isize, w)) * 3;
                 for (c, plane) in data.iter_mut().enumerate() {
-                    plane[y * width + x] = f32::from(raw[i + c]) / 255.0;
+                    plane[y * width + x] = f32::from(raw[i + c]);
                 }
             }
         }
@@ -198,8 +201,11 @@ struct Weighting {
 }
 
 impl Weighting {
+    /// For `sigma` and `h` as fractions of full scale (the planes hold
+    /// grey levels).
     fn new(sigma: f32, h: f32) -> Weighting {
         let side = 2 * PATCH_RADIUS + 1;
+        let (sigma, h) = (sigma * 255.0, h * 255.0);
         Weighting {
             per_value: 1.0 / (3 * side * side) as f32,
             two_sigma2: 2.0 * sigma * sigma,
@@ -207,11 +213,17 @@ impl Weighting {
         }
     }
 
-    /// The weight of a patch pair whose squared differences sum to `sum`;
-    /// 0 where it is negligible. Branch-free, so that a row vectorises.
+    /// The exponent of the weight of a patch pair whose squared
+    /// differences sum to `sum`: max(d² - 2σ², 0) / h².
     #[inline(always)]
-    fn of(self, sum: f32) -> f32 {
-        let x = (sum * self.per_value - self.two_sigma2).max(0.0) * self.inv_h2;
+    fn exponent(self, sum: f32) -> f32 {
+        (sum * self.per_value - self.two_sigma2).max(0.0) * self.inv_h2
+    }
+
+    /// The weight for `exponent` x; 0 where it is negligible. Branch-free,
+    /// so that a row vectorises.
+    #[inline(always)]
+    fn of(x: f32) -> f32 {
         let e = exp_neg(x.min(NEGLIGIBLE));
         if x > NEGLIGIBLE {
             0.0
@@ -297,10 +309,10 @@ impl Sums {
         for (j, px) in out.pixels_mut().enumerate() {
             let i = j / w * stride + j % w;
             for c in 0..3 {
-                // A mean of values in [0, 1]: rounding half up is rounding,
-                // without `f32::round`'s library call.
+                // A mean of values in [0, 255]: rounding half up is
+                // rounding, without `f32::round`'s library call.
                 let v = self.chan[c][i] / self.weight[i];
-                px.0[c] = (v * 255.0 + 0.5).clamp(0.0, 255.0) as u8;
+                px.0[c] = (v + 0.5).clamp(0.0, 255.0) as u8;
             }
         }
         out
@@ -354,9 +366,15 @@ fn accumulate_offset(
     s.column.resize(dw, 0.0);
     s.weight.resize(n, 0.0);
     let side = 2 * PATCH_RADIUS + 1;
+    column_sums(&s.diff[..side * dw], dw, &mut s.column);
     for qy in y0..y1 {
-        let first = (qy - y0) as usize * dw;
-        column_sums(&s.diff[first..first + side * dw], dw, &mut s.column);
+        if qy > y0 {
+            // The band moves down a row: exact, as every term is an integer.
+            let top = (qy - y0 - 1) as usize * dw;
+            let leaving = &s.diff[top..top + dw];
+            let entering = &s.diff[top + side * dw..top + (side + 1) * dw];
+            slide_column_sums(leaving, entering, &mut s.column);
+        }
         row_weights(&s.column, wt, &mut s.weight);
         let wrow = &s.weight[..];
         if (0..h).contains(&qy) {
@@ -401,14 +419,27 @@ fn squared_differences(
     }
 }
 
-/// `column[i]` = the sum of the (2 r + 1) rows of `band` at i: added anew
-/// for every row of pairs, so no rounding error is carried down the image.
+/// `column[i]` = the sum of the (2 r + 1) rows of `band` at i.
 #[inline(always)]
 fn column_sums(band: &[f32], width: usize, column: &mut [f32]) {
     column.copy_from_slice(&band[..width]);
     for line in band.chunks_exact(width).skip(1) {
         column.iter_mut().zip(line).for_each(|(c, v)| *c += v);
     }
+}
+
+/// The column sums of the band one row down: minus the row `leaving`, plus
+/// the row `entering`. The planes hold whole grey levels, so squared
+/// differences and their sums are integers below 2^24 (5 x 5 x 3 x 255²
+/// = 4 876 875): exact in f32, and sliding carries no rounding error down
+/// the image.
+#[inline(always)]
+fn slide_column_sums(leaving: &[f32], entering: &[f32], column: &mut [f32]) {
+    let rows = leaving.iter().zip(entering);
+    column
+        .iter_mut()
+        .zip(rows)
+        .for_each(|(c, (l, e))| *c += e - l);
 }
 
 /// `weight[i]` = the weight of the patch sum over columns i..i + 2 r + 1
@@ -422,7 +453,14 @@ fn row_weights(column: &[f32], wt: Weighting, weight: &mut [f32]) {
             let c = lanes(column, i + k);
             (0..LANES).for_each(|l| sum[l] += c[l]);
         }
-        (0..LANES).for_each(|l| out[l] = wt.of(sum[l]));
+        let x = sum.map(|s| wt.exponent(s));
+        // A block of unlike patches only (most blocks of a clean frame)
+        // weighs 0 without the exponentials: the same zeros, sooner.
+        if x.iter().all(|&x| x > NEGLIGIBLE) {
+            out.fill(0.0);
+        } else {
+            (0..LANES).for_each(|l| out[l] = Weighting::of(x[l]));
+        }
     }
 }
 
@@ -432,6 +470,10 @@ fn row_weights(column: &[f32], wt: Weighting, weight: &mut [f32]) {
 fn gather(weight: &[f32], src: [&[f32]; 3], sums: &mut Sums, start: usize) {
     for b in (0..weight.len()).step_by(LANES) {
         let w = lanes(weight, b);
+        // Adding zeros leaves the sums as they are, to the bit.
+        if w.iter().all(|&w| w == 0.0) {
+            continue;
+        }
         for (sum, src) in sums.chan.iter_mut().zip(src) {
             let (mut s, v) = (lanes(sum, start + b), lanes(src, b));
             (0..LANES).for_each(|l| s[l] += w[l] * v[l]);
