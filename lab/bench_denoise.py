@@ -14,7 +14,8 @@ skimage / ours, of CPU time (the work; the steadier measure on a shared
 machine) and of the minimum wall time (what two threads buy).
 
   cargo build --release -p grasp-model --example bench_denoise
-  .venv/bin/python lab/bench_denoise.py --rust target/release/examples/bench_denoise
+  .venv/bin/python lab/bench_denoise.py --rust target/release/examples/bench_denoise \
+      [--frame FRAME.png ...]
 
 Also prints the largest difference between the two filters' outputs, in
 grey levels (for the same sigma and h).
@@ -36,6 +37,8 @@ from skimage.restoration import denoise_nl_means
 def run_rust(args: argparse.Namespace, threads: int, out: str) -> dict:
     env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
     cmd = [args.rust, "--iters", str(args.iters), "--size", str(args.size), "--save", out]
+    if args.frame:
+        cmd += ["--frame", *args.frame]
     lines = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout
     return {r["input"]: r for r in map(json.loads, lines.splitlines())}
 
@@ -75,6 +78,9 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--iters", type=int, default=100)
     ap.add_argument("--size", type=int, default=94)
+    ap.add_argument(
+        "--frame", nargs="*", default=[], help="rendered frames: their centre squares too"
+    )
     args = ap.parse_args()
     ratios: dict[tuple[str, int, str], list[float]] = {}
     cpu: dict[tuple[str, str], list[float]] = {}
