@@ -205,6 +205,42 @@ fn lstm_refuses_training_sequences_of_two_frame_rates() {
     trainer::experiment::run(&cfg, 1).unwrap();
 }
 
+#[test]
+fn lstm_is_validated_at_its_training_rate() {
+    use trainer::data::{BadData, OnBadData};
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = setup(dir.path());
+    let bad = BadData::new(OnBadData::Fail);
+    let mut splits = trainer::train::load_splits(&cfg, &bad).unwrap();
+    let frames: Vec<usize> = splits
+        .val
+        .sequences
+        .iter()
+        .map(|s| s.frames.len())
+        .collect();
+    // The validation videos recorded twice as fast: every frame twice.
+    for s in &mut splits.val.sequences {
+        s.fps *= 2.0;
+        s.frames = s
+            .frames
+            .iter()
+            .flat_map(|f| [f.clone(), f.clone()])
+            .collect();
+        s.labels = s.labels.iter().flat_map(|l| [*l, *l]).collect();
+    }
+    let read = |cfg: &TrainConfig| {
+        let prep = trainer::train::prepare(cfg, &splits, &bad, &candle_core::Device::Cpu);
+        let prep = prep.unwrap();
+        prep.val.seq_rows.iter().map(Vec::len).collect::<Vec<_>>()
+    };
+    cfg.head = HeadKind::Lstm;
+    assert_eq!(read(&cfg), frames, "one step per training frame interval");
+    // A frame classifier reads every frame.
+    cfg.head = HeadKind::Fc;
+    let doubled: Vec<usize> = frames.iter().map(|n| 2 * n).collect();
+    assert_eq!(read(&cfg), doubled);
+}
+
 fn cache_files(dir: &Path) -> Vec<(std::path::PathBuf, std::time::SystemTime)> {
     let mut out = Vec::new();
     for key in std::fs::read_dir(dir).unwrap() {

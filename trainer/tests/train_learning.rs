@@ -33,9 +33,12 @@ fn split(sequences: usize, seed: u64, means: &[Vec<f32>], noise: f32) -> SplitFr
         seq_ids.push(format!("seq{s}"));
     }
     let n = labels.len();
+    // Frames at 2.5 frames/s, the generator's default rate.
+    let seq_times = vec![(0..FRAMES).map(|f| f as f64 / 2.5).collect(); sequences];
     SplitFrames {
         labels,
         seq_rows,
+        seq_times,
         seq_class,
         seq_ids,
         source: FrameSource::Cached(Tensor::from_vec(x, (n, DIM), &Device::Cpu).unwrap()),

@@ -78,6 +78,11 @@ fn prepared(features: Vec<f32>, dim: usize) -> Prepared {
             .chunks(5)
             .map(|c| c.to_vec())
             .collect(),
+        seq_times: (0..n)
+            .collect::<Vec<_>>()
+            .chunks(5)
+            .map(|c| (0..c.len()).map(|f| f as f64 / 2.5).collect())
+            .collect(),
         seq_class: vec![0; n.div_ceil(5)],
         seq_ids: (0..n.div_ceil(5)).map(|i| format!("seq{i}")).collect(),
         source: FrameSource::Cached(Tensor::from_vec(x, (n, dim), &Device::Cpu).unwrap()),

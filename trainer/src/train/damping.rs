@@ -174,6 +174,7 @@ mod tests {
         SplitFrames {
             labels: vec![0; 12],
             seq_rows: vec![vec![0, 1, 2], vec![3, 4, 5], vec![6, 7, 8], vec![9, 10, 11]],
+            seq_times: vec![vec![0.0, 0.4, 0.8]; 4],
             seq_class: vec![0; 4],
             seq_ids: (0..4).map(|i| format!("s{i}")).collect(),
             source: FrameSource::Cached(Tensor::from_vec(x, (12, 4), &Device::Cpu).unwrap()),

@@ -20,6 +20,8 @@ pub struct SplitFrames {
     pub labels: Vec<u32>,
     /// Rows of each sequence, in frame order.
     pub seq_rows: Vec<Vec<usize>>,
+    /// The time (s) of each row of `seq_rows`.
+    pub seq_times: Vec<Vec<f64>>,
     pub seq_class: Vec<u32>,
     pub seq_ids: Vec<String>,
     pub source: FrameSource,
@@ -63,19 +65,22 @@ impl SplitFrames {
         let mut s = SplitFrames {
             labels: Vec::new(),
             seq_rows: Vec::new(),
+            seq_times: Vec::new(),
             seq_class: Vec::new(),
             seq_ids: Vec::new(),
             source,
         };
         for (si, seq) in data.sequences.iter().enumerate() {
-            let mut rows = Vec::new();
+            let (mut rows, mut times) = (Vec::new(), Vec::new());
             for (fi, label) in seq.labels.iter().enumerate() {
                 if valid(si, fi) {
                     rows.push(s.labels.len());
+                    times.push(seq.time_s(fi));
                     s.labels.push(label.index() as u32);
                 }
             }
             s.seq_rows.push(rows);
+            s.seq_times.push(times);
             s.seq_class.push(seq.grasp_class().index() as u32);
             s.seq_ids.push(seq.id.clone());
         }
@@ -84,5 +89,17 @@ impl SplitFrames {
 
     pub fn frames(&self) -> usize {
         self.labels.len()
+    }
+
+    /// Keeps of each sequence the rows a sequence head stepping at `hz`
+    /// reads (the frame nearest each tick, `grasp_model::heads::
+    /// frames_at_rate`), as evaluation reads a video: a validation set
+    /// recorded faster than training's is then scored as it will be read.
+    pub fn keep_steps_at(&mut self, hz: f64) {
+        for (rows, times) in self.seq_rows.iter_mut().zip(&mut self.seq_times) {
+            let steps = grasp_model::heads::frames_at_rate(times, hz);
+            *rows = steps.iter().map(|&i| rows[i]).collect();
+            *times = steps.iter().map(|&i| times[i]).collect();
+        }
     }
 }

@@ -144,6 +144,24 @@ pub fn prepare(
 ) -> Result<Prepared> {
     let real_data = splits.train.is_real();
     let step_hz = step_rate(cfg, splits)?;
+    let mut prep = prepare_frames(cfg, splits, bad, dev, real_data, step_hz)?;
+    // A sequence head is validated as it will be evaluated: each validation
+    // video read at the training rate (training's own videos are at it).
+    if let Some(hz) = step_hz {
+        prep.val.keep_steps_at(hz);
+    }
+    Ok(prep)
+}
+
+/// [`prepare`] for `cfg.mode`, every frame of both splits kept.
+fn prepare_frames(
+    cfg: &TrainConfig,
+    splits: &Splits,
+    bad: &BadData,
+    dev: &Device,
+    real_data: bool,
+    step_hz: Option<f64>,
+) -> Result<Prepared> {
     match cfg.mode {
         TrainMode::FrozenPretrained => {
             let (info, pre) = frozen_backbone(cfg)?;

@@ -82,6 +82,7 @@ fn tail_features(tail: &super::tail::Tail, frames: &SplitFrames) -> Result<Split
     Ok(SplitFrames {
         labels: frames.labels.clone(),
         seq_rows: frames.seq_rows.clone(),
+        seq_times: frames.seq_times.clone(),
         seq_class: frames.seq_class.clone(),
         seq_ids: frames.seq_ids.clone(),
         source: FrameSource::Cached(features),

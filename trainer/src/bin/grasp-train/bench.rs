@@ -37,6 +37,8 @@ fn split(sequences: usize, frames: usize, dim: usize, seed: u64) -> Result<Split
     Ok(SplitFrames {
         labels,
         seq_rows,
+        // Frames at 2.5 frames/s, the generator's default rate.
+        seq_times: vec![(0..frames).map(|f| f as f64 / 2.5).collect(); sequences],
         seq_class: (0..sequences).map(|s| (s % 4) as u32).collect(),
         seq_ids: (0..sequences).map(|s| format!("s{s}")).collect(),
         source: FrameSource::Cached(Tensor::from_vec(x, (n, dim), &Device::Cpu)?),
