@@ -271,18 +271,28 @@ stage_input() {
   done
 }
 
+# Renders CONDITION into OUT as the main job renders its test sets
+# (configs/main.toml, one condition) and lab/cross-world.sh its held-out
+# looks (configs/test-look-X.toml laid over it), with SEED and PER_PAIR
+# sequences per pair.
+render_condition() { # out seed per_pair condition
+  local which=(--set "dataset.conditions=[\"$4\"]")
+  [[ $4 != look_* ]] || which=(--config "configs/test-${4/_/-}.toml")
+  run "$BIN/grasp-gen" render --config configs/main.toml "${which[@]}" --set "dataset.seed=$2" \
+    --set "dataset.sequences_per_pair=$3" --out "$1" --resume --no-progress
+}
+
 # More draws of the test sets (seeds 5, 7, 9, 11; the main job's settings),
-# scored with the main job's own (seed 3) as one pooled set of 310 videos per
+# scored with the main job's own (seed 3; rendered here for the looks the
+# main job leaves to lab/cross-world.sh) as one pooled set of 310 videos per
 # condition: a binomial error near 2 points, not 4.5.
 stage_draws() {
   local main="$OUT/main" c h sd
   mkdir -p "$OUT/draws"
   for c in $DRAW_CONDITIONS; do
+    [ -d "$main/data/test-$c" ] || render_condition "$main/data/test-$c" 3 2 "$c"
     for sd in $DRAW_SEEDS; do
-      # The main job's own test config with another seed.
-      sed -e "s/^seed = .*/seed = $sd/" "$main/test-$c.toml" >"$OUT/draws/s$sd-$c.toml"
-      run "$BIN/grasp-gen" render --config "$OUT/draws/s$sd-$c.toml" --out "$OUT/draws/s$sd/test-$c" \
-        --resume --no-progress
+      render_condition "$OUT/draws/s$sd/test-$c" "$sd" 2 "$c"
     done
     pooled_roots "$c"
     for h in fc lstm fc-tuned; do
@@ -306,20 +316,15 @@ pooled_roots() { # condition
 # Heads trained on a held-out look's own renders, against the same heads
 # trained on the default look: how much of the look's gap is transfer.
 stage_inlook() {
-  local main="$OUT/main" look set seed per_pair dir
+  local main="$OUT/main" look dir
   inlook_heads "$OUT/inlook/default" "$main/data"
   for look in $INLOOK_CONDITIONS; do
     dir="$OUT/inlook/$look"
     mkdir -p "$dir/data"
-    for set in train val; do
-      # The look's test config with the training (seed 1, 24 per pair) or
-      # validation (seed 2, 1 per pair) set's seed and size.
-      seed=$(sed -n 's/^seed = //p' "$main/$set.toml")
-      per_pair=$(sed -n 's/^sequences_per_pair = //p' "$main/$set.toml")
-      sed -e "s/^seed = .*/seed = $seed/" -e "s/^sequences_per_pair = .*/sequences_per_pair = $per_pair/" \
-        "$main/test-$look.toml" >"$dir/$set.toml"
-      run "$BIN/grasp-gen" render --config "$dir/$set.toml" --out "$dir/data/$set" --resume --no-progress
-    done
+    # The look's test set with the training (seed 1, 24 per pair) and the
+    # validation (seed 2, 1 per pair) sets' seeds and sizes.
+    render_condition "$dir/data/train" 1 24 "$look"
+    render_condition "$dir/data/val" 2 1 "$look"
     inlook_heads "$dir" "$dir/data"
   done
 }
