@@ -128,13 +128,7 @@ fn lstm_reads_a_faster_video_at_its_training_rate() {
             .iter()
             .map(|s| {
                 let mut d = s.clone();
-                d.fps = 2.0 * s.fps;
-                d.frames = s
-                    .frames
-                    .iter()
-                    .flat_map(|f| [f.clone(), f.clone()])
-                    .collect();
-                d.labels = s.labels.iter().flat_map(|l| [*l, *l]).collect();
+                twice_as_fast(&mut d);
                 d
             })
             .collect(),
@@ -168,6 +162,14 @@ fn lstm_reads_a_faster_video_at_its_training_rate() {
         moved,
         "stepping twice per frame should change the LSTM's outputs"
     );
+}
+
+/// `seq` as if recorded twice as fast: every frame twice.
+fn twice_as_fast(seq: &mut trainer::data::Sequence) {
+    seq.fps *= 2.0;
+    let frames = seq.frames.iter().flat_map(|f| [f.clone(), f.clone()]);
+    seq.frames = frames.collect();
+    seq.labels = seq.labels.iter().flat_map(|l| [*l, *l]).collect();
 }
 
 #[test]
@@ -218,16 +220,7 @@ fn lstm_is_validated_at_its_training_rate() {
         .iter()
         .map(|s| s.frames.len())
         .collect();
-    // The validation videos recorded twice as fast: every frame twice.
-    for s in &mut splits.val.sequences {
-        s.fps *= 2.0;
-        s.frames = s
-            .frames
-            .iter()
-            .flat_map(|f| [f.clone(), f.clone()])
-            .collect();
-        s.labels = s.labels.iter().flat_map(|l| [*l, *l]).collect();
-    }
+    splits.val.sequences.iter_mut().for_each(twice_as_fast);
     let read = |cfg: &TrainConfig| {
         let prep = trainer::train::prepare(cfg, &splits, &bad, &candle_core::Device::Cpu);
         let prep = prep.unwrap();
