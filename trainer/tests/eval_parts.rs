@@ -3,39 +3,17 @@
 //! the mug's parts get their own rows, a window scores fewer frames, and a
 //! run trained on centre crops evaluates on centre crops.
 
-use grasp_model::checkpoint::TrainMode;
 use std::path::Path;
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{BadData, OnBadData};
 use trainer::eval::metrics::FrameWindow;
 
+#[path = "support/stand_in.rs"]
+mod stand_in;
+
 fn setup(dir: &Path) -> TrainConfig {
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 5;
-    write_synthetic(&dir.join("data"), &spec).unwrap();
-    let weights = dir.join("backbone.safetensors");
-    let mut rng = trainer::rng::stream(9, "calibration");
-    let calibration: Vec<image::RgbImage> = grasp_schema::taxonomy::Class::ALL
-        .iter()
-        .cycle()
-        .take(20)
-        .map(|c| class_image(*c, 32, spec.noise, &mut rng))
-        .collect();
-    trainer::init::write_random_backbone(&weights, 0.25, 32, &calibration, 1).unwrap();
-    let mut cfg = TrainConfig {
-        data: dir.join("data"),
-        out: dir.join("run"),
-        mode: TrainMode::FrozenPretrained,
-        weights: Some(weights),
-        width_mult: 0.25,
-        input_size: 32,
-        batch_size: Some(16),
-        max_epochs: 4,
-        cache_dir: dir.join("cache"),
-        ..Default::default()
-    };
-    cfg.split.val_fraction = 0.2;
+    let mut cfg = stand_in::frozen_setup(dir, 5, 20);
+    cfg.max_epochs = 4;
     cfg.split.test_fraction = 0.4;
     cfg
 }

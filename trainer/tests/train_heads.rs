@@ -9,39 +9,17 @@
 //! MobileNetV2 (width 0.25) stands in for `mobilenet_v2-b0353104.pth`; the
 //! code path (weights file -> hash -> cached features -> head) is the same.
 
-use grasp_model::checkpoint::{Classifier, TrainMode};
+use grasp_model::checkpoint::Classifier;
 use grasp_model::heads::HeadKind;
 use std::path::Path;
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
+
+#[path = "support/stand_in.rs"]
+mod stand_in;
 
 fn setup(dir: &Path) -> TrainConfig {
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 6;
-    write_synthetic(&dir.join("data"), &spec).unwrap();
-    let weights = dir.join("backbone.safetensors");
-    // Batch-norm statistics adapted to frames like the data's.
-    let mut rng = trainer::rng::stream(9, "calibration");
-    let calibration: Vec<image::RgbImage> = grasp_schema::taxonomy::Class::ALL
-        .iter()
-        .cycle()
-        .take(40)
-        .map(|c| class_image(*c, 32, spec.noise, &mut rng))
-        .collect();
-    trainer::init::write_random_backbone(&weights, 0.25, 32, &calibration, 1).unwrap();
-    let mut cfg = TrainConfig {
-        data: dir.join("data"),
-        out: dir.join("run"),
-        mode: TrainMode::FrozenPretrained,
-        weights: Some(weights),
-        width_mult: 0.25,
-        input_size: 32,
-        batch_size: Some(16),
-        max_epochs: 40,
-        cache_dir: dir.join("cache"),
-        ..Default::default()
-    };
-    cfg.split.val_fraction = 0.2;
+    let mut cfg = stand_in::frozen_setup(dir, 6, 40);
+    cfg.max_epochs = 40;
     cfg.split.test_fraction = 0.2;
     cfg.optimizer.lr = 5e-3;
     cfg
