@@ -122,7 +122,9 @@ phase_done train_evaluate
 
 echo "== runtime: replay one test sequence against the simulated hand"
 SHIPPED="$OUT/model-$(cat "$OUT/report/shipped.txt")/seed-0"
-SEQUENCE=$(find "$OUT/data/test-default" -name sequence.json | sort | head -1 | xargs dirname)
+# `sed -n 1p` reads to the end: `head -1` may close the pipe while `sort`
+# still writes, and under pipefail that SIGPIPE ends the job (1 run in 16).
+SEQUENCE=$(find "$OUT/data/test-default" -name sequence.json | sort | sed -n 1p | xargs dirname)
 $BIN/hannes-run simulate-hand --pty "$OUT/hand.pty" >"$OUT/hand-events.jsonl" 2>"$OUT/hand.log" &
 HAND=$!
 trap 'kill $HAND 2>/dev/null || true' EXIT
