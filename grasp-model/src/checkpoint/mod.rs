@@ -371,14 +371,10 @@ impl Classifier {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        // On a worker of the tensor kernels' pool, with the other workers
-        // kept awake: every parallel kernel of the frame then splits its
-        // work there, instead of waking the pool and putting the caller to
-        // sleep once per layer.
-        let done = std::sync::atomic::AtomicBool::new(false);
-        rayon::scope(|scope| {
-            let _owned = OwnedPrediction::start(&done);
-            keep_pool_awake(scope, &done);
+        // On a worker of the tensor kernels' pool: every parallel kernel of
+        // the frame then splits its work there, instead of waking the pool
+        // and putting the caller to sleep once per layer.
+        rayon::scope(|_| {
             let prepared = frames
                 .iter()
                 .map(|f| self.prepare(f))
@@ -398,53 +394,6 @@ impl Classifier {
                 .squeeze(0)?,
         };
         probabilities(&logits)
-    }
-}
-
-thread_local! {
-    /// Predictions whose work this thread is running (see [`keep_pool_awake`]).
-    static OWNED_PREDICTIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
-}
-
-/// Keeps the pool's other workers looking for the frame's jobs until
-/// `done`, instead of letting them fall asleep between two kernels and be
-/// woken (a futex round trip) by the next. A worker that is running a
-/// prediction's own work (this one's, or another's run concurrently on the
-/// same pool) returns at once: spinning there would stall that work until
-/// this prediction ended.
-fn keep_pool_awake<'s>(scope: &rayon::Scope<'s>, done: &'s std::sync::atomic::AtomicBool) {
-    for _ in 1..rayon::current_num_threads() {
-        scope.spawn(move |_| {
-            if OWNED_PREDICTIONS.get() > 0 {
-                return;
-            }
-            while !done.load(std::sync::atomic::Ordering::Acquire) {
-                if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                    std::hint::spin_loop();
-                }
-            }
-        });
-    }
-}
-
-/// A prediction's work on this thread: while it lives the thread counts as
-/// running it, and when it ends, by return or by panic, the workers kept
-/// awake for it are released (`done`).
-struct OwnedPrediction<'a> {
-    done: &'a std::sync::atomic::AtomicBool,
-}
-
-impl<'a> OwnedPrediction<'a> {
-    fn start(done: &'a std::sync::atomic::AtomicBool) -> Self {
-        OWNED_PREDICTIONS.set(OWNED_PREDICTIONS.get() + 1);
-        OwnedPrediction { done }
-    }
-}
-
-impl Drop for OwnedPrediction<'_> {
-    fn drop(&mut self) {
-        OWNED_PREDICTIONS.set(OWNED_PREDICTIONS.get() - 1);
-        self.done.store(true, std::sync::atomic::Ordering::Release);
     }
 }
 
