@@ -326,3 +326,68 @@ fn bad_format_2_crop_or_denoise_records_are_corrupt_checkpoints() {
         );
     }
 }
+
+/// `predict` runs a frame on a worker of the kernels' rayon pool. The
+/// probabilities must not depend on the pool's size, and predictions run
+/// concurrently on one pool must all finish with the same results.
+#[test]
+fn predictions_do_not_depend_on_the_pool_and_run_concurrently() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = checkpoint(dir.path(), "denoised", spec(Crop::Fraction(0.5), true));
+    let clf = std::sync::Arc::new(Classifier::load(&ckpt, &Device::Cpu).unwrap());
+    let frames: Vec<RgbImage> = (0..4u32)
+        .map(|i| {
+            RgbImage::from_fn(128, 96, |x, y| {
+                let v = (x * 7 + y * 13 + i * 31) % 256;
+                Rgb([v as u8, (255 - v) as u8, ((x ^ y) % 256) as u8])
+            })
+        })
+        .collect();
+    let pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    };
+    let alone: Vec<_> = pool(1).install(|| {
+        frames
+            .iter()
+            .map(|f| clf.predict(std::slice::from_ref(f)).unwrap()[0])
+            .collect()
+    });
+    for threads in [2, 3] {
+        let pooled: Vec<_> = pool(threads).install(|| {
+            frames
+                .iter()
+                .map(|f| clf.predict(std::slice::from_ref(f)).unwrap()[0])
+                .collect()
+        });
+        for (a, b) in alone.iter().zip(&pooled) {
+            assert!(max_diff(a, b) < 1e-6, "{threads} threads: {a:?} vs {b:?}");
+        }
+    }
+    // Two predictions at once on a pool of 2, many times; a deadlock
+    // fails the test after a minute instead of hanging it.
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (clf2, frames2) = (clf.clone(), frames.clone());
+    std::thread::spawn(move || {
+        let two = pool(2);
+        for round in 0..40 {
+            let (i, j) = (round % 4, (round + 1) % 4);
+            let (a, b) = two.install(|| {
+                rayon::join(
+                    || clf2.predict(std::slice::from_ref(&frames2[i])).unwrap()[0],
+                    || clf2.predict(std::slice::from_ref(&frames2[j])).unwrap()[0],
+                )
+            });
+            tx.send((i, a, j, b)).unwrap();
+        }
+    });
+    for _ in 0..40 {
+        let (i, a, j, b) = rx
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("two concurrent predictions did not finish within a minute");
+        assert!(max_diff(&a, &alone[i]) < 1e-6, "{a:?} vs {:?}", alone[i]);
+        assert!(max_diff(&b, &alone[j]) < 1e-6, "{b:?} vs {:?}", alone[j]);
+    }
+}
