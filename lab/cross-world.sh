@@ -13,7 +13,8 @@
 # MAIN_OUT is a finished `scripts/main.sh` output (its data/, features/ and
 # model-*/ are reused; a recipe it did not train, such as fc-tuned, is
 # trained here). Variants: fc-no-damping, fc-no-views, fc-plain (no
-# pooled blocks either), fc-no-denoise, fc-crop-fraction (default: the first
+# pooled blocks either), fc-no-denoise, fc-crop-fraction, fc-style-0.6
+# (stronger style views), fc-views-8 (twice the views) (default: the first
 # three). Writes MAIN_OUT/data/test-*, MAIN_OUT/lab/VARIANT and
 # MAIN_OUT/cross-world/summary.md. CONFIG: the main job's render config.
 set -euo pipefail
@@ -29,6 +30,8 @@ declare -A SETS=(
   [fc-plain]="${NO_VIEWS[*]} --set pooled_blocks=[]"
   [fc-no-denoise]="--set reader.denoise=false"
   [fc-crop-fraction]="--set reader.crop={fraction=0.42}"
+  [fc-style-0.6]="--set views.style=0.6"
+  [fc-views-8]="--set views.count=8"
 )
 # The lab's test sets, drawn as the main job draws its own (scripts/main.sh).
 TEST=(--set dataset.seed=3 --set "dataset.sequences_per_pair=${TEST_SEQ:-2}")
