@@ -5,7 +5,10 @@ use candle_core::{Device, Tensor, Var};
 use grasp_model::ops::depthwise::{
     depthwise_conv3x3, depthwise_conv3x3_bias_act, depthwise_conv_bias_act, Padding,
 };
-use grasp_model::ops::pointwise::{im2col, pointwise_conv, pointwise_conv_bias_act};
+use grasp_model::ops::pointwise::{
+    im2col, narrow_kernel_available, pointwise_conv, pointwise_conv_bias_act,
+    pointwise_conv_bias_act_cached, NarrowCache, NARROW_MAX_PIXELS,
+};
 
 fn max_abs_diff(a: &Tensor, b: &Tensor) -> f32 {
     assert_eq!(a.dims(), b.dims());
@@ -200,6 +203,52 @@ fn pointwise_matches_conv2d() {
         let ours = pointwise_conv_bias_act(&x, &k, &b, None, true).unwrap();
         assert!(max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap()) < 1e-4);
     }
+}
+
+/// Layers with a cache run maps of at most 16 pixels through the narrow
+/// kernel on weights packed once (AVX-512 CPUs; elsewhere through `gemm`):
+/// Lite0's last-stage shapes, output channels that fill no whole block of
+/// 16, every pixel-tile width (16, 8, 4, 2, 1), several images.
+#[test]
+fn narrow_pointwise_matches_conv2d() {
+    let cases = [
+        (1, 1152, 320, 4, 4),
+        (2, 37, 40, 3, 3),
+        (3, 16, 17, 1, 1),
+        (1, 8, 5, 3, 5),
+        (2, 64, 48, 2, 2),
+    ];
+    if !narrow_kernel_available() {
+        eprintln!("no AVX-512 on this CPU: the cached path is gemm's, checked the same way");
+    }
+    for &(n, cin, cout, h, w) in &cases {
+        assert!(h * w <= NARROW_MAX_PIXELS);
+        let x = randn(&[n, cin, h, w]);
+        let k = randn(&[cout, cin, 1, 1]);
+        let b = randn(&[cout]);
+        let biased = x
+            .conv2d(&k, 0, 1, 1, 1)
+            .unwrap()
+            .broadcast_add(&b.reshape((1, cout, 1, 1)).unwrap())
+            .unwrap();
+        let residual = randn(&[n, cout, h, w]);
+        let cache = NarrowCache::default();
+        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, Some(&residual), false);
+        let d = max_abs_diff(&ours.unwrap(), &(&biased + &residual).unwrap());
+        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
+        assert_eq!(cache.is_packed(), narrow_kernel_available());
+        // the packed weights are reused by the next call
+        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, None, true).unwrap();
+        let d = max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap());
+        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
+    }
+    // a wider map goes through gemm and packs nothing
+    let (x, k, b) = (randn(&[1, 8, 5, 5]), randn(&[16, 8, 1, 1]), randn(&[16]));
+    let cache = NarrowCache::default();
+    let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, None, false).unwrap();
+    let plain = pointwise_conv_bias_act(&x, &k, &b, None, false).unwrap();
+    assert_eq!(max_abs_diff(&ours, &plain), 0.0);
+    assert!(!cache.is_packed());
 }
 
 /// `x` zero-padded as TensorFlow's SAME padding does for a `k`x`k`,

@@ -35,7 +35,9 @@ use rayon::prelude::*;
 use super::batch_norm::BatchNorm2d;
 use super::mobilenet_v2::make_divisible;
 use crate::ops::depthwise::{depthwise_conv_bias_act, Padding};
-use crate::ops::pointwise::{im2col, pointwise_conv_bias_act};
+use crate::ops::pointwise::{
+    im2col, pointwise_conv_bias_act, pointwise_conv_bias_act_cached, NarrowCache,
+};
 use crate::style::{restyle, ChannelStyle};
 
 /// Batch-norm epsilon of the TensorFlow-trained files.
@@ -210,11 +212,30 @@ impl BlockSpec {
     }
 }
 
-/// A convolution with its batch norm folded in: weight, bias.
+/// A convolution with its batch norm folded in: weight, bias, and for a
+/// 1x1 convolution its weights packed for small maps once first needed.
 #[derive(Debug)]
 struct Folded {
     weight: Tensor,
     bias: Tensor,
+    narrow: NarrowCache,
+}
+
+impl Folded {
+    fn new(weight: Tensor, bias: Tensor) -> Self {
+        let narrow = NarrowCache::default();
+        Folded {
+            weight,
+            bias,
+            narrow,
+        }
+    }
+
+    /// `act(self @ x + bias [+ residual])` for a 1x1 convolution.
+    fn pointwise(&self, x: &Tensor, residual: Option<&Tensor>, relu6: bool) -> Result<Tensor> {
+        let (w, b) = (&self.weight, &self.bias);
+        pointwise_conv_bias_act_cached(x, w, b, &self.narrow, residual, relu6)
+    }
 }
 
 /// Loads convolution `conv` (shape `shape`) and batch norm `bn` and folds them.
@@ -226,12 +247,8 @@ fn conv_bn(vb: &VarBuilder, conv: &str, bn: &str, shape: [usize; 4]) -> Result<F
     };
     let weight = vb.pp(conv).get_with_hints(shape.to_vec(), "weight", init)?;
     let (scale, shift) = BatchNorm2d::new(shape[0], vb.pp(bn))?.fold_with_eps(BN_EPS)?;
-    Ok(Folded {
-        weight: weight
-            .broadcast_mul(&scale.reshape((shape[0], 1, 1, 1))?)?
-            .contiguous()?,
-        bias: shift.contiguous()?,
-    })
+    let weight = weight.broadcast_mul(&scale.reshape((shape[0], 1, 1, 1))?)?;
+    Ok(Folded::new(weight.contiguous()?, shift.contiguous()?))
 }
 
 /// One MBConv block, batch norm folded.
@@ -269,7 +286,7 @@ impl Block {
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let y = match &self.expand {
-            Some(e) => pointwise_conv_bias_act(x, &e.weight, &e.bias, None, true)?,
+            Some(e) => e.pointwise(x, None, true)?,
             None => x.clone(),
         };
         let y = depthwise_conv_bias_act(
@@ -281,13 +298,7 @@ impl Block {
             true,
         )?;
         let residual = self.spec.residual().then_some(x);
-        pointwise_conv_bias_act(
-            &y,
-            &self.project.weight,
-            &self.project.bias,
-            residual,
-            false,
-        )
+        self.project.pointwise(&y, residual, false)
     }
 }
 
@@ -312,10 +323,7 @@ impl EfficientNetLite {
         cfg.validate()?;
         let stem_c = cfg.stem_channels;
         let stem = conv_bn(&vb, "_conv_stem", "_bn0", [stem_c, 3, 3, 3])?;
-        let stem = Folded {
-            weight: stem.weight.reshape((stem_c, 27))?,
-            bias: stem.bias,
-        };
+        let stem = Folded::new(stem.weight.reshape((stem_c, 27))?, stem.bias);
         let blocks = cfg
             .block_specs()
             .into_iter()
@@ -443,7 +451,7 @@ impl EfficientNetLite {
                 parts.push(pool(&y)?);
             }
         }
-        let map = pointwise_conv_bias_act(&y, &self.head.weight, &self.head.bias, None, true)?;
+        let map = self.head.pointwise(&y, None, true)?;
         head_then_blocks(pool(&map)?, parts)
     }
 
@@ -513,10 +521,7 @@ impl EfficientNetLite {
         let folded = |name: &str, like: &Folded| -> Result<Folded> {
             let weight = vb.get(like.weight.shape(), &format!("{name}.weight"))?;
             let bias = vb.get(like.bias.shape(), &format!("{name}.bias"))?;
-            Ok(Folded {
-                weight: weight.contiguous()?,
-                bias: bias.contiguous()?,
-            })
+            Ok(Folded::new(weight.contiguous()?, bias.contiguous()?))
         };
         for (i, b) in self.blocks.iter_mut().enumerate().skip(from) {
             if let Some(e) = &b.expand {

@@ -6,6 +6,19 @@
 //!   on column tiles of each image (parallel over images and tiles on
 //!   candle's rayon pool) and applies the bias, the optional residual and
 //!   the optional ReLU6 while the tile is still in cache.
+//! - [`pointwise_conv_bias_act_cached`]: the same, with the layer's
+//!   [`NarrowCache`], so that maps of at most 16 pixels run the `narrow`
+//!   kernel on weights packed once.
+
+mod narrow;
+
+pub use narrow::{NarrowCache, MAX_PIXELS as NARROW_MAX_PIXELS};
+
+/// Whether this CPU runs the narrow kernel (AVX-512); without it every map
+/// goes through `gemm`.
+pub fn narrow_kernel_available() -> bool {
+    narrow::available()
+}
 
 use super::cpu::{alloc_uninit, par_chunks, simd_dispatch};
 use super::depthwise::Padding;
@@ -99,17 +112,44 @@ pub fn pointwise_conv_bias_act(
     residual: Option<&Tensor>,
     relu6: bool,
 ) -> Result<Tensor> {
+    run_op(x, weight, bias, None, residual, relu6)
+}
+
+/// [`pointwise_conv_bias_act`] for a layer that keeps its packed weights in
+/// `cache` (one cache per weight tensor): maps of at most 16 pixels then
+/// skip `gemm` on CPUs with AVX-512.
+pub fn pointwise_conv_bias_act_cached(
+    x: &Tensor,
+    weight: &Tensor,
+    bias: &Tensor,
+    cache: &NarrowCache,
+    residual: Option<&Tensor>,
+    relu6: bool,
+) -> Result<Tensor> {
+    run_op(x, weight, bias, Some(cache), residual, relu6)
+}
+
+fn run_op(
+    x: &Tensor,
+    weight: &Tensor,
+    bias: &Tensor,
+    narrow: Option<&NarrowCache>,
+    residual: Option<&Tensor>,
+    relu6: bool,
+) -> Result<Tensor> {
     let op = PointwiseBiasAct {
         relu6,
         residual: residual.map(|r| r.contiguous()).transpose()?,
+        narrow,
     };
     x.contiguous()?
         .apply_op3_no_bwd(&weight.contiguous()?, &bias.contiguous()?, &op)
 }
 
-struct PointwiseBiasAct {
+struct PointwiseBiasAct<'a> {
     relu6: bool,
     residual: Option<Tensor>,
+    narrow: Option<&'a NarrowCache>,
 }
 
 fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
@@ -130,7 +170,7 @@ impl SendPtr {
     }
 }
 
-impl CustomOp3 for PointwiseBiasAct {
+impl CustomOp3 for PointwiseBiasAct<'_> {
     fn name(&self) -> &'static str {
         "pointwise-bias-act"
     }
@@ -173,8 +213,25 @@ impl CustomOp3 for PointwiseBiasAct {
             None => None,
         };
         let hw = h * w;
-        // every element is written by run_tile
+        // every element is written by run_tile or narrow::run_block
         let mut out = alloc_uninit(n * cout * hw);
+        let packed = self
+            .narrow
+            .filter(|_| hw <= narrow::MAX_PIXELS)
+            .and_then(|cache| cache.packed(wt, cout, cin));
+        if let Some(packed) = packed {
+            let layer = NarrowLayer {
+                x,
+                bias,
+                residual,
+                cin,
+                cout,
+                hw,
+                relu6: self.relu6,
+            };
+            layer.run(packed, n, &mut out);
+            return Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))));
+        }
         let plan = Tiling::new(n, cout, hw);
         let ptr = SendPtr(out.as_mut_ptr());
         (0..plan.jobs()).into_par_iter().for_each(|job| {
@@ -199,6 +256,43 @@ impl CustomOp3 for PointwiseBiasAct {
             }
         });
         Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))))
+    }
+}
+
+/// A layer's operands for the narrow kernel.
+struct NarrowLayer<'a> {
+    x: &'a [f32],
+    bias: &'a [f32],
+    residual: Option<&'a [f32]>,
+    cin: usize,
+    cout: usize,
+    hw: usize,
+    relu6: bool,
+}
+
+impl NarrowLayer<'_> {
+    /// Every image's output, one job per block of 16 output channels.
+    fn run(&self, packed: &narrow::Packed, n: usize, out: &mut [f32]) {
+        const BLOCK: usize = 16;
+        let (cout, hw) = (self.cout, self.hw);
+        let blocks = cout.div_ceil(BLOCK);
+        let ptr = SendPtr(out.as_mut_ptr());
+        (0..n * blocks).into_par_iter().for_each(|job| {
+            let (img, b) = (job / blocks, job % blocks);
+            let rows = b * BLOCK..((b + 1) * BLOCK).min(cout);
+            let at = img * cout * hw + rows.start * hw;
+            let len = rows.len() * hw;
+            let args = narrow::BlockArgs {
+                x: &self.x[img * self.cin * hw..(img + 1) * self.cin * hw],
+                bias: &self.bias[rows],
+                residual: self.residual.map(|r| &r[at..at + len]),
+                hw,
+                relu6: self.relu6,
+            };
+            // SAFETY: each job owns its image's block of rows, in bounds.
+            let dst = unsafe { std::slice::from_raw_parts_mut(ptr.at(at), len) };
+            narrow::run_block(packed, b, &args, dst);
+        });
     }
 }
 
