@@ -14,6 +14,7 @@
 pub mod denoise;
 mod lens;
 pub mod preprocess;
+mod resize;
 
 pub use lens::{parse_size, Lens, FOV_RANGE_DEG};
 

@@ -8,7 +8,6 @@
 //! its backbone's [`Preprocess`] and inference applies exactly that.
 
 use candle_core::{Device, Result, Tensor};
-use image::imageops::FilterType;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
@@ -30,13 +29,6 @@ pub enum ResizeFilter {
 }
 
 impl ResizeFilter {
-    fn filter_type(self) -> FilterType {
-        match self {
-            ResizeFilter::Bilinear => FilterType::Triangle,
-            ResizeFilter::Bicubic => FilterType::CatmullRom,
-        }
-    }
-
     fn is_bilinear(&self) -> bool {
         *self == ResizeFilter::Bilinear
     }
@@ -98,11 +90,11 @@ impl Preprocess {
         if img.dimensions() == (self.size, self.size) {
             std::borrow::Cow::Borrowed(img)
         } else {
-            std::borrow::Cow::Owned(image::imageops::resize(
+            std::borrow::Cow::Owned(super::resize::resize(
                 img,
                 self.size,
                 self.size,
-                self.resize.filter_type(),
+                self.resize,
             ))
         }
     }

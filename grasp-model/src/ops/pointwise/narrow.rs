@@ -11,8 +11,9 @@
 //! output is summed over the input channels in order, as `gemm` sums it up
 //! to rounding. Only for CPUs with AVX-512: elsewhere the caller uses
 //! `gemm`, and wider maps stay there too (from 64 pixels `gemm` is faster).
-//! f16 weights were measured as well: 3 % faster than these, the kernel
-//! is not bound by the weights' bytes, so they stay f32 (BENCHMARKS.md).
+//! f16 weights were measured too: 3 % faster on these layers alone, no
+//! faster in the frame; the kernel is not bound by the weights' bytes, so
+//! they stay f32 (BENCHMARKS.md).
 
 use std::sync::OnceLock;
 
