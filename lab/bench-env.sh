@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Creates .venv-bench: the PyTorch environment of the parity-fixture scripts
 # and the PyTorch side of the benchmarks (scripts/make_*_fixture.py,
-# lab/bench_torch*.py, lab/bench_heads_pairs.py). It is separate from
+# lab/bench_torch*.py, lab/bench_heads_pairs.py, lab/bench_pipeline.py). It is separate from
 # .venv (which setup.sh builds for Blender) because torch is large and only
 # developers regenerating fixtures or re-running benchmarks need it; CI does
 # not. Idempotent; prints the environment's python path on the last line.
