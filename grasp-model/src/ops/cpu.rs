@@ -45,6 +45,18 @@ macro_rules! simd_dispatch {
 use rayon::prelude::*;
 pub(crate) use simd_dispatch;
 
+/// Whether this CPU has AVX-512 (the kernels written for it alone).
+pub(crate) fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// The contiguous f32 data of one operand of kernel `op`; errors name the
 /// kernel and the operand (`what`).
 pub(crate) fn f32_slice<'a>(

@@ -330,8 +330,18 @@ fn conv_plane(
 }
 }
 
-/// Forward over all planes, in parallel.
+/// Forward: small planes with the channels along the vector (`small`),
+/// the rest plane by plane.
 fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
+    #[cfg(target_arch = "x86_64")]
+    if small::applies(g) {
+        return small::forward(g, x, w, bias, relu6);
+    }
+    forward_planes(g, x, w, bias, relu6)
+}
+
+/// Forward over all planes, in parallel.
+fn forward_planes(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
     let taps = g.k * g.k;
     // every element is written by conv_plane
     let mut out = alloc_uninit(g.n * g.c * g.out_plane());
@@ -602,5 +612,7 @@ pub fn depthwise_conv_bias_act(
     )
 }
 
+#[cfg(target_arch = "x86_64")]
+mod small;
 #[cfg(test)]
 mod tests;

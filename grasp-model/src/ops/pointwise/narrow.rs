@@ -81,14 +81,7 @@ impl NarrowCache {
 
 /// Whether this CPU runs the kernel.
 pub(super) fn available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    crate::ops::cpu::has_avx512()
 }
 
 /// One output block's operands: 16 (or fewer, in the last block) output
