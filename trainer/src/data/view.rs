@@ -46,8 +46,6 @@ pub struct ViewConfig {
     /// The blocks restyled (EfficientNet-Lite's block indices; the default
     /// ends Lite0's stages 1, 2 and 3).
     pub style_blocks: Vec<usize>,
-    /// Chance that a view is mirrored left to right (0: never).
-    pub mirror: f64,
 }
 
 /// Style views' blocks by default: the ends of Lite0's 24-, 40- and
@@ -68,7 +66,6 @@ impl Default for ViewConfig {
             blur_px: [0.0, 0.0],
             style: 0.0,
             style_blocks: DEFAULT_STYLE_BLOCKS.to_vec(),
-            mirror: 0.0,
         }
     }
 }
@@ -117,11 +114,6 @@ impl ViewConfig {
                 format!("views.style must be in [0, {MAX_STYLE}], got {}", self.style),
             ),
             (
-                self.mirror.is_finite() && (0.0..=1.0).contains(&self.mirror),
-                "views.mirror",
-                format!("views.mirror must be in [0, 1], got {}", self.mirror),
-            ),
-            (
                 self.style == 0.0 || !self.style_blocks.is_empty(),
                 "views.style_blocks",
                 format!(
@@ -147,9 +139,6 @@ pub struct ViewJitter {
     pub brightness: f32,
     pub contrast: f32,
     pub saturation: f32,
-    /// Mirrored left to right (absent from the records of views before it).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub mirror: bool,
 }
 
 impl ViewJitter {
@@ -160,16 +149,12 @@ impl ViewJitter {
         let shift = [within(cfg.shift), within(cfg.shift)];
         let c = f64::from(cfg.color);
         let mut factor = || 1.0 + within(c) as f32;
-        let (brightness, contrast, saturation) = (factor(), factor(), factor());
-        // drawn last, and only when on: views without it stay as they were
-        let mirror = cfg.mirror > 0.0 && rng.gen_bool(cfg.mirror);
         ViewJitter {
             scale,
             shift,
-            brightness,
-            contrast,
-            saturation,
-            mirror,
+            brightness: factor(),
+            contrast: factor(),
+            saturation: factor(),
         }
     }
 
@@ -197,9 +182,6 @@ impl ViewJitter {
         let s = side as u32;
         let mut out = imageops::crop_imm(img, x, y, s, s).to_image();
         jitter(&mut out, self.brightness, self.contrast, self.saturation);
-        if self.mirror {
-            imageops::flip_horizontal_in_place(&mut out);
-        }
         out
     }
 }
@@ -249,7 +231,6 @@ mod tests {
             brightness: 1.0,
             contrast: 1.0,
             saturation: 1.0,
-            mirror: false,
         }
     }
 
@@ -263,39 +244,6 @@ mod tests {
         let out = plain().apply(&img, Some(0.5), None);
         assert_eq!(out, crate::data::images::center_crop(&img, 0.5));
         assert_eq!(plain().apply(&img, None, None).dimensions(), (80, 80));
-    }
-
-    #[test]
-    fn a_mirrored_view_is_the_crop_flipped_and_views_without_it_keep_their_draws() {
-        let img = ramp(100, 80);
-        let m = ViewJitter {
-            mirror: true,
-            ..plain()
-        };
-        let out = m.apply(&img, Some(0.5), None);
-        assert_eq!(
-            out,
-            imageops::flip_horizontal(&plain().apply(&img, Some(0.5), None))
-        );
-        // off: no draw is spent on it, and its record has no `mirror` key
-        let cfg = ViewConfig::default();
-        let draw = |cfg: &ViewConfig| ViewJitter::draw(cfg, &mut crate::rng::stream(3, "v"));
-        let off = draw(&cfg);
-        assert!(!serde_json::to_string(&off).unwrap().contains("mirror"));
-        let always = ViewConfig {
-            mirror: 1.0,
-            ..cfg.clone()
-        };
-        let on = draw(&always);
-        assert!(on.mirror);
-        assert_eq!(
-            ViewJitter {
-                mirror: false,
-                ..on
-            },
-            off
-        );
-        assert!(ViewConfig { mirror: 1.5, ..cfg }.validate().is_err());
     }
 
     #[test]
