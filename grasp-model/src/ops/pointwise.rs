@@ -220,7 +220,7 @@ impl CustomOp3 for PointwiseBiasAct<'_> {
             .filter(|_| hw <= narrow::MAX_PIXELS)
             .and_then(|cache| cache.packed(wt, cout, cin));
         if let Some(packed) = packed {
-            let layer = NarrowLayer {
+            let layer = narrow::Layer {
                 x,
                 bias,
                 residual,
@@ -229,7 +229,7 @@ impl CustomOp3 for PointwiseBiasAct<'_> {
                 hw,
                 relu6: self.relu6,
             };
-            layer.run(packed, n, &mut out);
+            narrow::run(packed, &layer, n, &mut out);
             return Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))));
         }
         let plan = Tiling::new(n, cout, hw);
@@ -256,43 +256,6 @@ impl CustomOp3 for PointwiseBiasAct<'_> {
             }
         });
         Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))))
-    }
-}
-
-/// A layer's operands for the narrow kernel.
-struct NarrowLayer<'a> {
-    x: &'a [f32],
-    bias: &'a [f32],
-    residual: Option<&'a [f32]>,
-    cin: usize,
-    cout: usize,
-    hw: usize,
-    relu6: bool,
-}
-
-impl NarrowLayer<'_> {
-    /// Every image's output, one job per block of 16 output channels.
-    fn run(&self, packed: &narrow::Packed, n: usize, out: &mut [f32]) {
-        const BLOCK: usize = 16;
-        let (cout, hw) = (self.cout, self.hw);
-        let blocks = cout.div_ceil(BLOCK);
-        let ptr = SendPtr(out.as_mut_ptr());
-        (0..n * blocks).into_par_iter().for_each(|job| {
-            let (img, b) = (job / blocks, job % blocks);
-            let rows = b * BLOCK..((b + 1) * BLOCK).min(cout);
-            let at = img * cout * hw + rows.start * hw;
-            let len = rows.len() * hw;
-            let args = narrow::BlockArgs {
-                x: &self.x[img * self.cin * hw..(img + 1) * self.cin * hw],
-                bias: &self.bias[rows],
-                residual: self.residual.map(|r| &r[at..at + len]),
-                hw,
-                relu6: self.relu6,
-            };
-            // SAFETY: each job owns its image's block of rows, in bounds.
-            let dst = unsafe { std::slice::from_raw_parts_mut(ptr.at(at), len) };
-            narrow::run_block(packed, b, &args, dst);
-        });
     }
 }
 

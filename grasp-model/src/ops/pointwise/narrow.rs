@@ -84,21 +84,57 @@ pub(super) fn available() -> bool {
     crate::ops::cpu::has_avx512()
 }
 
-/// One output block's operands: 16 (or fewer, in the last block) output
-/// channels of one image.
-pub(super) struct BlockArgs<'a> {
-    /// The image's input, `cin x hw`.
+/// A layer's operands: the input, bias and residual of every image.
+pub(super) struct Layer<'a> {
     pub x: &'a [f32],
-    /// The block's bias and residual rows (`rows x hw`), if any.
     pub bias: &'a [f32],
     pub residual: Option<&'a [f32]>,
+    pub cin: usize,
+    pub cout: usize,
     pub hw: usize,
     pub relu6: bool,
 }
 
+/// Every image's output `out` (N, cout, hw), one job per block of 16
+/// output channels, on candle's rayon pool.
+pub(super) fn run(packed: &Packed, layer: &Layer, n: usize, out: &mut [f32]) {
+    use rayon::prelude::*;
+    let (cout, hw) = (layer.cout, layer.hw);
+    let blocks = cout.div_ceil(LANES);
+    let ptr = super::SendPtr(out.as_mut_ptr());
+    (0..n * blocks).into_par_iter().for_each(|job| {
+        let (img, b) = (job / blocks, job % blocks);
+        let rows = b * LANES..((b + 1) * LANES).min(cout);
+        let at = img * cout * hw + rows.start * hw;
+        let len = rows.len() * hw;
+        let args = BlockArgs {
+            x: &layer.x[img * layer.cin * hw..(img + 1) * layer.cin * hw],
+            bias: &layer.bias[rows],
+            residual: layer.residual.map(|r| &r[at..at + len]),
+            hw,
+            relu6: layer.relu6,
+        };
+        // SAFETY: each job owns its image's block of rows, in bounds.
+        let dst = unsafe { std::slice::from_raw_parts_mut(ptr.at(at), len) };
+        run_block(packed, b, &args, dst);
+    });
+}
+
+/// One output block's operands: 16 (or fewer, in the last block) output
+/// channels of one image.
+struct BlockArgs<'a> {
+    /// The image's input, `cin x hw`.
+    x: &'a [f32],
+    /// The block's bias and residual rows (`rows x hw`), if any.
+    bias: &'a [f32],
+    residual: Option<&'a [f32]>,
+    hw: usize,
+    relu6: bool,
+}
+
 /// Writes `out` (the block's `rows x hw` outputs, rows = `args.bias.len()`)
 /// for block `b` of `packed`.
-pub(super) fn run_block(packed: &Packed, b: usize, args: &BlockArgs, out: &mut [f32]) {
+fn run_block(packed: &Packed, b: usize, args: &BlockArgs, out: &mut [f32]) {
     assert!(available(), "narrow pointwise kernel without AVX-512");
     let rows = args.bias.len();
     assert!(args.hw <= MAX_PIXELS && rows <= LANES && out.len() == rows * args.hw);
