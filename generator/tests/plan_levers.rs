@@ -603,6 +603,66 @@ fn objects_keep_the_catalog_size_and_the_deleted_resize_lever_is_refused() {
     assert!(e.contains("object_scale"), "{e}");
 }
 
+/// `[randomize.proportions]` stretches the object along its frame's axes
+/// with their product 1: the plan records the factors, the stretched
+/// object rests on the table, and the target lies on an end face of the
+/// catalog's part box once carried back into the catalog's frame. Off (the
+/// default) nothing is stretched or recorded.
+#[test]
+fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
+    let mut c = GeneratorConfig::default();
+    c.randomize.proportions.enabled = true;
+    c.randomize.proportions.spread = 0.3;
+    let planner = carton_planner(&c, 1.0);
+    let geo = planner.object("test_carton").unwrap();
+    let table = c.plan.scene.table_height;
+    let drawn = plans(&c, &[Condition::Default, Condition::UnseenLook], 6);
+    for p in &drawn {
+        let s = Vector3::from(p.object.proportions);
+        assert_eq!(p.object.scale, 1.0);
+        assert!((s.product() - 1.0).abs() < 1e-12, "{}: {s:?}", p.key.id());
+        assert!(s.iter().all(|f| (1.0 / 1.3 / 1.3..=1.3 * 1.3).contains(f)));
+        let recorded: Vec<f64> = serde_json::from_value(p.sampled["proportions"].clone()).unwrap();
+        assert_eq!(recorded, s.as_slice());
+        // The stretched object rests on the table top.
+        let q = generator::plan::wrist::from_wxyz(p.object.pose.rotation_wxyz);
+        let z = p.object.pose.position[2];
+        let lowest = if p.object.upside_down {
+            -geo.z_range[1] * s.z
+        } else {
+            geo.z_range[0] * s.z
+        };
+        assert!((z - (table - lowest)).abs() < 1e-9, "{}", p.key.id());
+        // The target lies on an end face of the catalog's part box (the
+        // carton's boxes are the frame's), once carried back.
+        let t = Vector3::from(p.target) - Vector3::from(p.object.pose.position);
+        let local = q.inverse_transform_vector(&t).component_div(&s);
+        let b = &geo.boxes[p.part_index];
+        let in_box = b.rotation.inverse_transform_vector(&(local - b.center));
+        assert!(
+            (in_box.z.abs() - b.half.z).abs() < 1e-9,
+            "{}: {in_box:?}",
+            p.key.id()
+        );
+        assert!(in_box.x.abs() <= b.half.x + 1e-9 && in_box.y.abs() <= b.half.y + 1e-9);
+    }
+    let x: Vec<f64> = drawn.iter().map(|p| p.object.proportions[0]).collect();
+    let [low, high] = range(x.iter().copied());
+    assert!(high - low > 0.1, "{x:?}");
+    for p in plans(&GeneratorConfig::default(), &[Condition::Default], 4) {
+        assert_eq!(p.object.axis_scale(), [1.0; 3]);
+        assert!(!p.sampled.contains_key("proportions"));
+    }
+    refused(
+        |c| c.randomize.proportions.spread = 1.5,
+        "[randomize.proportions] spread",
+    );
+    refused(
+        |c| c.randomize.proportions.spread = f64::NAN,
+        "[randomize.proportions] spread",
+    );
+}
+
 /// A held-out test world (`[dataset] held_out`, configs/test-world-reach.toml)
 /// is recorded in every plan, so training can refuse it; without one the
 /// plans carry no such key, and the mark changes no other value.

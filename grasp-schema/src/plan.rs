@@ -251,10 +251,32 @@ pub struct ObjectPlacement {
     /// `pose` places the object.
     #[serde(default = "unit_scale")]
     pub scale: f64,
+    /// Per-axis factors of the object frame's X, Y, Z on top of `scale`
+    /// (`[randomize.proportions]`: the object's proportions, its size kept,
+    /// their product 1); absent means [1, 1, 1].
+    #[serde(default = "unit_proportions", skip_serializing_if = "is_unit")]
+    pub proportions: [f64; 3],
 }
 
 fn unit_scale() -> f64 {
     1.0
+}
+
+fn unit_proportions() -> [f64; 3] {
+    [1.0; 3]
+}
+
+fn is_unit(p: &[f64; 3]) -> bool {
+    *p == [1.0; 3]
+}
+
+impl ObjectPlacement {
+    /// The factor each axis of the catalog's object frame is scaled by:
+    /// `scale` times `proportions`. Blender, the part labels and the
+    /// planner's geometry all read this one rule.
+    pub fn axis_scale(&self) -> [f64; 3] {
+        self.proportions.map(|p| p * self.scale)
+    }
 }
 
 /// An object on the table that is not the target: it never holds the
@@ -410,6 +432,7 @@ mod tests {
                 upside_down: false,
                 on_table_border: false,
                 scale: 1.0,
+                proportions: [1.0; 3],
             },
             target: [0.0, 0.0, 0.0],
             other_end: [0.0, 0.0, 0.0],

@@ -263,9 +263,9 @@ fn draw_object(c: &mut Canvas, view: &View, planner: &Planner, plan: &SequencePl
     };
     let q = wrist::from_wxyz(plan.object.pose.rotation_wxyz);
     let t = Vector3::from(plan.object.pose.position);
-    let scale = plan.object.scale;
+    let scale = Vector3::from(plan.object.axis_scale());
     for tri in &geo.outline {
-        let [a, b, d] = tri.map(|v| view.px(&(q * (v * scale) + t)));
+        let [a, b, d] = tri.map(|v| view.px(&(q * v.component_mul(&scale) + t)));
         c.triangle(a, b, d, OBJECT);
     }
 }

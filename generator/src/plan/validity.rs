@@ -58,6 +58,44 @@ impl RayCaster for crate::geometry::MeshQuery {
     }
 }
 
+/// Ray casts against a mesh stretched about its frame's origin by `scale`
+/// along X, Y, Z, through the unstretched mesh's caster: a ray's origin
+/// and direction shrink by the scale, the direction is made unit again, and
+/// the hit distance is divided by the length the unit direction shrank to.
+pub struct ScaledCaster {
+    inner: std::rc::Rc<dyn RayCaster>,
+    scale: Vector3<f64>,
+}
+
+impl ScaledCaster {
+    pub fn new(inner: std::rc::Rc<dyn RayCaster>, scale: Vector3<f64>) -> ScaledCaster {
+        ScaledCaster { inner, scale }
+    }
+}
+
+impl RayCaster for ScaledCaster {
+    fn first_hits(
+        &self,
+        origins: &[[f64; 3]],
+        directions: &[[f64; 3]],
+    ) -> Result<Vec<Option<f64>>> {
+        let shrink = |v: &[f64; 3]| Vector3::from(*v).component_div(&self.scale);
+        let shrunk: Vec<[f64; 3]> = origins.iter().map(|o| shrink(o).into()).collect();
+        let lengths: Vec<f64> = directions.iter().map(|d| shrink(d).norm()).collect();
+        let units: Vec<[f64; 3]> = directions
+            .iter()
+            .zip(&lengths)
+            .map(|(d, l)| (shrink(d) / *l).into())
+            .collect();
+        let hits = self.inner.first_hits(&shrunk, &units)?;
+        Ok(hits
+            .into_iter()
+            .zip(lengths)
+            .map(|(h, l)| h.map(|t| t / l))
+            .collect())
+    }
+}
+
 /// An oriented box: centre, rotation (frame-from-box) and half extents.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Obb {
@@ -76,6 +114,28 @@ impl Obb {
     }
 
     /// Euclidean distance from a point to the box (0 inside).
+    /// The box stretched about the frame's origin by `scale` along X, Y, Z.
+    /// A box whose axes are the frame's (every built-in part but two) stays
+    /// exact; a tilted one becomes the box along its stretched axes, made
+    /// orthogonal again (a parallelogram's nearest box, close for the
+    /// lever's few per cent).
+    pub fn stretched(&self, scale: &Vector3<f64>) -> Obb {
+        let axes = self.rotation.to_rotation_matrix().into_inner();
+        let mut stretched = axes;
+        let mut half = self.half;
+        for i in 0..3 {
+            let column = axes.column(i).component_mul(scale);
+            half[i] *= column.norm();
+            stretched.set_column(i, &column);
+        }
+        let rotation = UnitQuaternion::from_matrix_eps(&stretched, 1e-12, 100, self.rotation);
+        Obb {
+            center: self.center.component_mul(scale),
+            rotation,
+            half,
+        }
+    }
+
     pub fn distance(&self, p: &Vector3<f64>) -> f64 {
         let l = self.rotation.inverse_transform_vector(&(p - self.center));
         let d = l.abs() - self.half;
@@ -342,6 +402,77 @@ mod tests {
             rotation: UnitQuaternion::identity(),
             half: Vector3::repeat(h),
         }
+    }
+
+    /// A unit cube on the origin's XY plane stretched by (2, 1, 0.5) is the
+    /// box of half extents (1, 0.5, 0.25) centred at z = 0.25: the stretched
+    /// caster must hit it where that box's own caster does, along tilted
+    /// rays too (whose distances change by the stretch unevenly).
+    #[test]
+    fn a_scaled_caster_hits_the_stretched_mesh() {
+        let unit = std::rc::Rc::new(BoxMesh(cube([0.0, 0.0, 0.5], 0.5)));
+        let scale = Vector3::new(2.0, 1.0, 0.5);
+        let stretched = ScaledCaster::new(unit.clone(), scale);
+        let want_box = cube([0.0, 0.0, 0.5], 0.5).stretched(&scale);
+        assert!((want_box.half - Vector3::new(1.0, 0.5, 0.25)).norm() < 1e-12);
+        assert!((want_box.center - Vector3::new(0.0, 0.0, 0.25)).norm() < 1e-12);
+        let big = BoxMesh(want_box);
+        let tilted = Vector3::new(1.0, 0.3, -0.2).normalize();
+        let origins = [
+            [-5.0, 0.0, 0.2],
+            [0.0, 0.0, 1.0],
+            [3.0, 3.0, 3.0],
+            [0.5, 0.2, 9.0],
+            [-4.0, -1.0, 0.9],
+        ];
+        let directions = [
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, -1.0],
+            tilted.into(),
+        ];
+        let want = big.first_hits(&origins, &directions).unwrap();
+        let got = stretched.first_hits(&origins, &directions).unwrap();
+        assert_eq!(want.iter().filter(|h| h.is_some()).count(), 3);
+        for (g, w) in got.iter().zip(&want) {
+            match (g, w) {
+                // BoxMesh casts 1e6 m segments: distances are good to about 1e-9.
+                (Some(g), Some(w)) => assert!((g - w).abs() < 1e-6, "{g} against {w}"),
+                (None, None) => {}
+                _ => panic!("{got:?} against {want:?}"),
+            }
+        }
+        // A uniform stretch is a plain resize: distances scale with it.
+        let doubled = ScaledCaster::new(unit, Vector3::repeat(2.0));
+        let hit = doubled
+            .first_hits(&[[-5.0, 0.0, 1.0]], &[[1.0, 0.0, 0.0]])
+            .unwrap();
+        assert!((hit[0].unwrap() - 4.0).abs() < 1e-6, "{hit:?}");
+    }
+
+    /// A tilted box stretched along the frame's axes keeps its centre
+    /// mapped exactly and stays a rotation with positive extents; an
+    /// axis-aligned one is stretched exactly.
+    #[test]
+    fn a_stretched_box() {
+        let tilted = Obb {
+            center: Vector3::new(0.1, -0.2, 0.3),
+            rotation: UnitQuaternion::from_euler_angles(0.3, -0.2, 0.7),
+            half: Vector3::new(0.01, 0.02, 0.03),
+        };
+        let scale = Vector3::new(1.1, 0.95, 0.96);
+        let s = tilted.stretched(&scale);
+        assert!((s.center - Vector3::new(0.11, -0.19, 0.288)).norm() < 1e-12);
+        assert!(s.half.iter().all(|&h| h > 0.0));
+        // Each stretched axis is within the stretch of the original one.
+        for i in 0..3 {
+            let ratio = s.half[i] / tilted.half[i];
+            assert!((0.95..=1.1).contains(&ratio), "axis {i}: {ratio}");
+        }
+        let aligned = cube([0.0, 0.0, 0.0], 1.0).stretched(&scale);
+        assert!((aligned.half - scale).norm() < 1e-12);
+        assert!(aligned.rotation.angle() < 1e-9);
     }
 
     #[test]

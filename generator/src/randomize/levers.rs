@@ -25,6 +25,7 @@ pub struct RandomizeConfig {
     pub world_light: WorldLightLever,
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
+    pub proportions: ProportionsLever,
     pub standoff: StandoffLever,
     pub aim: AimLever,
     pub approach_ends: ApproachEndsLever,
@@ -43,6 +44,7 @@ impl Default for RandomizeConfig {
             world_light: Default::default(),
             object_color: Default::default(),
             distractors: Default::default(),
+            proportions: Default::default(),
             standoff: Default::default(),
             aim: Default::default(),
             approach_ends: Default::default(),
@@ -240,6 +242,29 @@ impl Default for DistractorLever {
     }
 }
 
+/// The object's proportions: its mesh and part boxes stretched along the
+/// object frame's X, Y and Z by factors whose product is 1, so that a
+/// family's real members (a taller mug, a slimmer bottle) are not all one
+/// model while its size still says what it is. Each axis draws a log-factor
+/// in +-ln(1 + `spread`), then the three are centred. The plan, its
+/// validity checks and the part labels use the stretched object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ProportionsLever {
+    pub enabled: bool,
+    /// How far one axis may stretch before centring (0.15: x 0.87-1.15).
+    pub spread: f64,
+}
+
+impl Default for ProportionsLever {
+    fn default() -> Self {
+        ProportionsLever {
+            enabled: false,
+            spread: 0.15,
+        }
+    }
+}
+
 /// The standoff (`plan.trajectory.standoff_m`) times a factor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -312,6 +337,7 @@ impl RandomizeConfig {
             r.world_light.enabled = false;
             r.object_color.enabled = false;
             r.distractors.enabled = false;
+            r.proportions.enabled = false;
             r.standoff.enabled = false;
             r.aim.enabled = false;
             r.approach_ends.enabled = false;

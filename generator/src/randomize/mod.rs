@@ -15,6 +15,7 @@
 //! | `world_light` | a bundled studio-light HDRI, rotation, strength | Blender world |
 //! | `object_color` | the object's colour within its plausible range | object material |
 //! | `distractors` | primitives on the table, clear of the target and the reach | plan, Blender |
+//! | `proportions` | the object's proportions (mesh and part boxes, per axis, size kept) | plan, Blender, part labels |
 //! | `standoff` | where the approach stops short of the target | plan |
 //! | `aim` | the aim point within the target part's end face | plan |
 //! | `approach_ends` | both ends of the part's approach axis, balanced | plan |

@@ -16,6 +16,20 @@ fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     uniform(rng, [lo.max(1e-12).ln(), hi.max(1e-12).ln()]).exp()
 }
 
+/// A sequence's object proportions ([1, 1, 1] with the lever off): three
+/// log-uniform factors, centred so that their product is 1.
+pub fn proportions(levers: &RandomizeConfig, stream: u64) -> [f64; 3] {
+    let lever = &levers.proportions;
+    if !lever.enabled {
+        return [1.0; 3];
+    }
+    let mut rng = lever_rng(stream, "proportions");
+    let reach = (1.0 + lever.spread).ln();
+    let logs: [f64; 3] = std::array::from_fn(|_| uniform(&mut rng, [-reach, reach]));
+    let mean = logs.iter().sum::<f64>() / 3.0;
+    logs.map(|l| (l - mean).exp())
+}
+
 /// A sequence's camera intrinsics: the preset's lens scaled by the drawn
 /// field-of-view factor, with the principal point moved. Returns the
 /// intrinsics and the drawn factor and shift (fractions of the image size).

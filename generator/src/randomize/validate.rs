@@ -108,6 +108,13 @@ impl RandomizeConfig {
                 "must be >= 0 and attempts >= 1",
             ));
         }
+        let spread = self.proportions.spread;
+        if !(spread.is_finite() && (0.0..=1.0).contains(&spread)) {
+            return Err(ConfigError::invalid(
+                "[randomize.proportions] spread",
+                format!("must be in [0, 1], got {spread}"),
+            ));
+        }
         check_range("[randomize.standoff] scale", self.standoff.scale, 0.0, 10.0)?;
         let a = self.aim.fraction;
         if !(0.0..=1.0).contains(&a) {

@@ -134,20 +134,22 @@ impl PartLabeler {
     }
 
     /// One label per pixel, row-major from the top row. `object` places the
-    /// catalog's object scaled by `scale` (`ObjectPlacement::scale`).
+    /// catalog's object scaled along its frame's axes by `scale`
+    /// (`ObjectPlacement::axis_scale`).
     pub fn label(
         &self,
         buffers: &FrameBuffers,
         k: &CameraIntrinsics,
         camera: &Pose,
         object: &Pose,
-        scale: f64,
+        scale: [f64; 3],
     ) -> Result<Vec<u8>> {
-        if !(scale.is_finite() && scale > 0.0) {
+        if !scale.iter().all(|s| s.is_finite() && *s > 0.0) {
             return Err(RenderError::Labels(format!(
-                "the object scale {scale} is not a positive number"
+                "the object scale {scale:?} is not positive on every axis"
             )));
         }
+        let scale = Vector3::from(scale);
         if (buffers.width, buffers.height) != (k.width as usize, k.height as usize) {
             return Err(RenderError::Labels(format!(
                 "the depth image is {}x{} but the intrinsics say {}x{}",
@@ -176,39 +178,46 @@ impl PartLabeler {
             // Camera frame: looks along -Z, +Y up in the image.
             let ray = Vector3::new((u - k.cx) / k.fx, -(v - k.cy) / k.fy, -1.0);
             let world = cam_p + cam_q * (ray * d);
-            let local = obj_q.inverse_transform_vector(&(world - obj_p)) / scale;
-            if buffers.index.is_none() && !self.on_surface(&local, d, k, scale) {
+            let local = obj_q
+                .inverse_transform_vector(&(world - obj_p))
+                .component_div(&scale);
+            if buffers.index.is_none() && !self.on_surface(&local, d, k, &scale) {
                 continue;
             }
-            *label = self.part_of(&local, scale);
+            *label = self.part_of(&local, &scale);
         }
         Ok(out)
     }
 
     /// Whether a back-projected point lies on the object's mesh, allowing
     /// the depth buffer's error and a pixel's footprint at that depth
-    /// (metres; `local` is in the catalog's frame, `scale` metres per unit).
+    /// (metres; `local` is in the catalog's frame, `scale` metres per unit
+    /// along each of its axes).
     fn on_surface(
         &self,
         local: &Vector3<f64>,
         depth: f64,
         k: &CameraIntrinsics,
-        scale: f64,
+        scale: &Vector3<f64>,
     ) -> bool {
         let footprint = depth / k.fx.min(k.fy);
         let allowed = self.tolerance + 2.0 * footprint;
         self.mesh
             .closest_point([local.x, local.y, local.z])
-            .is_some_and(|(_, dist)| dist * scale <= allowed)
+            .is_some_and(|(nearest, _)| {
+                (Vector3::from(nearest) - local).component_mul(scale).norm() <= allowed
+            })
     }
 
     /// 1 + index of the nearest box within tolerance, or 0. A point inside
     /// several boxes gets the smallest one (the most specific part); equal
     /// boxes go to the earlier part. The tolerance is in metres.
-    fn part_of(&self, local: &Vector3<f64>, scale: f64) -> u8 {
+    /// (Stretched unevenly, a box's distance is taken at its largest
+    /// stretch: at most a few per cent of the tolerance too strict.)
+    fn part_of(&self, local: &Vector3<f64>, scale: &Vector3<f64>) -> u8 {
         let mut best = (0u8, f64::INFINITY, f64::INFINITY);
         for (i, b) in self.boxes.iter().enumerate() {
-            let d = b.distance(local) * scale;
+            let d = b.distance(local) * scale.max();
             let volume = b.half.x * b.half.y * b.half.z;
             if d <= self.tolerance && (d, volume) < (best.1, best.2) {
                 best = ((i + 1) as u8, d, volume);
@@ -275,12 +284,12 @@ mod tests {
     /// A camera 0.5 m above the cube looking straight down (image up = +X):
     /// the depth image of the top face, computed in closed form.
     fn top_view(px: u32, object: &Pose) -> (Pose, FrameBuffers) {
-        top_view_scaled(px, object, 1.0)
+        top_view_scaled(px, object, [1.0; 3])
     }
 
-    /// The same with the cube scaled by `scale` about its origin (the
-    /// camera stays 0.6 m above the origin).
-    fn top_view_scaled(px: u32, object: &Pose, scale: f64) -> (Pose, FrameBuffers) {
+    /// The same with the cube scaled by `scale` about its origin along X, Y,
+    /// Z (X and Y alike; the camera stays 0.6 m above the origin).
+    fn top_view_scaled(px: u32, object: &Pose, scale: [f64; 3]) -> (Pose, FrameBuffers) {
         let s = std::f64::consts::FRAC_1_SQRT_2;
         // Camera -Z = world -Z, camera +Y = world +X: a rotation about Z by -90 deg.
         let camera = Pose {
@@ -291,8 +300,8 @@ mod tests {
             ],
             rotation_wxyz: [s, 0.0, 0.0, -s],
         };
-        let top = (0.6 - 0.1 * scale) as f32;
-        let half = 0.05 * scale;
+        let top = (0.6 - 0.1 * scale[2]) as f32;
+        let half = 0.05 * scale[0];
         let depth = vec![top; (px * px) as usize];
         // Pixels outside the top face see the floor, far below.
         let k = intrinsics(px);
@@ -331,7 +340,7 @@ mod tests {
         };
         let (camera, buffers) = top_view(64, &object);
         let labels = labeler
-            .label(&buffers, &intrinsics(64), &camera, &object, 1.0)
+            .label(&buffers, &intrinsics(64), &camera, &object, [1.0; 3])
             .unwrap();
         let on_face = buffers.depth.iter().filter(|d| **d < 1.0).count();
         let top = labels.iter().filter(|l| **l == 1).count();
@@ -352,19 +361,35 @@ mod tests {
             rotation_wxyz: [1.0, 0.0, 0.0, 0.0],
         };
         // Twice the catalog's size: the top face is 0.2 m up and 0.2 m wide.
-        let (camera, buffers) = top_view_scaled(64, &object, 2.0);
+        let (camera, buffers) = top_view_scaled(64, &object, [2.0; 3]);
         let k = intrinsics(64);
         let on_face = buffers.depth.iter().filter(|d| **d < 1.0).count();
         assert!(on_face > 100);
-        let labels = labeler.label(&buffers, &k, &camera, &object, 2.0).unwrap();
+        let labels = labeler
+            .label(&buffers, &k, &camera, &object, [2.0; 3])
+            .unwrap();
         assert_eq!(labels.iter().filter(|l| **l == 1).count(), on_face);
         // Read at the catalog's size, the face floats above the object.
-        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
+        let labels = labeler
+            .label(&buffers, &k, &camera, &object, [1.0; 3])
+            .unwrap();
         assert!(labels.iter().all(|l| *l == 0));
         let err = labeler
-            .label(&buffers, &k, &camera, &object, 0.0)
+            .label(&buffers, &k, &camera, &object, [0.0; 3])
             .unwrap_err();
         assert!(err.to_string().contains("scale"), "{err}");
+        // Stretched along Z alone (`[randomize.proportions]`): the top face
+        // is 0.2 m up and 0.1 m wide, labelled only at that stretch.
+        let tall = [1.0, 1.0, 2.0];
+        let (camera, buffers) = top_view_scaled(64, &object, tall);
+        let on_face = buffers.depth.iter().filter(|d| **d < 1.0).count();
+        assert!(on_face > 20);
+        let labels = labeler.label(&buffers, &k, &camera, &object, tall).unwrap();
+        assert_eq!(labels.iter().filter(|l| **l == 1).count(), on_face);
+        let labels = labeler
+            .label(&buffers, &k, &camera, &object, [1.0; 3])
+            .unwrap();
+        assert!(labels.iter().all(|l| *l == 0));
     }
 
     #[test]
@@ -379,10 +404,14 @@ mod tests {
         // Say a hand (index 2) covers the whole image.
         buffers.index = Some(vec![2.0; buffers.depth.len()]);
         let k = intrinsics(32);
-        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
+        let labels = labeler
+            .label(&buffers, &k, &camera, &object, [1.0; 3])
+            .unwrap();
         assert!(labels.iter().all(|l| *l == 0));
         buffers.index = Some(vec![1.0; buffers.depth.len()]);
-        let labels = labeler.label(&buffers, &k, &camera, &object, 1.0).unwrap();
+        let labels = labeler
+            .label(&buffers, &k, &camera, &object, [1.0; 3])
+            .unwrap();
         assert!(labels.contains(&1));
     }
 
@@ -397,12 +426,12 @@ mod tests {
         };
         let (camera, buffers) = top_view(32, &object);
         let labels = labeler
-            .label(&buffers, &intrinsics(32), &camera, &object, 1.0)
+            .label(&buffers, &intrinsics(32), &camera, &object, [1.0; 3])
             .unwrap();
         assert!(labels.iter().filter(|l| **l == 1).count() > 20);
         // A wrong size is an error, not a panic.
         let err = labeler
-            .label(&buffers, &intrinsics(16), &camera, &object, 1.0)
+            .label(&buffers, &intrinsics(16), &camera, &object, [1.0; 3])
             .unwrap_err();
         assert!(err.to_string().contains("intrinsics"), "{err}");
     }
@@ -421,7 +450,7 @@ mod tests {
             },
         );
         let labeler = PartLabeler::new(&parts, &mesh, 0.005).unwrap();
-        let part_of = |x, y, z| labeler.part_of(&Vector3::new(x, y, z), 1.0);
+        let part_of = |x, y, z| labeler.part_of(&Vector3::new(x, y, z), &Vector3::repeat(1.0));
         assert_eq!(part_of(0.0, 0.0, 0.1), 2, "top");
         assert_eq!(part_of(-0.05, 0.0, 0.05), 3, "side");
         assert_eq!(part_of(0.05, 0.0, 0.02), 1, "all");

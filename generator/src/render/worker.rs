@@ -289,11 +289,13 @@ fn render(
     settings: &serde_json::Value,
     req: &RenderRequest,
 ) -> Result<RenderCost> {
-    let scale = req.plan.object.scale;
-    if !(scale.is_finite() && scale > 0.0) {
+    let scale = req.plan.object.axis_scale();
+    if !scale.iter().all(|s| s.is_finite() && *s > 0.0) {
         return Err(RenderError::BadPlan {
             id: req.id.clone(),
-            reason: format!("plan.object.scale must be positive, got {scale}"),
+            reason: format!(
+                "plan.object.scale times proportions must be positive on every axis, got {scale:?}"
+            ),
         });
     }
     let labeler = match req.parts.is_empty() {
@@ -462,7 +464,13 @@ fn label_parts(
         };
         let exr = dir.join(name).with_extension("exr");
         let buffers = read_exr(&exr)?;
-        let labels = labeler.label(&buffers, k, &pose, &plan.object.pose, plan.object.scale)?;
+        let labels = labeler.label(
+            &buffers,
+            k,
+            &pose,
+            &plan.object.pose,
+            plan.object.axis_scale(),
+        )?;
         write_labels(&dir.join(part_file_name(name)), k.width, k.height, labels)?;
         if !keep_exr {
             std::fs::remove_file(&exr).map_err(|e| RenderError::io("cannot remove", &exr, e))?;

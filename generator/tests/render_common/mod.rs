@@ -157,6 +157,7 @@ pub fn plan(
             upside_down: false,
             on_table_border: false,
             scale: 1.0,
+            proportions: [1.0; 3],
         },
         target,
         other_end: target,

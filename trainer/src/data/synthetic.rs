@@ -266,6 +266,7 @@ fn record(
                 upside_down: false,
                 on_table_border: false,
                 scale: 1.0,
+                proportions: [1.0; 3],
             },
             target: [0.0; 3],
             other_end: [0.0; 3],

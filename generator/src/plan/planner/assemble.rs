@@ -88,7 +88,7 @@ impl Planner {
             fps: traj.fps,
             duration_s: n as f64 / traj.fps,
             intrinsics: draws.intrinsics,
-            object: object_placement(c),
+            object: object_placement(c, draws),
             target: c.target.into(),
             other_end: c.other_end.into(),
             frames,
@@ -172,7 +172,7 @@ impl Planner {
 }
 
 /// Where the accepted scene puts the object, as the plan records it.
-fn object_placement(c: &Candidate) -> ObjectPlacement {
+fn object_placement(c: &Candidate, draws: &SequenceDraws) -> ObjectPlacement {
     ObjectPlacement {
         pose: Pose {
             position: c.placement.position.into(),
@@ -182,6 +182,7 @@ fn object_placement(c: &Candidate) -> ObjectPlacement {
         upside_down: c.placement.upside_down,
         on_table_border: c.placement.on_border,
         scale: 1.0,
+        proportions: draws.proportions,
     }
 }
 
@@ -269,6 +270,9 @@ fn sampled_record(
         put("target_end_forced", json!(accepted.attempts <= forced));
     }
     put("fov_scale", json!(draws.fov_scale));
+    if draws.proportions != [1.0; 3] {
+        put("proportions", json!(draws.proportions));
+    }
     put("principal_point_shift", json!(draws.principal_point_shift));
     put(
         "mesh_tolerance_used",

@@ -17,6 +17,7 @@ use crate::plan::error::{PlanError, Result};
 use crate::randomize::{self, ApproachDraw};
 use grasp_schema::plan::{CameraIntrinsics, SequenceKey, SequencePlan};
 use grasp_schema::Condition;
+use nalgebra::Vector3;
 use std::collections::BTreeMap;
 
 /// Plans sequences. Holds each object's mesh query.
@@ -56,6 +57,9 @@ struct SequenceDraws {
     fov_scale: f64,
     principal_point_shift: [f64; 2],
     approach: ApproachDraw,
+    /// `[randomize.proportions]`'s per-axis factors ([1, 1, 1] with the
+    /// lever off).
+    proportions: [f64; 3],
 }
 
 impl Planner {
@@ -138,6 +142,13 @@ impl Planner {
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
         let draws = self.sequence_draws(key.condition, stream);
+        let resized;
+        let geo = if draws.proportions == [1.0; 3] {
+            geo
+        } else {
+            resized = geo.scaled(Vector3::from(draws.proportions));
+            &resized
+        };
         let accepted = self
             .search(geo, part_index, key.condition, stream, &draws)
             .map_err(|e| PlanError::Planning {
@@ -158,6 +169,7 @@ impl Planner {
             fov_scale,
             principal_point_shift,
             approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
+            proportions: randomize::proportions(r, stream),
         }
     }
 

@@ -1,9 +1,10 @@
 //! One object's geometry as the planner needs it: the mesh query, extents,
-//! bounding sphere, part boxes and a silhouette outline, at catalog size.
+//! bounding sphere, part boxes and a silhouette outline, at catalog size or
+//! stretched by `[randomize.proportions]`.
 
 use crate::catalog::{GraspPart, ObjectSpec, TriMesh};
 use crate::plan::error::{PlanError, Result};
-use crate::plan::validity::{Obb, RayCaster};
+use crate::plan::validity::{Obb, RayCaster, ScaledCaster};
 use crate::plan::wrist;
 use nalgebra::Vector3;
 use std::rc::Rc;
@@ -66,6 +67,37 @@ impl ObjectGeometry {
                 .map(|f| f.map(|i| Vector3::from(mesh.vertices[i as usize])))
                 .collect(),
         })
+    }
+}
+
+impl ObjectGeometry {
+    /// The same object stretched about its frame's origin by `scale` along
+    /// the frame's X, Y, Z (`[randomize.proportions]`): mesh, part boxes and
+    /// every derived extent. Ray casts go through the catalog-size mesh, so
+    /// stretching builds no new mesh query.
+    pub fn scaled(&self, scale: Vector3<f64>) -> ObjectGeometry {
+        let boxes: Vec<Obb> = self.boxes.iter().map(|b| b.stretched(&scale)).collect();
+        let mut spec = self.spec.clone();
+        for (p, b) in spec.parts.iter_mut().zip(&boxes) {
+            p.center = b.center.into();
+            p.size = (b.half * 2.0).into();
+            let q = b.rotation.into_inner();
+            p.rotation_wxyz = [q.w, q.i, q.j, q.k];
+        }
+        let outline = self
+            .outline
+            .iter()
+            .map(|t| t.map(|v| v.component_mul(&scale)))
+            .collect();
+        ObjectGeometry {
+            spec,
+            caster: Rc::new(ScaledCaster::new(self.caster.clone(), scale)),
+            z_range: self.z_range.map(|z| z * scale.z),
+            sphere_center: self.sphere_center.component_mul(&scale),
+            sphere_radius: self.sphere_radius * scale.max(),
+            boxes,
+            outline,
+        }
     }
 }
 
