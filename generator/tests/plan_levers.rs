@@ -606,8 +606,8 @@ fn objects_keep_the_catalog_size_and_the_deleted_resize_lever_is_refused() {
 /// `[randomize.proportions]` stretches the object along its frame's axes
 /// with their product 1: the plan records the factors, the stretched
 /// object rests on the table, and the target lies on an end face of the
-/// catalog's part box once carried back into the catalog's frame. Off (the
-/// default) nothing is stretched or recorded.
+/// catalog's part box once carried back into the catalog's frame. Off, or
+/// for a mesh from a file, nothing is stretched or recorded.
 #[test]
 fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     let mut c = GeneratorConfig::default();
@@ -649,7 +649,26 @@ fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     let x: Vec<f64> = drawn.iter().map(|p| p.object.proportions[0]).collect();
     let [low, high] = range(x.iter().copied());
     assert!(high - low > 0.1, "{x:?}");
-    for p in plans(&GeneratorConfig::default(), &[Condition::Default], 4) {
+    let mut off = c.clone();
+    off.randomize.proportions.enabled = false;
+    for p in plans(&off, &[Condition::Default], 4) {
+        assert_eq!(p.object.axis_scale(), [1.0; 3]);
+        assert!(!p.sampled.contains_key("proportions"));
+    }
+    // A mesh from a file (a real object, as `objects import-ycb` writes) is
+    // never stretched, with the lever on.
+    let (mut spec, mesh, body) = box_object(1.0);
+    spec.mesh =
+        serde_json::from_value(serde_json::json!({"file": {"path": "carton.ply"}})).unwrap();
+    let geo = generator::plan::ObjectGeometry::new(
+        spec,
+        &mesh,
+        Box::new(generator::plan::validity::BoxMesh(body)),
+    )
+    .unwrap();
+    let real = generator::plan::Planner::from_geometries(&c, vec![geo]).unwrap();
+    for i in 0..4 {
+        let p = real.plan(&key("side", i, Condition::Default)).unwrap();
         assert_eq!(p.object.axis_scale(), [1.0; 3]);
         assert!(!p.sampled.contains_key("proportions"));
     }

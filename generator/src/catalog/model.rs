@@ -84,6 +84,14 @@ pub enum MeshSource {
     },
 }
 
+impl MeshSource {
+    /// Whether the mesh is one of the project's procedural models (which
+    /// `[randomize.proportions]` may stretch), not a file.
+    pub fn is_procedural(&self) -> bool {
+        matches!(self, MeshSource::Procedural(_))
+    }
+}
+
 pub fn identity_wxyz() -> [f64; 4] {
     [1.0, 0.0, 0.0, 0.0]
 }

@@ -247,7 +247,9 @@ impl Default for DistractorLever {
 /// family's real members (a taller mug, a slimmer bottle) are not all one
 /// model while its size still says what it is. Each axis draws a log-factor
 /// in +-ln(1 + `spread`), then the three are centred. The plan, its
-/// validity checks and the part labels use the stretched object.
+/// validity checks and the part labels use the stretched object. Only the
+/// project's procedural models are stretched: a mesh from a file (a real
+/// object) keeps its own proportions.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ProportionsLever {
@@ -259,7 +261,7 @@ pub struct ProportionsLever {
 impl Default for ProportionsLever {
     fn default() -> Self {
         ProportionsLever {
-            enabled: false,
+            enabled: true,
             spread: 0.15,
         }
     }

@@ -30,7 +30,8 @@ pub fn box_object(k: f64) -> (ObjectSpec, TriMesh, Obb) {
         "name": "Carton",
         "category": "carton",
         "size": size,
-        "mesh": {"file": {"path": "unused.ply"}},
+        // (The mesh below is used; a procedural spec lets every lever act.)
+        "mesh": {"procedural": {"kind": "block", "size": size}},
         "parts": [
             part("top", GraspType::Tripod, [0.0, 0.0, 0.16], [1.0, 0.0, 0.0, 0.0], [0.03, 0.02, 0.01]),
             // Local Z along object X: the ends lie 5 mm outside and inside the -X face.

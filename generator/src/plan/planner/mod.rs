@@ -141,7 +141,12 @@ impl Planner {
                 ),
             })?;
         let stream = key.stream_seed(self.config.dataset.seed);
-        let draws = self.sequence_draws(key.condition, stream);
+        let mut draws = self.sequence_draws(key.condition, stream);
+        if !geo.spec.mesh.is_procedural() {
+            // A mesh from a file is a real object, not a family's model:
+            // its proportions are its own (the YCB meshes of a test world).
+            draws.proportions = [1.0; 3];
+        }
         let resized;
         let geo = if draws.proportions == [1.0; 3] {
             geo
