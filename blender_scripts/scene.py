@@ -54,6 +54,14 @@ def mesh_object(name, verts, faces, material=None, uv=True):
     return obj
 
 
+def axis_scale(placed):
+    """The placed object's scale along its frame's X, Y, Z: the plan's
+    `scale` times its `proportions` (grasp-schema's
+    `ObjectPlacement::axis_scale`), for both scene builders."""
+    scale = placed.get("scale", 1.0)
+    return tuple(scale * p for p in placed.get("proportions", (1.0, 1.0, 1.0)))
+
+
 def mesh_from_bytes(name, vertices, faces, smooth_angle_deg):
     """A smooth-shaded mesh from the Rust side's little-endian f64 xyz and u32
     triangle bytes, sharp past `smooth_angle_deg`; both workers build their

@@ -66,7 +66,7 @@ class Worker:
         pose = plan["object"]["pose"]
         self.target.location = pose["position"]
         self.target.rotation_quaternion = pose["rotation_wxyz"]
-        self.target.scale = _axis_scale(plan["object"])
+        self.target.scale = scene.axis_scale(plan["object"])
 
     def _apply_appearance(self, plan, object_color):
         a = plan["appearance"]
@@ -195,10 +195,3 @@ class Worker:
             target = os.path.join(out_dir, name)
             if made != target:
                 os.replace(made, target)
-
-
-def _axis_scale(placed):
-    """The object's scale along its frame's X, Y, Z: the plan's `scale`
-    times its `proportions` (grasp-schema's `ObjectPlacement::axis_scale`)."""
-    scale = placed.get("scale", 1.0)
-    return tuple(scale * p for p in placed.get("proportions", (1.0, 1.0, 1.0)))

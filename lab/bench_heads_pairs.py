@@ -34,9 +34,7 @@ def main():
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--candle", default="target/release/grasp-train")
-    p.add_argument(
-        "--torch-python", default=".venv-bench/bin/python", help="see lab/bench-env.sh"
-    )
+    p.add_argument("--torch-python", default=".venv-bench/bin/python", help="see lab/bench-env.sh")
     args = p.parse_args()
     work = ["--head", args.head, *WORKLOADS[args.head]]
     torch_script = str(Path(__file__).with_name("bench_torch_heads.py"))

@@ -12,7 +12,7 @@ import tempfile
 import bpy
 
 from blender_scripts.foreign import camera, draw, lights, materials, render, room
-from blender_scripts.scene import mesh_from_bytes
+from blender_scripts.scene import axis_scale, mesh_from_bytes
 
 
 def _reset():
@@ -75,7 +75,7 @@ class Worker:
         pose = plan["object"]["pose"]
         self.target.location = pose["position"]
         self.target.rotation_quaternion = pose["rotation_wxyz"]
-        self.target.scale = _axis_scale(plan["object"])
+        self.target.scale = axis_scale(plan["object"])
 
     def prepare(self, plan, object_color, color_range=None):
         """Swaps in the object and applies this world's draws for the plan
@@ -148,10 +148,3 @@ class Worker:
         self.render_camera(plan, "wrist", out_dir, frame_files)
         if head_out_dir is not None:
             raise ValueError("the foreign world has no head camera")
-
-
-def _axis_scale(placed):
-    """The object's scale along its frame's X, Y, Z: the plan's `scale`
-    times its `proportions` (grasp-schema's `ObjectPlacement::axis_scale`)."""
-    scale = placed.get("scale", 1.0)
-    return tuple(scale * p for p in placed.get("proportions", (1.0, 1.0, 1.0)))

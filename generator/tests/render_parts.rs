@@ -22,11 +22,18 @@ fn labels(dir: &Path, frame: &str) -> Vec<u8> {
 }
 
 /// Renders a_box, seen from (0, -0.7, 1.15) then (0, -0.25, 0.9), with the
-/// object scaled by `scale`; returns the sequence folder.
-fn render_box(config: &RenderConfig, scale: f64, dir: &Path) -> std::path::PathBuf {
+/// object scaled by `scale` and stretched by `proportions`; returns the
+/// sequence folder.
+fn render_box(
+    config: &RenderConfig,
+    scale: f64,
+    proportions: [f64; 3],
+    dir: &Path,
+) -> std::path::PathBuf {
     let mut src = source(1, 2, 64);
     src.plans.truncate(1);
     src.plans[0].object.scale = scale;
+    src.plans[0].object.proportions = proportions;
     let src = Arc::new(src);
     let s = render(src.clone(), config, &options(dir, 1)).unwrap();
     assert_eq!((s.rendered, s.failed.len()), (1, 0), "{s:?}");
@@ -110,8 +117,14 @@ fn a_scaled_object_is_drawn_and_labelled_at_its_size() {
     // Cycles' object index says which pixels Blender drew as the object.
     let c = cycles_with_parts();
     let (small, large) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    let small = counts(&labels(&render_box(&c, 0.8, small.path()), "00001.png"));
-    let large = counts(&labels(&render_box(&c, 1.25, large.path()), "00001.png"));
+    let small = counts(&labels(
+        &render_box(&c, 0.8, [1.0; 3], small.path()),
+        "00001.png",
+    ));
+    let large = counts(&labels(
+        &render_box(&c, 1.25, [1.0; 3], large.path()),
+        "00001.png",
+    ));
     let object = |c: [usize; 3]| c[1] + c[2];
     assert!(object(small) > 100, "0.8: {small:?}");
     // The drawn area grows at least with the square of the scale, (1.25 /
@@ -120,4 +133,33 @@ fn a_scaled_object_is_drawn_and_labelled_at_its_size() {
     // the catalog's size both times, it would grow by about 1.4.
     let ratio = object(large) as f64 / object(small) as f64;
     assert!((2.2..5.0).contains(&ratio), "{small:?} against {large:?}");
+}
+
+/// `plan.object.proportions` (`[randomize.proportions]`) reaches Blender and
+/// the labels: seen from the -Y side, the box stretched x 1.4 along X (and
+/// / 1.4 along Y) shows a face about 1.4 x 1.4 = 2 times wider than the box
+/// stretched the other way, and its pixels are labelled at the plan's
+/// proportions. Drawn or labelled unstretched, both would match.
+#[test]
+fn a_stretched_object_is_drawn_and_labelled_at_its_proportions() {
+    if !have_blender() {
+        return;
+    }
+    let c = cycles_with_parts();
+    let (wide, narrow) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let k = 1.4;
+    let wide = counts(&labels(
+        &render_box(&c, 1.0, [k, 1.0 / k, 1.0], wide.path()),
+        "00001.png",
+    ));
+    let narrow = counts(&labels(
+        &render_box(&c, 1.0, [1.0 / k, k, 1.0], narrow.path()),
+        "00001.png",
+    ));
+    let object = |c: [usize; 3]| c[1] + c[2];
+    assert!(object(narrow) > 60, "narrow: {narrow:?}");
+    // The narrow box's face also comes (k - 1/k) x half its depth nearer
+    // the camera, which enlarges it a little: the ratio stays below 2.
+    let ratio = object(wide) as f64 / object(narrow) as f64;
+    assert!((1.4..2.4).contains(&ratio), "{wide:?} against {narrow:?}");
 }

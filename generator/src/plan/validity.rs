@@ -113,7 +113,6 @@ impl Obb {
         slab_entry(&la, &(lb - la), &self.half)
     }
 
-    /// Euclidean distance from a point to the box (0 inside).
     /// The box stretched about the frame's origin by `scale` along X, Y, Z.
     /// A box whose axes are the frame's (every built-in part but two) stays
     /// exact; a tilted one becomes the box along its stretched axes, made
@@ -136,6 +135,7 @@ impl Obb {
         }
     }
 
+    /// Euclidean distance from a point to the box (0 inside).
     pub fn distance(&self, p: &Vector3<f64>) -> f64 {
         let l = self.rotation.inverse_transform_vector(&(p - self.center));
         let d = l.abs() - self.half;

@@ -151,7 +151,7 @@ impl Planner {
         let geo = if draws.proportions == [1.0; 3] {
             geo
         } else {
-            resized = geo.scaled(Vector3::from(draws.proportions));
+            resized = geo.stretched(Vector3::from(draws.proportions));
             &resized
         };
         let accepted = self

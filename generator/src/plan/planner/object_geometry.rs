@@ -75,7 +75,7 @@ impl ObjectGeometry {
     /// the frame's X, Y, Z (`[randomize.proportions]`): mesh, part boxes and
     /// every derived extent. Ray casts go through the catalog-size mesh, so
     /// stretching builds no new mesh query.
-    pub fn scaled(&self, scale: Vector3<f64>) -> ObjectGeometry {
+    pub fn stretched(&self, scale: Vector3<f64>) -> ObjectGeometry {
         let boxes: Vec<Obb> = self.boxes.iter().map(|b| b.stretched(&scale)).collect();
         let mut spec = self.spec.clone();
         for (p, b) in spec.parts.iter_mut().zip(&boxes) {
