@@ -6,7 +6,9 @@
 # main job's test sets it renders the ones the main job leaves out for
 # time: looks B-D and the foreign scene alone, with the built-in objects
 # (world_foreign) and with the real meshes (world_foreign_ycb, when the
-# main job imported them).
+# main job imported them), and two more draws of the stacked world
+# (world_foreign_ycb_reach_s5, _s7: its 62 videos hold two per part, and
+# one draw moves its multi-grasp score by up to 17 points).
 #
 #   lab/cross-world.sh MAIN_OUT [VARIANT...]
 #
@@ -37,13 +39,19 @@ declare -A SETS=(
 TEST=(--set dataset.seed=3 --set "dataset.sequences_per_pair=${TEST_SEQ:-2}")
 lab_render() { # name, then config arguments over the main job's config
   local name=$1 && shift
-  $BIN/grasp-gen render --config "${CONFIG:-configs/main.toml}" "$@" "${TEST[@]}" \
+  $BIN/grasp-gen render --config "${CONFIG:-configs/main.toml}" "${TEST[@]}" "$@" \
     --out "$OUT/data/test-$name" --resume --no-progress
 }
 for look in look_b look_c look_d; do lab_render "$look" --config "configs/test-${look/_/-}.toml"; done
 lab_render world_foreign --config configs/test-world-foreign.toml
-[ ! -d "$OUT/ycb-objects" ] || GRASP_OBJECTS="$OUT/ycb-objects" \
-  lab_render world_foreign_ycb --config configs/test-world-foreign.toml
+if [ -d "$OUT/ycb-objects" ]; then
+  GRASP_OBJECTS="$OUT/ycb-objects" lab_render world_foreign_ycb --config configs/test-world-foreign.toml
+  for seed in 5 7; do
+    GRASP_OBJECTS="$OUT/ycb-objects" lab_render "world_foreign_ycb_reach_s$seed" \
+      --config configs/test-world-foreign.toml --config configs/test-world-reach.toml \
+      --set dataset.seed=$seed
+  done
+fi
 TEST_SETS=()
 for dir in "$OUT"/data/test-*; do TEST_SETS+=("${dir##*/test-}"); done
 REPORTS=()
