@@ -220,3 +220,47 @@ fn replay_exits_3_like_run_when_a_frame_cannot_be_read() {
         );
     }
 }
+
+/// `bench --pace` times frames at a camera's pace: ten frames at 20 fps
+/// take at least nine periods (back to back the stand-in takes
+/// milliseconds), the report says how they were paced, and a pace that is
+/// no rate is refused by name.
+#[test]
+fn bench_paces_its_frames_at_a_camera_rate() {
+    let ckpt = checkpoint().to_str().unwrap();
+    let common = [
+        "bench",
+        "--checkpoint",
+        ckpt,
+        "--frames",
+        "10",
+        "--warmup",
+        "1",
+        "--sends",
+        "0",
+        "--approaches",
+        "0",
+        "--size",
+        "32",
+    ];
+    let started = Instant::now();
+    let out = hannes_run(&[&common[..], &["--pace", "20"]].concat());
+    let took = started.elapsed();
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report = text(&out.stdout);
+    assert!(report.contains("(10 frames, at 20 fps)"), "{report}");
+    assert!(
+        !report.contains("link") && !report.contains("approach"),
+        "{report}"
+    );
+    assert!(took >= Duration::from_millis(450), "{took:?}: {report}");
+    let out = hannes_run(&[&common[..], &["--pace=-3"]].concat());
+    assert!(!out.status.success());
+    assert!(
+        last_line(&out.stderr).contains("--pace"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = hannes_run(&common);
+    assert!(text(&out.stdout).contains("(10 frames, back to back)"));
+}

@@ -155,10 +155,15 @@ pub(crate) struct BenchArgs {
     /// Untimed warm-up frames.
     #[arg(long, default_value_t = 10)]
     pub(crate) warmup: usize,
-    /// Link round trips to time.
+    /// Time the inference frames at a camera's pace, one every 1/FPS s, as
+    /// on the hand (30: the wrist camera); 0 runs them back to back, which
+    /// keeps every core busy for the whole series.
+    #[arg(long, default_value_t = 0.0, value_name = "FPS")]
+    pub(crate) pace: f64,
+    /// Link round trips to time (0: none).
     #[arg(long, default_value_t = 500)]
     pub(crate) sends: usize,
-    /// Whole approaches (2 s window at 30 fps each) to time.
+    /// Whole approaches (2 s window at 30 fps each) to time (0: none).
     #[arg(long, default_value_t = 5)]
     pub(crate) approaches: usize,
     #[arg(long, default_value_t = 115_200)]

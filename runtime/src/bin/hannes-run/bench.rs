@@ -31,9 +31,13 @@ pub(crate) fn command(args: BenchArgs) -> Result<()> {
         "the benchmark",
     )?;
     let frames = synthetic_frames(args.frames.max(1), args.size);
-    let inference = inference(&mut classifier, &frames, args.warmup)?;
+    let period = pace_period(args.pace)?;
+    let inference = inference(&mut classifier, &frames, args.warmup, period)?;
+    let paced = period.map_or("back to back".to_string(), |_| {
+        format!("at {} fps", args.pace)
+    });
     println!(
-        "inference {}x{} ({} frames): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
+        "inference {}x{} ({} frames, {paced}): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
         args.size,
         args.size,
         inference.n,
@@ -42,32 +46,30 @@ pub(crate) fn command(args: BenchArgs) -> Result<()> {
         inference.mean_ms,
         inference.max_ms
     );
-    let link = link_round_trip(args.sends.max(1), args.baud)?;
-    println!(
-        "link PRESHAPE->ACK over a pty at {} baud ({} sends): p50 {:.3} ms, p99 {:.3} ms",
-        link.baud, link.round_trip.n, link.round_trip.p50_ms, link.round_trip.p99_ms
-    );
-    let window = synthetic_frames(60, args.size);
-    let ap = approaches(
-        &mut classifier,
-        window,
-        30.0,
-        args.approaches.max(1),
-        args.baud,
-    )?;
-    println!(
-        "approach (window {} s at {} fps, {} runs): trigger->ACK p50 {:.1} ms, p99 {:.1} ms; \
-         after the window p50 {:.1} ms, p99 {:.1} ms; {} frames classified, {} dropped",
-        ap.window_s,
-        ap.fps,
-        ap.trigger_to_command.n,
-        ap.trigger_to_command.p50_ms,
-        ap.trigger_to_command.p99_ms,
-        ap.after_window.p50_ms,
-        ap.after_window.p99_ms,
-        ap.frames_classified,
-        ap.frames_dropped
-    );
+    if args.sends > 0 {
+        let link = link_round_trip(args.sends, args.baud)?;
+        println!(
+            "link PRESHAPE->ACK over a pty at {} baud ({} sends): p50 {:.3} ms, p99 {:.3} ms",
+            link.baud, link.round_trip.n, link.round_trip.p50_ms, link.round_trip.p99_ms
+        );
+    }
+    if args.approaches > 0 {
+        let window = synthetic_frames(60, args.size);
+        let ap = approaches(&mut classifier, window, 30.0, args.approaches, args.baud)?;
+        println!(
+            "approach (window {} s at {} fps, {} runs): trigger->ACK p50 {:.1} ms, p99 {:.1} ms; \
+             after the window p50 {:.1} ms, p99 {:.1} ms; {} frames classified, {} dropped",
+            ap.window_s,
+            ap.fps,
+            ap.trigger_to_command.n,
+            ap.trigger_to_command.p50_ms,
+            ap.trigger_to_command.p99_ms,
+            ap.after_window.p50_ms,
+            ap.after_window.p99_ms,
+            ap.frames_classified,
+            ap.frames_dropped
+        );
+    }
     Ok(())
 }
 
@@ -111,20 +113,40 @@ pub fn synthetic_frames(n: usize, size: u32) -> Vec<RgbImage> {
         .collect()
 }
 
-/// Per-frame inference time, after `warmup` untimed frames.
+/// The time between paced frames for `--pace FPS`; none for 0 (back to
+/// back).
+fn pace_period(fps: f64) -> Result<Option<Duration>> {
+    if fps == 0.0 {
+        return Ok(None);
+    }
+    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+        anyhow::bail!("--pace: expected frames per second in (0, 1000], or 0, got {fps}");
+    }
+    Ok(Some(Duration::from_secs_f64(1.0 / fps)))
+}
+
+/// Per-frame inference time, after `warmup` untimed frames; with a
+/// `period`, each frame starts one period after the previous one started
+/// (a frame that overruns starts the next at once).
 pub fn inference(
     classifier: &mut dyn FrameClassifier,
     frames: &[RgbImage],
     warmup: usize,
+    period: Option<Duration>,
 ) -> Result<Summary> {
     for f in frames.iter().cycle().take(warmup) {
         classifier.classify(f)?;
     }
     let mut samples = Vec::with_capacity(frames.len());
+    let mut next = Instant::now();
     for f in frames {
+        if period.is_some() {
+            std::thread::sleep(next.saturating_duration_since(Instant::now()));
+        }
         let t = Instant::now();
         classifier.classify(f)?;
         samples.push(t.elapsed());
+        next = period.map_or(next, |p| t + p);
     }
     Ok(Summary::of(&samples))
 }
