@@ -347,13 +347,31 @@ def apply_surface(mat, spec):
     mat.diffuse_color = _rgba(mean)  # what Workbench shows
 
 
-def apply_plain(mat, color, roughness, metallic=0.0):
-    """A single-colour principled material."""
-    _, _, bsdf = _clear(mat)
+def apply_plain(mat, color, roughness, metallic=0.0, surface=None):
+    """A single-colour principled material, with the relief of an
+    ObjectSurface dict (`surface`) in its shading normal when given."""
+    nodes, links, bsdf = _clear(mat)
     bsdf.inputs["Base Color"].default_value = _rgba(color)
     bsdf.inputs["Roughness"].default_value = float(roughness)
     bsdf.inputs["Metallic"].default_value = float(metallic)
     mat.diffuse_color = _rgba(color)  # what Workbench shows
+    if surface is not None and float(surface["relief"]) > 0.0:
+        _relief(nodes, links, bsdf, float(surface["relief"]), float(surface["relief_size_m"]))
+
+
+def _relief(nodes, links, bsdf, strength, size_m):
+    """Bumps `bsdf`'s normal by a noise of features about `size_m` across,
+    in the object's own coordinates so that it stays on the surface."""
+    coord = nodes.new("ShaderNodeTexCoord")
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 1.0 / size_m
+    noise.inputs["Detail"].default_value = 4.0
+    links.new(coord.outputs["Object"], noise.inputs["Vector"])
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = strength
+    bump.inputs["Distance"].default_value = size_m
+    links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
 
 
 def emission(mat, strength):

@@ -62,6 +62,25 @@ def axis_scale(placed):
     return tuple(scale * p for p in placed.get("proportions", (1.0, 1.0, 1.0)))
 
 
+def round_edges(obj, radius_m):
+    """Rounds `obj`'s edges sharper than 30 degrees to about `radius_m`
+    (metres in the world; the modifier works before the object's scale),
+    or keeps them sharp at 0: an ObjectSurface's `edge_radius_m`."""
+    mod = obj.modifiers.get("round_edges")
+    if radius_m <= 0.0:
+        if mod is not None:
+            obj.modifiers.remove(mod)
+        return
+    if mod is None:
+        mod = obj.modifiers.new("round_edges", "BEVEL")
+        mod.limit_method = "ANGLE"
+        mod.angle_limit = np.radians(30.0)
+        mod.segments = 3
+        mod.use_clamp_overlap = True
+    mean_scale = sum(abs(s) for s in obj.scale) / 3.0
+    mod.width = radius_m / max(mean_scale, 1e-6)
+
+
 def mesh_from_bytes(name, vertices, faces, smooth_angle_deg):
     """A smooth-shaded mesh from the Rust side's little-endian f64 xyz and u32
     triangle bytes, sharp past `smooth_angle_deg`; both workers build their

@@ -76,7 +76,9 @@ class Worker:
         obj = a["object"]
         own = not (obj["randomized"] or obj.get("plausible", False))
         color = object_color if own else obj["color"]
-        materials.apply_plain(self.object_mat, color, obj["roughness"])
+        surface = obj.get("surface")
+        materials.apply_plain(self.object_mat, color, obj["roughness"], surface=surface)
+        scene.round_edges(self.target, float(surface["edge_radius_m"]) if surface else 0.0)
         self.lights.apply(a["lights"], aim_at=plan["object"]["pose"]["position"])
         self.world.apply(a.get("world"))
         self.room.open_to_sky(a.get("world") is not None or self.lights.has_sun(a["lights"]))

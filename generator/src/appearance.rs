@@ -256,6 +256,7 @@ pub fn sample_with_images(
         color: random_color(config, &mut rng),
         roughness: uniform(&mut rng, config.roughness),
         plausible: false,
+        surface: None,
     };
     let count = rng.gen_range(config.lights[0]..=config.lights[1].max(config.lights[0]));
     let lights = (0..count).map(|_| light(config, &mut rng)).collect();

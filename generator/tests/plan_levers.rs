@@ -682,6 +682,63 @@ fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     );
 }
 
+/// `[randomize.surface]` (off by default) draws a surface for procedural
+/// objects from its own stream: switched on, every plan gains
+/// `appearance.object.surface` within the ranges and nothing else changes;
+/// a mesh from a file keeps its own surface; bad ranges are refused by name.
+#[test]
+fn surface_rounds_and_roughens_procedural_objects_only() {
+    let off = GeneratorConfig::default();
+    assert!(!off.randomize.surface.enabled);
+    let mut on = off.clone();
+    on.randomize.surface.enabled = true;
+    let conditions = [Condition::Default, Condition::UnseenLook];
+    let (before, after) = (plans(&off, &conditions, 4), plans(&on, &conditions, 4));
+    let mut radii = Vec::new();
+    for (a, b) in before.iter().zip(&after) {
+        assert_eq!(appearance(a).object.surface, None);
+        let s = appearance(b)
+            .object
+            .surface
+            .expect("a surface with the lever on");
+        assert!((0.0..=0.004).contains(&s.edge_radius_m), "{s:?}");
+        assert!((0.0..=0.3).contains(&s.relief), "{s:?}");
+        assert!((0.002..=0.02 + 1e-12).contains(&s.relief_size_m), "{s:?}");
+        radii.push(s.edge_radius_m);
+        let mut b = b.clone();
+        b.appearance.as_mut().unwrap().object.surface = None;
+        assert_eq!(a, &b, "only the surface changes");
+    }
+    let [low, high] = range(radii.into_iter());
+    assert!(high - low > 0.001, "radii {low}..{high}");
+    let (mut spec, mesh, body) = box_object(1.0);
+    spec.mesh =
+        serde_json::from_value(serde_json::json!({"file": {"path": "carton.ply"}})).unwrap();
+    let geo = generator::plan::ObjectGeometry::new(
+        spec,
+        &mesh,
+        Box::new(generator::plan::validity::BoxMesh(body)),
+    )
+    .unwrap();
+    let real = generator::plan::Planner::from_geometries(&on, vec![geo]).unwrap();
+    for i in 0..4 {
+        let p = real.plan(&key("side", i, Condition::Default)).unwrap();
+        assert_eq!(appearance(&p).object.surface, None);
+    }
+    refused(
+        |c| c.randomize.surface.relief = [0.0, 1.5],
+        "[randomize.surface] relief",
+    );
+    refused(
+        |c| c.randomize.surface.edge_radius_m = [-0.001, 0.004],
+        "[randomize.surface] edge_radius_m",
+    );
+    refused(
+        |c| c.randomize.surface.relief_size_m = [0.0, 0.01],
+        "[randomize.surface] relief_size_m",
+    );
+}
+
 /// A held-out test world (`[dataset] held_out`, configs/test-world-reach.toml)
 /// is recorded in every plan, so training can refuse it; without one the
 /// plans carry no such key, and the mark changes no other value.

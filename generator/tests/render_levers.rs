@@ -6,7 +6,7 @@ mod render_common;
 
 use generator::config::GeneratorConfig;
 use generator::render::{planner_source, render, Engine, RenderConfig};
-use grasp_schema::appearance::SensorEffects;
+use grasp_schema::appearance::{ObjectSurface, SensorEffects};
 use grasp_schema::dataset::SequenceRecord;
 use render_common::*;
 use std::sync::Arc;
@@ -38,6 +38,7 @@ fn unseen_look_and_every_training_lever_render() {
     c.randomize.world_light.probability = 1.0;
     c.randomize.jpeg.probability = 1.0;
     c.randomize.distractors.count = [2, 2];
+    c.randomize.surface.enabled = true;
     c.render = RenderConfig {
         samples: 1,
         ..Default::default()
@@ -73,6 +74,7 @@ fn unseen_look_and_every_training_lever_render() {
             assert!(a.world.is_some() && a.motion_blur.is_some());
             assert!(sensor.white_balance.is_some() && sensor.jpeg_quality.is_some());
             assert!(a.object.plausible || a.object.randomized);
+            assert!(a.object.surface.is_some());
             assert_eq!(r.plan.distractors.len(), 2);
         }
     }
@@ -135,4 +137,61 @@ fn camera_effects_reproduce_byte_for_byte() {
         fa.iter().zip(&fp).all(|(x, y)| x != y),
         "every frame carries the effects"
     );
+}
+
+/// The RGB of both frames of one a_box sequence (64 px) with `surface` on
+/// the object.
+fn render_surface(config: &RenderConfig, surface: Option<ObjectSurface>) -> Vec<Vec<u8>> {
+    let mut src = source(1, 2, 64);
+    src.plans.truncate(1);
+    src.plans[0].appearance.as_mut().unwrap().object.surface = surface;
+    let dir = tempfile::tempdir().unwrap();
+    let s = render(Arc::new(src), config, &options(dir.path(), 1)).unwrap();
+    assert_eq!((s.rendered, s.failed.len()), (1, 0), "{s:?}");
+    let (folder, r) = records(dir.path()).remove(0);
+    r.frame_files
+        .iter()
+        .map(|f| image::open(folder.join(f)).unwrap().to_rgb8().into_raw())
+        .collect()
+}
+
+/// Channel values that differ by more than 8 grey levels.
+fn changed(a: &[Vec<u8>], b: &[Vec<u8>]) -> usize {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .filter(|(x, y)| x.abs_diff(**y) > 8)
+        .count()
+}
+
+/// `[randomize.surface]` reaches the render: a zero radius and relief draw
+/// the model as built, to the byte; a 2 cm radius rounds the box's edges
+/// (Workbench draws the geometry), and a relief roughens its shading
+/// (Cycles draws the shader's bump). Ignored by Blender, both would match.
+#[test]
+fn rounded_edges_and_relief_reach_the_render() {
+    if !have_blender() {
+        return;
+    }
+    let surface = |edge_radius_m, relief| ObjectSurface {
+        edge_radius_m,
+        relief,
+        relief_size_m: 0.01,
+    };
+    let wb = workbench();
+    let built = render_surface(&wb, None);
+    assert_eq!(built, render_surface(&wb, Some(surface(0.0, 0.0))));
+    let rounded = changed(&built, &render_surface(&wb, Some(surface(0.02, 0.0))));
+    assert!(rounded > 30, "rounded edges changed {rounded} values");
+
+    let cycles = RenderConfig {
+        engine: Engine::Cycles,
+        samples: 4,
+        denoiser: "none".into(),
+        ..Default::default()
+    };
+    let smooth = render_surface(&cycles, Some(surface(0.0, 0.0)));
+    assert_eq!(smooth, render_surface(&cycles, None), "Cycles repeats");
+    let relief = changed(&smooth, &render_surface(&cycles, Some(surface(0.0, 1.0))));
+    assert!(relief > 100, "the relief changed {relief} values");
 }

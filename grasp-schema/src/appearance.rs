@@ -55,6 +55,24 @@ pub struct ObjectMaterial {
     /// `randomized`); with neither, the renderer keeps the object's own.
     #[serde(default)]
     pub plausible: bool,
+    /// The procedural model's edges rounded and its surface roughened
+    /// (`[randomize.surface]`); none: the mesh as built, a smooth finish.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<ObjectSurface>,
+}
+
+/// How a procedural object's surface departs from its ideal model, as real
+/// objects' do: its sharp edges rounded, and a fine relief in its shading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSurface {
+    /// Radius of the rounded edges in metres (edges sharper than 30
+    /// degrees; 0 keeps them sharp).
+    pub edge_radius_m: f64,
+    /// Strength of the relief's bump in the shading normal, 0 to 1.
+    pub relief: f64,
+    /// Size of the relief's features in metres.
+    pub relief_size_m: f64,
 }
 
 /// The colour-management view transform and look (Blender names).

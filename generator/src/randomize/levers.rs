@@ -26,6 +26,7 @@ pub struct RandomizeConfig {
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
     pub proportions: ProportionsLever,
+    pub surface: SurfaceLever,
     pub standoff: StandoffLever,
     pub aim: AimLever,
     pub approach_ends: ApproachEndsLever,
@@ -45,6 +46,7 @@ impl Default for RandomizeConfig {
             object_color: Default::default(),
             distractors: Default::default(),
             proportions: Default::default(),
+            surface: Default::default(),
             standoff: Default::default(),
             aim: Default::default(),
             approach_ends: Default::default(),
@@ -267,6 +269,34 @@ impl Default for ProportionsLever {
     }
 }
 
+/// The procedural object's surface: its sharp edges rounded and a fine
+/// relief in its shading, as real objects are worn, moulded or scanned,
+/// where the models are ideal. Rendering alone: the plan's geometry and the
+/// part labels keep the model (the rounding is a few millimetres). A mesh
+/// from a file keeps its own surface.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SurfaceLever {
+    pub enabled: bool,
+    /// Radius of the rounded edges in metres.
+    pub edge_radius_m: [f64; 2],
+    /// Strength of the relief's bump, 0 (smooth) to 1.
+    pub relief: [f64; 2],
+    /// Size of the relief's features in metres (log-uniform).
+    pub relief_size_m: [f64; 2],
+}
+
+impl Default for SurfaceLever {
+    fn default() -> Self {
+        SurfaceLever {
+            enabled: false,
+            edge_radius_m: [0.0, 0.004],
+            relief: [0.0, 0.3],
+            relief_size_m: [0.002, 0.02],
+        }
+    }
+}
+
 /// The standoff (`plan.trajectory.standoff_m`) times a factor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -340,6 +370,7 @@ impl RandomizeConfig {
             r.object_color.enabled = false;
             r.distractors.enabled = false;
             r.proportions.enabled = false;
+            r.surface.enabled = false;
             r.standoff.enabled = false;
             r.aim.enabled = false;
             r.approach_ends.enabled = false;

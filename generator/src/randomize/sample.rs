@@ -5,7 +5,7 @@ use super::levers::*;
 use crate::appearance::{hsv_to_linear_rgb, AppearanceConfig};
 use crate::catalog::ColorRange;
 use crate::look::{lever_rng, uniform, world_light};
-use grasp_schema::appearance::{Appearance, MotionBlur, SensorEffects};
+use grasp_schema::appearance::{Appearance, MotionBlur, ObjectSurface, SensorEffects};
 use grasp_schema::plan::{substream_seed, CameraIntrinsics};
 use grasp_schema::Condition;
 use rand::Rng;
@@ -28,6 +28,21 @@ pub fn proportions(levers: &RandomizeConfig, stream: u64) -> [f64; 3] {
     let logs: [f64; 3] = std::array::from_fn(|_| uniform(&mut rng, [-reach, reach]));
     let mean = logs.iter().sum::<f64>() / 3.0;
     logs.map(|l| (l - mean).exp())
+}
+
+/// A procedural object's surface ([`SurfaceLever`]; none with the lever
+/// off): edge radius and relief strength uniform, relief size log-uniform.
+pub fn object_surface(levers: &RandomizeConfig, stream: u64) -> Option<ObjectSurface> {
+    let lever = &levers.surface;
+    if !lever.enabled {
+        return None;
+    }
+    let mut rng = lever_rng(stream, "surface");
+    Some(ObjectSurface {
+        edge_radius_m: uniform(&mut rng, lever.edge_radius_m),
+        relief: uniform(&mut rng, lever.relief),
+        relief_size_m: log_uniform(&mut rng, lever.relief_size_m),
+    })
 }
 
 /// A sequence's camera intrinsics: the preset's lens scaled by the drawn

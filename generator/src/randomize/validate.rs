@@ -115,6 +115,20 @@ impl RandomizeConfig {
                 format!("must be in [0, 1], got {spread}"),
             ));
         }
+        let surface = &self.surface;
+        check_range(
+            "[randomize.surface] edge_radius_m",
+            surface.edge_radius_m,
+            0.0,
+            0.05,
+        )?;
+        check_range("[randomize.surface] relief", surface.relief, 0.0, 1.0)?;
+        check_range(
+            "[randomize.surface] relief_size_m",
+            surface.relief_size_m,
+            1e-4,
+            1.0,
+        )?;
         check_range("[randomize.standoff] scale", self.standoff.scale, 0.0, 10.0)?;
         let a = self.aim.fraction;
         if !(0.0..=1.0).contains(&a) {

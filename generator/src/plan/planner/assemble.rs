@@ -111,7 +111,7 @@ impl Planner {
             geo.spec.color.as_ref(),
             crate::appearance::default_object_hsv(&geo.spec.id),
         );
-        randomize::sequence_appearance(
+        let mut look = randomize::sequence_appearance(
             &self.config.appearance,
             &self.levers,
             key.condition,
@@ -119,7 +119,12 @@ impl Planner {
             &colors,
             c.placement.position.into(),
             &self.images,
-        )
+        );
+        // A mesh from a file (a real object) keeps its own surface.
+        if geo.spec.mesh.is_procedural() {
+            look.object.surface = randomize::object_surface(&self.levers, stream);
+        }
+        look
     }
 
     /// The distractors of an accepted scene (none with the lever off).
