@@ -413,7 +413,12 @@ fn without(mut v: serde_json::Value, paths: &[&str]) -> serde_json::Value {
 #[test]
 fn switching_a_lever_changes_only_its_own_values() {
     type Edit = fn(&mut GeneratorConfig);
-    let cases: [(&str, Edit, &[&str]); 8] = [
+    let cases: [(&str, Edit, &[&str]); 9] = [
+        (
+            "surface",
+            |c| c.randomize.surface.enabled = false,
+            &["appearance.object.surface"],
+        ),
         (
             "world_light",
             |c| c.randomize.world_light.enabled = false,
@@ -500,7 +505,7 @@ fn the_master_switch_turns_every_lever_off() {
     for p in plans(&c, &[Condition::Default], 10) {
         let a = p.appearance.unwrap();
         assert!(a.world.is_none() && a.motion_blur.is_none() && a.sensor.is_none());
-        assert!(!a.object.plausible && p.distractors.is_empty());
+        assert!(!a.object.plausible && a.object.surface.is_none() && p.distractors.is_empty());
         assert!((p.intrinsics.fov_y_deg - 42.0).abs() < 1e-9);
         assert_eq!(p.intrinsics.cx, 112.0);
         assert_eq!(p.sampled["standoff_m"], 0.12);
@@ -682,16 +687,16 @@ fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     );
 }
 
-/// `[randomize.surface]` (off by default) draws a surface for procedural
-/// objects from its own stream: switched on, every plan gains
-/// `appearance.object.surface` within the ranges and nothing else changes;
-/// a mesh from a file keeps its own surface; bad ranges are refused by name.
+/// `[randomize.surface]` draws a surface for procedural objects from its
+/// own stream: every plan has `appearance.object.surface` within the
+/// ranges, and switched off nothing else changes; a mesh from a file keeps
+/// its own surface; bad ranges are refused by name.
 #[test]
 fn surface_rounds_and_roughens_procedural_objects_only() {
-    let off = GeneratorConfig::default();
-    assert!(!off.randomize.surface.enabled);
-    let mut on = off.clone();
-    on.randomize.surface.enabled = true;
+    let on = GeneratorConfig::default();
+    assert!(on.randomize.surface.enabled);
+    let mut off = on.clone();
+    off.randomize.surface.enabled = false;
     let conditions = [Condition::Default, Condition::UnseenLook];
     let (before, after) = (plans(&off, &conditions, 4), plans(&on, &conditions, 4));
     let mut radii = Vec::new();

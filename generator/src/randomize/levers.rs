@@ -289,7 +289,7 @@ pub struct SurfaceLever {
 impl Default for SurfaceLever {
     fn default() -> Self {
         SurfaceLever {
-            enabled: false,
+            enabled: true,
             edge_radius_m: [0.0, 0.004],
             relief: [0.0, 0.3],
             relief_size_m: [0.002, 0.02],

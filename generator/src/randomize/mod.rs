@@ -16,7 +16,7 @@
 //! | `object_color` | the object's colour within its plausible range | object material |
 //! | `distractors` | primitives on the table, clear of the target and the reach | plan, Blender |
 //! | `proportions` | the object's proportions (mesh and part boxes, per axis, size kept) | plan, Blender, part labels |
-//! | `surface` | the object's edges rounded, a relief in its shading (off by default) | Blender |
+//! | `surface` | the object's edges rounded, a relief in its shading | Blender |
 //! | `standoff` | where the approach stops short of the target | plan |
 //! | `aim` | the aim point within the target part's end face | plan |
 //! | `approach_ends` | both ends of the part's approach axis, balanced | plan |
