@@ -18,7 +18,7 @@ peer / ours of p50 and p99 (above 1: ours faster).
   P=$(lab/bench-env.sh | tail -n1)
   cargo build --release -p runtime
   $P lab/bench_pipeline.py --hannes-run target/release/hannes-run \\
-      --checkpoint runs/main/model-fc/seed-0 --rounds 5
+      --checkpoint runs/main/model-fc/seed-0 --rounds 5 [--pace 30]
 
 Needs the benchmark environment (CI does not run this).
 """
@@ -111,15 +111,21 @@ class Peer:
             return torch.softmax(self.fc(self.features(x)), dim=1)
 
 
-def time_peer(peer: Peer, frames: int, size: int, warmup: int) -> dict:
+def time_peer(peer: Peer, frames: int, size: int, warmup: int, pace: float) -> dict:
+    """As `hannes-run bench --pace`: with a pace, each frame starts one
+    period after the previous one started."""
     inputs = [synthetic_frame(i, size) for i in range(frames)]
     for f in inputs[:warmup]:
         peer.classify(f)
     ms = []
+    start = time.perf_counter()
     for f in inputs:
+        if pace > 0:
+            time.sleep(max(0.0, start - time.perf_counter()))
         t = time.perf_counter()
         peer.classify(f)
         ms.append((time.perf_counter() - t) * 1e3)
+        start = t + (1.0 / pace if pace > 0 else 0.0)
     return order_stats(ms)
 
 
@@ -135,7 +141,8 @@ def order_stats(ms: list[float]) -> dict:
 
 def time_ours(args: argparse.Namespace) -> dict:
     cmd = [args.hannes_run, "bench", "--checkpoint", args.checkpoint]
-    cmd += ["--frames", str(args.frames), "--sends", "1", "--approaches", "0"]
+    cmd += ["--frames", str(args.frames), "--sends", "0", "--approaches", "0"]
+    cmd += ["--pace", str(args.pace)]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     m = re.search(r"inference .*: p50 ([\d.]+) ms, p99 ([\d.]+) ms", out)
     if not m:
@@ -152,12 +159,15 @@ def main() -> None:
     p.add_argument("--size", type=int, default=224)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--rounds", type=int, default=5)
+    p.add_argument(
+        "--pace", type=float, default=0.0, help="frames per second on both sides (0: back to back)"
+    )
     args = p.parse_args()
 
     peer = Peer(args.threads)
     rounds = []
     for i in range(args.rounds):
-        t = time_peer(peer, args.frames, args.size, args.warmup)
+        t = time_peer(peer, args.frames, args.size, args.warmup, args.pace)
         o = time_ours(args)
         r = {k: t[k] / o[k] for k in ("p50", "p99")}
         rounds.append((t, o, r))
@@ -174,7 +184,8 @@ def main() -> None:
         print(
             f"{k}: peer {peer_ms:.2f} ms, ours {ours_ms:.2f} ms, ratio peer/ours median "
             f"{statistics.median(ratio):.2f} (range {min(ratio):.2f}-{max(ratio):.2f}), "
-            f"{args.rounds} rounds of {args.frames} frames, {args.threads} threads"
+            f"{args.rounds} rounds of {args.frames} frames, {args.threads} threads, "
+            f"{'back to back' if args.pace <= 0 else f'at {args.pace:g} fps'}"
         )
 
 
