@@ -613,6 +613,21 @@ fn objects_keep_the_catalog_size_and_the_deleted_resize_lever_is_refused() {
 /// object rests on the table, and the target lies on an end face of the
 /// catalog's part box once carried back into the catalog's frame. Off, or
 /// for a mesh from a file, nothing is stretched or recorded.
+/// A planner for the carton read from a mesh file (a real object, as
+/// `objects import-ycb` writes), not built procedurally.
+fn file_mesh_planner(c: &GeneratorConfig) -> generator::plan::Planner {
+    let (mut spec, mesh, body) = box_object(1.0);
+    spec.mesh =
+        serde_json::from_value(serde_json::json!({"file": {"path": "carton.ply"}})).unwrap();
+    let geo = generator::plan::ObjectGeometry::new(
+        spec,
+        &mesh,
+        Box::new(generator::plan::validity::BoxMesh(body)),
+    )
+    .unwrap();
+    generator::plan::Planner::from_geometries(c, vec![geo]).unwrap()
+}
+
 #[test]
 fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     let mut c = GeneratorConfig::default();
@@ -662,16 +677,7 @@ fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     }
     // A mesh from a file (a real object, as `objects import-ycb` writes) is
     // never stretched, with the lever on.
-    let (mut spec, mesh, body) = box_object(1.0);
-    spec.mesh =
-        serde_json::from_value(serde_json::json!({"file": {"path": "carton.ply"}})).unwrap();
-    let geo = generator::plan::ObjectGeometry::new(
-        spec,
-        &mesh,
-        Box::new(generator::plan::validity::BoxMesh(body)),
-    )
-    .unwrap();
-    let real = generator::plan::Planner::from_geometries(&c, vec![geo]).unwrap();
+    let real = file_mesh_planner(&c);
     for i in 0..4 {
         let p = real.plan(&key("side", i, Condition::Default)).unwrap();
         assert_eq!(p.object.axis_scale(), [1.0; 3]);
@@ -716,16 +722,7 @@ fn surface_rounds_and_roughens_procedural_objects_only() {
     }
     let [low, high] = range(radii.into_iter());
     assert!(high - low > 0.001, "radii {low}..{high}");
-    let (mut spec, mesh, body) = box_object(1.0);
-    spec.mesh =
-        serde_json::from_value(serde_json::json!({"file": {"path": "carton.ply"}})).unwrap();
-    let geo = generator::plan::ObjectGeometry::new(
-        spec,
-        &mesh,
-        Box::new(generator::plan::validity::BoxMesh(body)),
-    )
-    .unwrap();
-    let real = generator::plan::Planner::from_geometries(&on, vec![geo]).unwrap();
+    let real = file_mesh_planner(&on);
     for i in 0..4 {
         let p = real.plan(&key("side", i, Condition::Default)).unwrap();
         assert_eq!(appearance(&p).object.surface, None);
