@@ -127,6 +127,17 @@ fn the_fast_exponential_is_within_2e_7_of_exp() {
 }
 
 #[test]
+fn the_fast_exponential_clamps_its_argument_to_its_range() {
+    // Its unchecked conversion relies on the clamp.
+    assert_eq!(exp_neg(-3.0), 1.0);
+    assert_eq!(exp_neg(f32::NEG_INFINITY), 1.0);
+    assert_eq!(exp_neg(f32::NAN), 1.0);
+    assert_eq!(exp_neg(1e30), exp_neg(NEGLIGIBLE));
+    assert_eq!(exp_neg(f32::INFINITY), exp_neg(NEGLIGIBLE));
+    assert!((f64::from(exp_neg(NEGLIGIBLE)) - (-12f64).exp()).abs() < 1e-11);
+}
+
+#[test]
 fn mirroring_folds_back_into_the_image() {
     assert_eq!(
         (-3..8).map(|i| mirror(i, 4)).collect::<Vec<_>>(),
