@@ -3,8 +3,9 @@
 
 The peer runs the same steps as `Classifier::predict` with the shipped FC
 recipe, on the same synthetic 224 x 224 frames (`hannes-run bench`'s
-formula): the centre square of 18.3 degrees through the bench's 42-degree
-lens (94 px), our noise estimate in NumPy (Immerkaer's, as
+formula) or, with `--recording DIR`, the same recording's frames repeated
+in order: the centre square of 18.3 degrees through the bench's 42-degree
+lens (94 px; a recording's lens is its sequence.json's), our noise estimate in NumPy (Immerkaer's, as
 `input::denoise::noise_sigma`) and scikit-image's non-local means
 (`denoise_nl_means`: 5 x 5 patches, 13 x 13 window, h = 0.8 sigma, fast
 mode), PIL's bicubic resize to 128, (x - 127) / 128,
@@ -18,17 +19,19 @@ peer / ours of p50 and p99 (above 1: ours faster).
   P=$(lab/bench-env.sh | tail -n1)
   cargo build --release -p runtime
   $P lab/bench_pipeline.py --hannes-run target/release/hannes-run \\
-      --checkpoint runs/main/model-fc/seed-0 --rounds 5 [--pace 30]
+      --checkpoint runs/main/model-fc/seed-0 --rounds 5 [--pace 30] [--recording DIR]
 
 Needs the benchmark environment (CI does not run this).
 """
 
 import argparse
+import json
 import math
 import re
 import statistics
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -49,9 +52,27 @@ def synthetic_frame(i: int, size: int) -> np.ndarray:
     return np.stack([v, 255 - v, (x ^ y) % 256], axis=-1).astype(np.uint8)
 
 
-def crop_side(size: int) -> int:
-    half = math.tan(math.radians(CROP_DEG / 2)) / math.tan(math.radians(LENS_HFOV_DEG / 2))
+def crop_side(size: int, hfov_deg: float) -> int:
+    half = math.tan(math.radians(CROP_DEG / 2)) / math.tan(math.radians(hfov_deg / 2))
     return round(size * half)
+
+
+def load_recording(folder: str) -> tuple[list[np.ndarray], float]:
+    """A sequence folder's frames and the horizontal angle of its lens
+    (sequence.json's intrinsics; the bench's 42 degrees for bare PNGs)."""
+    d = Path(folder)
+    record = d / "sequence.json"
+    if record.exists():
+        meta = json.loads(record.read_text())
+        files = [d / f for f in meta["frame_files"]]
+        k = meta["plan"]["intrinsics"]
+        hfov = math.degrees(2 * math.atan(k["width"] / 2 / k["fx"]))
+    else:
+        files, hfov = sorted(d.glob("*.png")), LENS_HFOV_DEG
+    frames = [np.asarray(Image.open(f).convert("RGB")) for f in files]
+    if not frames:
+        raise SystemExit(f"{folder}: no frames")
+    return frames, hfov
 
 
 def noise_sigma(img: np.ndarray) -> float:
@@ -88,9 +109,9 @@ class Peer:
         head = n.bn2(n.conv_head(y)).mean(dim=(2, 3))
         return torch.cat([head, *pooled], dim=1)
 
-    def classify(self, frame: np.ndarray) -> torch.Tensor:
+    def classify(self, frame: np.ndarray, hfov_deg: float) -> torch.Tensor:
         size = frame.shape[0]
-        side = crop_side(size)
+        side = crop_side(size, hfov_deg)
         top = (size - side) // 2
         square = frame[top : top + side, top : top + side].astype(np.float64) / 255.0
         sigma = noise_sigma(square)
@@ -111,19 +132,22 @@ class Peer:
             return torch.softmax(self.fc(self.features(x)), dim=1)
 
 
-def time_peer(peer: Peer, frames: int, size: int, warmup: int, pace: float) -> dict:
-    """As `hannes-run bench --pace`: with a pace, each frame starts one
-    period after the previous one started."""
-    inputs = [synthetic_frame(i, size) for i in range(frames)]
-    for f in inputs[:warmup]:
-        peer.classify(f)
+def time_peer(
+    peer: Peer, inputs: list[np.ndarray], hfov: float, frames: int, warmup: int, pace: float
+) -> dict:
+    """As `hannes-run bench --pace`: `frames` frames, `inputs` repeated in
+    order; with a pace, each frame starts one period after the previous one
+    started."""
+    for i in range(warmup):
+        peer.classify(inputs[i % len(inputs)], hfov)
     ms = []
     start = time.perf_counter()
-    for f in inputs:
+    for i in range(frames):
+        f = inputs[i % len(inputs)]
         if pace > 0:
             time.sleep(max(0.0, start - time.perf_counter()))
         t = time.perf_counter()
-        peer.classify(f)
+        peer.classify(f, hfov)
         ms.append((time.perf_counter() - t) * 1e3)
         start = t + (1.0 / pace if pace > 0 else 0.0)
     return order_stats(ms)
@@ -143,6 +167,8 @@ def time_ours(args: argparse.Namespace) -> dict:
     cmd = [args.hannes_run, "bench", "--checkpoint", args.checkpoint]
     cmd += ["--frames", str(args.frames), "--sends", "0", "--approaches", "0"]
     cmd += ["--pace", str(args.pace)]
+    if args.recording:
+        cmd += ["--recording", args.recording]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     m = re.search(r"inference .*: p50 ([\d.]+) ms, p99 ([\d.]+) ms", out)
     if not m:
@@ -162,12 +188,18 @@ def main() -> None:
     p.add_argument(
         "--pace", type=float, default=0.0, help="frames per second on both sides (0: back to back)"
     )
+    p.add_argument("--recording", help="time this sequence folder's frames (default: synthetic)")
     args = p.parse_args()
 
+    if args.recording:
+        inputs, hfov = load_recording(args.recording)
+    else:
+        inputs = [synthetic_frame(i, args.size) for i in range(args.frames)]
+        hfov = LENS_HFOV_DEG
     peer = Peer(args.threads)
     rounds = []
     for i in range(args.rounds):
-        t = time_peer(peer, args.frames, args.size, args.warmup, args.pace)
+        t = time_peer(peer, inputs, hfov, args.frames, args.warmup, args.pace)
         o = time_ours(args)
         r = {k: t[k] / o[k] for k in ("p50", "p99")}
         rounds.append((t, o, r))

@@ -1,5 +1,6 @@
 //! `hannes-run replay` of recordings whose size differs from the size their
-//! lens was measured at: the fixed-angle crop is cut at the same angle.
+//! lens was measured at: the fixed-angle crop is cut at the same angle; and
+//! `hannes-run bench` timing a recording's frames through its lens.
 
 mod cli_common;
 mod common;
@@ -128,5 +129,72 @@ fn a_recording_at_another_size_than_its_intrinsics_is_cut_at_the_same_angle() {
     assert!(
         reason.contains("focal_px") && reason.contains("field of view"),
         "{reason}"
+    );
+}
+
+/// `bench --recording` times a recording's own frames, repeated in order,
+/// through the lens its sequence.json records, and says so; a bare PNG
+/// folder needs the lens flags for a fixed-angle checkpoint, and a broken
+/// frame is named.
+#[test]
+fn bench_times_the_frames_of_a_recording_through_its_lens() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = angle_checkpoint(dir.path(), 30.0);
+    let ckpt = ckpt.to_str().unwrap();
+    let bench = |recording: &Path, extra: &[&str]| {
+        let common = [
+            "bench",
+            "--checkpoint",
+            ckpt,
+            "--recording",
+            recording.to_str().unwrap(),
+            "--frames",
+            "7",
+            "--warmup",
+            "1",
+            "--sends",
+            "0",
+            "--approaches",
+            "0",
+        ];
+        hannes_run(&[&common[..], extra].concat())
+    };
+    let frames: Vec<image::RgbImage> = (0..3u8)
+        .map(|k| {
+            image::RgbImage::from_fn(32, 32, |x, y| {
+                image::Rgb([k * 60, (x * 8) as u8, (y * 8) as u8])
+            })
+        })
+        .collect();
+    let focal = 16.0 / 21f64.to_radians().tan();
+    let seq = recording(&dir.path().join("rec"), &frames, 32, focal);
+    let out = bench(&seq, &[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report = text(&out.stdout);
+    let expected = format!(
+        "inference 32x32 of {} (7 frames, back to back)",
+        seq.display()
+    );
+    assert!(report.contains(&expected), "{report}");
+
+    let bare = sequence(dir.path(), 2, None);
+    let out = bench(&bare, &[]);
+    assert!(!out.status.success());
+    assert!(
+        last_line(&out.stderr).contains("lens"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = bench(&bare, &["--hfov-deg", "42"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+
+    let other = tempfile::tempdir().unwrap();
+    let broken = sequence(other.path(), 3, Some(1));
+    let out = bench(&broken, &["--hfov-deg", "42"]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("frame_0001.png"),
+        "{}",
+        text(&out.stderr)
     );
 }

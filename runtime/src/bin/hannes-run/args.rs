@@ -149,7 +149,17 @@ pub(crate) struct BenchArgs {
     /// without a dataset.
     #[arg(long)]
     pub(crate) checkpoint: PathBuf,
-    /// Timed inference frames (224x224).
+    /// Time the frames of a recording (a sequence folder, as for `replay`),
+    /// decoded beforehand and repeated in order, instead of synthetic
+    /// frames: the denoiser's time depends on what the frames show.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) recording: Option<String>,
+    /// The recording's lens, when it has no sequence.json (synthetic
+    /// frames are seen through a 42-degree lens).
+    #[command(flatten)]
+    pub(crate) lens: LensArgs,
+    /// Timed inference frames (224x224 synthetic ones, or the recording's
+    /// repeated).
     #[arg(long, default_value_t = 200)]
     pub(crate) frames: usize,
     /// Untimed warm-up frames.
@@ -168,7 +178,7 @@ pub(crate) struct BenchArgs {
     pub(crate) approaches: usize,
     #[arg(long, default_value_t = 115_200)]
     pub(crate) baud: u32,
-    /// Input size of the timed frames.
-    #[arg(long, default_value_t = 224)]
+    /// Input size of the synthetic frames.
+    #[arg(long, default_value_t = 224, conflicts_with = "recording")]
     pub(crate) size: u32,
 }

@@ -3,8 +3,10 @@
 //! against a simulated hand on a pseudo-terminal.
 
 use crate::args::BenchArgs;
-use crate::setup::set_lens;
+use crate::setup::{open_recording, set_lens};
 use anyhow::Result;
+use grasp_cli::LensArgs;
+use grasp_model::checkpoint::Classifier;
 use grasp_model::input::Lens;
 use grasp_schema::taxonomy::Preshape;
 use image::RgbImage;
@@ -23,23 +25,36 @@ use std::time::{Duration, Instant};
 
 pub(crate) fn command(args: BenchArgs) -> Result<()> {
     let mut classifier = runtime::model::load(&args.checkpoint)?;
-    // A fixed-angle crop is timed through the default lens (42 degrees
-    // across the square frame, the generator's d435 preset).
-    set_lens(
-        &mut classifier,
-        Some(Lens::horizontal_fov(42.0)?),
-        "the benchmark",
-    )?;
-    let frames = synthetic_frames(args.frames.max(1), args.size);
     let period = pace_period(args.pace)?;
-    let inference = inference(&mut classifier, &frames, args.warmup, period)?;
+    let (frames, from) = match &args.recording {
+        Some(dir) => (
+            recording_frames(dir, &args.lens, &mut classifier)?,
+            format!(" of {dir}"),
+        ),
+        None => {
+            // A fixed-angle crop is timed through the default lens (42
+            // degrees across the square frame, the generator's d435 preset).
+            let lens = Some(Lens::horizontal_fov(42.0)?);
+            set_lens(&mut classifier, lens, "the benchmark")?;
+            (
+                synthetic_frames(args.frames.max(1), args.size),
+                String::new(),
+            )
+        }
+    };
+    let (width, height) = frames[0].dimensions();
+    let inference = inference(
+        &mut classifier,
+        &frames,
+        args.frames.max(1),
+        args.warmup,
+        period,
+    )?;
     let paced = period.map_or("back to back".to_string(), |_| {
         format!("at {} fps", args.pace)
     });
     println!(
-        "inference {}x{} ({} frames, {paced}): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
-        args.size,
-        args.size,
+        "inference {width}x{height}{from} ({} frames, {paced}): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
         inference.n,
         inference.p50_ms,
         inference.p99_ms,
@@ -113,6 +128,22 @@ pub fn synthetic_frames(n: usize, size: u32) -> Vec<RgbImage> {
         .collect()
 }
 
+/// Every frame of the recording in `dir`, decoded, with the classifier
+/// given the recording's lens (or `lens`) as `replay` gives it.
+fn recording_frames(
+    dir: &str,
+    lens: &LensArgs,
+    classifier: &mut Classifier,
+) -> Result<Vec<RgbImage>> {
+    let mut folder = open_recording(dir, None, lens, Pacing::AsFastAsPossible, classifier)?;
+    folder.begin()?;
+    let mut frames = Vec::with_capacity(folder.len());
+    while let Some(frame) = folder.next_frame()? {
+        frames.push(frame.image);
+    }
+    Ok(frames)
+}
+
 /// The time between paced frames for `--pace FPS`; none for 0 (back to
 /// back).
 fn pace_period(fps: f64) -> Result<Option<Duration>> {
@@ -125,21 +156,23 @@ fn pace_period(fps: f64) -> Result<Option<Duration>> {
     Ok(Some(Duration::from_secs_f64(1.0 / fps)))
 }
 
-/// Per-frame inference time, after `warmup` untimed frames; with a
-/// `period`, each frame starts one period after the previous one started
-/// (a frame that overruns starts the next at once).
+/// Per-frame inference time of `count` frames, `frames` repeated in order,
+/// after `warmup` untimed ones; with a `period`, each frame starts one
+/// period after the previous one started (a frame that overruns starts the
+/// next at once).
 pub fn inference(
     classifier: &mut dyn FrameClassifier,
     frames: &[RgbImage],
+    count: usize,
     warmup: usize,
     period: Option<Duration>,
 ) -> Result<Summary> {
     for f in frames.iter().cycle().take(warmup) {
         classifier.classify(f)?;
     }
-    let mut samples = Vec::with_capacity(frames.len());
+    let mut samples = Vec::with_capacity(count);
     let mut next = Instant::now();
-    for f in frames {
+    for f in frames.iter().cycle().take(count) {
         if period.is_some() {
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }

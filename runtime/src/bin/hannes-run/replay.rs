@@ -21,7 +21,14 @@ pub(crate) fn replay(args: ReplayArgs) -> Result<()> {
     } else {
         Pacing::AsFastAsPossible
     };
-    let folder = open_recording(&args.source, pacing, &mut classifier)?;
+    let source = &args.source;
+    let folder = open_recording(
+        &source.source,
+        source.fps,
+        &source.lens,
+        pacing,
+        &mut classifier,
+    )?;
     let info = folder.info().clone();
     let mode = if args.realtime {
         FeedMode::Latest

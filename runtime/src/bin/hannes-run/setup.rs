@@ -4,6 +4,7 @@
 
 use crate::args::{PolicyArgs, SourceArgs};
 use anyhow::{Context, Result};
+use grasp_cli::LensArgs;
 use grasp_model::checkpoint::Classifier;
 use grasp_model::input::{Crop, Lens};
 use grasp_schema::taxonomy::Preshape;
@@ -59,25 +60,34 @@ pub(crate) fn open_source(
         let device = rest.strip_prefix(':').unwrap_or("/dev/video0");
         return Ok((open_camera(Path::new(device))?, true));
     }
-    let folder = open_recording(source_args, pacing, classifier)?;
+    let folder = open_recording(
+        &source_args.source,
+        source_args.fps,
+        &source_args.lens,
+        pacing,
+        classifier,
+    )?;
     Ok((Box::new(folder), false))
 }
 
 /// Opens a recording for `classifier`: sets the lens its crop needs and
 /// checks, at the frames' own size, that the recording holds every pixel
 /// the crop sees.
+/// The lens is `lens_args`' if given, else the one `sequence.json` records.
 pub(crate) fn open_recording(
-    source_args: &SourceArgs,
+    source: &str,
+    fps: Option<f64>,
+    lens_args: &LensArgs,
     pacing: Pacing,
     classifier: &mut Classifier,
 ) -> Result<SequenceFolder> {
-    let dir = Path::new(&source_args.source);
-    let folder = SequenceFolder::open(dir, source_args.fps, pacing)?;
-    let lens = match source_args.lens.lens()? {
+    let dir = Path::new(source);
+    let folder = SequenceFolder::open(dir, fps, pacing)?;
+    let lens = match lens_args.lens()? {
         Some(lens) => Some(lens),
         None => folder.info().lens()?,
     };
-    set_lens(classifier, lens, &source_args.source)?;
+    set_lens(classifier, lens, source)?;
     let (width, height) = folder.frame_size()?;
     let crop = classifier.crop_fraction(width, height).with_context(|| {
         format!(
