@@ -154,8 +154,8 @@ pub(crate) struct BenchArgs {
     /// frames: the denoiser's time depends on what the frames show.
     #[arg(long, value_name = "DIR")]
     pub(crate) recording: Option<String>,
-    /// The recording's lens, when it has no sequence.json (synthetic
-    /// frames are seen through a 42-degree lens).
+    /// The camera's lens: a recording's, when it has no sequence.json; the
+    /// synthetic frames' (default: 42 degrees across).
     #[command(flatten)]
     pub(crate) lens: LensArgs,
     /// Timed inference frames (224x224 synthetic ones, or the recording's

@@ -32,9 +32,13 @@ pub(crate) fn command(args: BenchArgs) -> Result<()> {
             format!(" of {dir}"),
         ),
         None => {
-            // A fixed-angle crop is timed through the default lens (42
-            // degrees across the square frame, the generator's d435 preset).
-            let lens = Some(Lens::horizontal_fov(42.0)?);
+            // A fixed-angle crop is timed through the lens flags' lens, by
+            // default 42 degrees across the square frame (the generator's
+            // d435 preset).
+            let lens = Some(match args.lens.lens()? {
+                Some(lens) => lens,
+                None => Lens::horizontal_fov(42.0)?,
+            });
             set_lens(&mut classifier, lens, "the benchmark")?;
             (
                 synthetic_frames(args.frames.max(1), args.size),
