@@ -244,8 +244,8 @@ fn exp_neg(x: f32) -> f32 {
     let x = x.max(0.0).min(NEGLIGIBLE);
     // SAFETY: x is in [0, 12], so the value converted is in [0.5, 17.9]:
     // finite and in range. Unchecked, the conversion is one instruction;
-    // `as` adds saturation and NaN checks that took 40 % of the filter's
-    // time (BENCHMARKS.md, "The crop denoiser").
+    // `as` adds saturation and NaN checks that took up to 40 % of the
+    // filter's time (BENCHMARKS.md, "The crop denoiser").
     let n: i32 = unsafe { (x * std::f32::consts::LOG2_E + 0.5).to_int_unchecked() };
     // ln 2 in two parts (Cody and Waite): n x LN2_HI is exact for n < 2^15,
     // so g keeps the precision that x - n ln 2 in one step would lose.
