@@ -227,24 +227,12 @@ fn replay_exits_3_like_run_when_a_frame_cannot_be_read() {
 /// no rate is refused by name.
 #[test]
 fn bench_paces_its_frames_at_a_camera_rate() {
-    let ckpt = checkpoint().to_str().unwrap();
-    let common = [
-        "bench",
-        "--checkpoint",
-        ckpt,
-        "--frames",
-        "10",
-        "--warmup",
-        "1",
-        "--sends",
-        "0",
-        "--approaches",
-        "0",
-        "--size",
-        "32",
-    ];
+    let bench = |extra: &[&str]| {
+        let ckpt = checkpoint().to_str().unwrap();
+        bench_inference(ckpt, "10", &[&["--size", "32"], extra].concat())
+    };
     let started = Instant::now();
-    let out = hannes_run(&[&common[..], &["--pace", "20"]].concat());
+    let out = bench(&["--pace", "20"]);
     let took = started.elapsed();
     assert!(out.status.success(), "{}", text(&out.stderr));
     let report = text(&out.stdout);
@@ -254,13 +242,13 @@ fn bench_paces_its_frames_at_a_camera_rate() {
         "{report}"
     );
     assert!(took >= Duration::from_millis(450), "{took:?}: {report}");
-    let out = hannes_run(&[&common[..], &["--pace=-3"]].concat());
+    let out = bench(&["--pace=-3"]);
     assert!(!out.status.success());
     assert!(
         last_line(&out.stderr).contains("--pace"),
         "{}",
         text(&out.stderr)
     );
-    let out = hannes_run(&common);
+    let out = bench(&[]);
     assert!(text(&out.stdout).contains("(10 frames, back to back)"));
 }

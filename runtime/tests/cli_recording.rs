@@ -142,22 +142,8 @@ fn bench_times_the_frames_of_a_recording_through_its_lens() {
     let ckpt = angle_checkpoint(dir.path(), 30.0);
     let ckpt = ckpt.to_str().unwrap();
     let bench = |recording: &Path, extra: &[&str]| {
-        let common = [
-            "bench",
-            "--checkpoint",
-            ckpt,
-            "--recording",
-            recording.to_str().unwrap(),
-            "--frames",
-            "7",
-            "--warmup",
-            "1",
-            "--sends",
-            "0",
-            "--approaches",
-            "0",
-        ];
-        hannes_run(&[&common[..], extra].concat())
+        let source = ["--recording", recording.to_str().unwrap()];
+        bench_inference(ckpt, "7", &[&source[..], extra].concat())
     };
     let frames: Vec<image::RgbImage> = (0..3u8)
         .map(|k| {

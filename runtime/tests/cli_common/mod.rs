@@ -57,6 +57,25 @@ pub fn sequence(dir: &Path, n: usize, broken: Option<usize>) -> PathBuf {
     seq
 }
 
+/// `hannes-run bench` timing `frames` frames after one warm-up frame,
+/// without the link and approach parts, with `extra` arguments.
+pub fn bench_inference(checkpoint: &str, frames: &str, extra: &[&str]) -> Output {
+    let base = [
+        "bench",
+        "--checkpoint",
+        checkpoint,
+        "--frames",
+        frames,
+        "--warmup",
+        "1",
+        "--sends",
+        "0",
+        "--approaches",
+        "0",
+    ];
+    hannes_run(&[&base[..], extra].concat())
+}
+
 /// A config whose link gives up quickly.
 pub fn quick_link_config(dir: &Path) -> PathBuf {
     let path = dir.join("run.toml");
