@@ -5,7 +5,8 @@ The peer runs the same steps as `Classifier::predict` with the shipped FC
 recipe, on the same synthetic 224 x 224 frames (`hannes-run bench`'s
 formula) or, with `--recording DIR`, the same recording's frames repeated
 in order: the centre square of 18.3 degrees through the bench's 42-degree
-lens (94 px; a recording's lens is its sequence.json's), our noise estimate in NumPy (Immerkaer's, as
+lens (94 px; a recording's lens is its sequence.json's, a bare folder's
+42 degrees on both sides), our noise estimate in NumPy (Immerkaer's, as
 `input::denoise::noise_sigma`) and scikit-image's non-local means
 (`denoise_nl_means`: 5 x 5 patches, 13 x 13 window, h = 0.8 sigma, fast
 mode), PIL's bicubic resize to 128, (x - 127) / 128,
@@ -169,6 +170,8 @@ def time_ours(args: argparse.Namespace) -> dict:
     cmd += ["--pace", str(args.pace)]
     if args.recording:
         cmd += ["--recording", args.recording]
+        if not (Path(args.recording) / "sequence.json").exists():
+            cmd += ["--hfov-deg", str(LENS_HFOV_DEG)]  # the lens load_recording assumes
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     m = re.search(r"inference .*: p50 ([\d.]+) ms, p99 ([\d.]+) ms", out)
     if not m:

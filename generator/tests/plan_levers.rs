@@ -608,11 +608,6 @@ fn objects_keep_the_catalog_size_and_the_deleted_resize_lever_is_refused() {
     assert!(e.contains("object_scale"), "{e}");
 }
 
-/// `[randomize.proportions]` stretches the object along its frame's axes
-/// with their product 1: the plan records the factors, the stretched
-/// object rests on the table, and the target lies on an end face of the
-/// catalog's part box once carried back into the catalog's frame. Off, or
-/// for a mesh from a file, nothing is stretched or recorded.
 /// A planner for the carton read from a mesh file (a real object, as
 /// `objects import-ycb` writes), not built procedurally.
 fn file_mesh_planner(c: &GeneratorConfig) -> generator::plan::Planner {
@@ -628,6 +623,11 @@ fn file_mesh_planner(c: &GeneratorConfig) -> generator::plan::Planner {
     generator::plan::Planner::from_geometries(c, vec![geo]).unwrap()
 }
 
+/// `[randomize.proportions]` stretches the object along its frame's axes
+/// with their product 1: the plan records the factors, the stretched
+/// object rests on the table, and the target lies on an end face of the
+/// catalog's part box once carried back into the catalog's frame. Off, or
+/// for a mesh from a file, nothing is stretched or recorded.
 #[test]
 fn proportions_stretch_the_object_that_the_plan_checks_and_records() {
     let mut c = GeneratorConfig::default();
