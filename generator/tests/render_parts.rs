@@ -163,3 +163,43 @@ fn a_stretched_object_is_drawn_and_labelled_at_its_proportions() {
     let ratio = object(wide) as f64 / object(narrow) as f64;
     assert!((1.4..2.4).contains(&ratio), "{wide:?} against {narrow:?}");
 }
+
+/// `plan.object.shape_member` (`[randomize.profiles]`) reaches Blender and
+/// the labels: the plan placing member 1 of a_box's family is drawn and
+/// labelled with that member's mesh (here half as wide along X), the
+/// model's plan with the model's; a member the source has no mesh for fails
+/// that sequence by the member's name.
+#[test]
+fn a_member_of_a_family_is_drawn_and_labelled_with_its_own_mesh() {
+    if !have_blender() {
+        return;
+    }
+    let c = cycles_with_parts();
+    let object_pixels = |member: u32, with_mesh: bool| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut src = source(1, 2, 64);
+        src.plans.truncate(1);
+        src.plans[0].object.shape_member = member;
+        if with_mesh {
+            let narrow = box_mesh([0.04, 0.08, 0.15]);
+            src.meshes.insert("a_box.member1".into(), narrow);
+        }
+        let s = render(Arc::new(src), &c, &options(dir.path(), 1)).unwrap();
+        if !with_mesh {
+            assert_eq!(s.failed.len(), 1, "{s:?}");
+            let error = format!("{:?}", s.failed);
+            assert!(error.contains("a_box.member1"), "{error}");
+            return 0;
+        }
+        assert_eq!((s.rendered, s.failed.len()), (1, 0), "{s:?}");
+        let manifest = std::fs::read_to_string(dir.path().join(MANIFEST_FILE)).unwrap();
+        let entry: ManifestEntry = serde_json::from_str(manifest.lines().next().unwrap()).unwrap();
+        let n = counts(&labels(&dir.path().join(&entry.path), "00001.png"));
+        n[1] + n[2]
+    };
+    let (model, member) = (object_pixels(0, true), object_pixels(1, true));
+    assert!(member > 30, "member: {member}");
+    let ratio = model as f64 / member as f64;
+    assert!((1.6..2.4).contains(&ratio), "{model} against {member}");
+    object_pixels(1, false);
+}

@@ -14,7 +14,6 @@ mod resume;
 mod slot;
 mod worker_proc;
 
-use super::protocol::MeshFiles;
 use super::source::RenderSource;
 use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::lock;
@@ -23,10 +22,10 @@ use crate::render::error::{RenderError, Result};
 use grasp_schema::dataset::RenderCost;
 use grasp_schema::SequencePlan;
 use grasp_support::atomic::write_atomic;
-use outputs::{finish_manifest, write_meshes};
+use outputs::{finish_manifest, MeshStore};
 use pool::run_pool;
 use resume::{refuse_other_sequences, unfinished_jobs};
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeSet, VecDeque};
 use std::path::PathBuf;
 use std::process::Child;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -127,7 +126,7 @@ struct Shared {
     dataset: DatasetDir,
     geometry: SceneGeometry,
     settings: serde_json::Value,
-    meshes: BTreeMap<String, MeshFiles>,
+    meshes: MeshStore,
     exe: PathBuf,
     worker_env: Vec<(String, String)>,
     recycle_every: usize,
@@ -200,7 +199,7 @@ pub fn render(
     let todo = unfinished_jobs(&dataset, &in_shard, &finished, &mut summary);
     let total = todo.len();
     if total > 0 {
-        let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
+        let meshes = MeshStore::new(source.as_ref(), &dataset, &todo)?;
         // Kept for re-renders and the naive benchmark script.
         let scene_json =
             serde_json::to_vec_pretty(&source.scene()).map_err(|source| RenderError::Json {

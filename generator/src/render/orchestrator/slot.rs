@@ -199,12 +199,7 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
     }
     let mesh = ctx
         .meshes
-        .get(&key.object)
-        .cloned()
-        .ok_or_else(|| RenderError::NoObjectData {
-            what: "mesh",
-            object: key.object.clone(),
-        })?;
+        .files(ctx.source.as_ref(), &key.object, plan.object.shape_member)?;
     let out_dir = ctx
         .dataset
         .partial_dir(job.assigned.position, job.attempt)?;
