@@ -162,10 +162,14 @@ impl Planes {
         let (width, height) = (w + 2 * pad, h + 2 * pad);
         let raw = img.as_raw();
         let mut data = [(); 3].map(|_| vec![0f32; width * height + SLACK]);
+        // Each padded column's source column, mirrored once for all rows.
+        let columns: Vec<usize> = (0..width)
+            .map(|x| mirror(x as isize - pad as isize, w))
+            .collect();
         for y in 0..height {
-            let sy = mirror(y as isize - pad as isize, h);
-            for x in 0..width {
-                let i = (sy * w + mirror(x as isize - pad as isize, w)) * 3;
+            let source_row = mirror(y as isize - pad as isize, h) * w;
+            for (x, &sx) in columns.iter().enumerate() {
+                let i = (source_row + sx) * 3;
                 for (c, plane) in data.iter_mut().enumerate() {
                     plane[y * width + x] = f32::from(raw[i + c]);
                 }
