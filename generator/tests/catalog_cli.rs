@@ -86,19 +86,3 @@ fn show_writes_pngs() {
         "{err}"
     );
 }
-
-/// `objects show --member K` draws member K of the family of shapes
-/// (`[randomize.profiles]`): another mug than the model, the same can.
-#[test]
-fn show_draws_a_member_of_a_family() {
-    let dir = tempfile::tempdir().unwrap();
-    let draw = |id: &str, member: &str| {
-        let png = dir.path().join(format!("{id}-{member}.png"));
-        let path = png.to_str().unwrap();
-        let (ok, _, err) = grasp_gen(&["objects", "show", id, "--member", member, "--png", path]);
-        assert!(ok, "{err}");
-        image::open(&png).unwrap().to_rgb8().into_raw()
-    };
-    assert_ne!(draw("025_mug", "0"), draw("025_mug", "3"));
-    assert_eq!(draw("001_chips_can", "0"), draw("001_chips_can", "3"));
-}

@@ -49,11 +49,6 @@ pub struct ShowArgs {
     /// Output folder for --all.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Draw member K of each object's family of shapes
-    /// (`[randomize.profiles]`: another handle or rim profile; 0 is the
-    /// catalog's model). An object without profiles draws its model.
-    #[arg(long, value_name = "K", default_value_t = 0)]
-    pub member: u32,
     #[command(flatten)]
     pub catalog: CatalogArg,
 }
@@ -183,7 +178,7 @@ fn show(a: &ShowArgs) -> Result<()> {
         let out = a.out.as_ref().context("--all needs --out DIR")?;
         for o in &catalog.objects {
             let path = out.join(format!("{}.png", o.id));
-            write_object_png(o, a.member, &path)?;
+            write_object_png(o, &path)?;
             println!("{}", path.display());
         }
         return Ok(());
@@ -197,15 +192,15 @@ fn show(a: &ShowArgs) -> Result<()> {
         )
     })?;
     let png = a.png.as_ref().context("give --png FILE")?;
-    write_object_png(object, a.member, png)?;
+    write_object_png(object, png)?;
     println!("{}", png.display());
     Ok(())
 }
 
-/// Draws a member of an object's family (its mesh) and the catalog's boxes
-/// from the top, front and side, and writes the PNG atomically.
-fn write_object_png(object: &catalog::ObjectSpec, member: u32, path: &Path) -> Result<()> {
-    let mesh = object.member_mesh(member)?;
+/// Draws an object's mesh and boxes from the top, front and side, and
+/// writes the PNG atomically.
+fn write_object_png(object: &catalog::ObjectSpec, path: &Path) -> Result<()> {
+    let mesh = object.mesh()?;
     let img = generator::raster::render_object(object, &mesh);
     let mut bytes = Vec::new();
     img.write_to(
