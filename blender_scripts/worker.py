@@ -45,18 +45,17 @@ class Worker:
             obj.pass_index = render.INDEX_HAND
         render.configure(settings)
 
-    def has_mesh(self, mesh_key):
-        return mesh_key in self.meshes
+    def has_mesh(self, object_id):
+        return object_id in self.meshes
 
-    def add_mesh(self, mesh_key, vertices, faces, smooth_angle_deg=35.0):
-        """Caches a mesh from little-endian f64 xyz and u32 triangle bytes
-        (`mesh_key`: the object's id, or a member of its family of shapes)."""
-        mesh = scene.mesh_from_bytes(mesh_key, vertices, faces, smooth_angle_deg)
+    def add_mesh(self, object_id, vertices, faces, smooth_angle_deg=35.0):
+        """Caches a mesh from little-endian f64 xyz and u32 triangle bytes."""
+        mesh = scene.mesh_from_bytes(object_id, vertices, faces, smooth_angle_deg)
         mesh.materials.append(self.object_mat)
-        self.meshes[mesh_key] = mesh
+        self.meshes[object_id] = mesh
 
-    def _place_object(self, plan, mesh_key):
-        mesh = self.meshes[mesh_key]
+    def _place_object(self, plan):
+        mesh = self.meshes[plan["key"]["object"]]
         if self.target is None:
             self.target = bpy.data.objects.new("target", mesh)
             self.target.rotation_mode = "QUATERNION"
@@ -89,10 +88,9 @@ class Worker:
         self.arm.set_hand_visible(bool(a["hand_visible"]))
         self.distractors.apply(plan.get("distractors", []))
 
-    def prepare(self, plan, mesh_key, object_color):
-        """Swaps in the sequence's object (the cached mesh `mesh_key`) and
-        applies its appearance."""
-        self._place_object(plan, mesh_key)
+    def prepare(self, plan, object_color):
+        """Swaps in the sequence's object and applies its appearance."""
+        self._place_object(plan)
         self._apply_appearance(plan, object_color)
         self.arm.set_intrinsics(plan["intrinsics"])
 
@@ -116,10 +114,10 @@ class Worker:
             if self.head is not None:
                 self.head.show_arm(False)
 
-    def render(self, plan, mesh_key, out_dir, frame_files, object_color, head_out_dir=None):
+    def render(self, plan, out_dir, frame_files, object_color, head_out_dir=None):
         """Prepares `plan` and renders the wrist view, and the head view too
         when `head_out_dir` is given."""
-        self.prepare(plan, mesh_key, object_color)
+        self.prepare(plan, object_color)
         self.render_camera(plan, "wrist", out_dir, frame_files)
         if head_out_dir is not None:
             self.render_camera(plan, "head", head_out_dir, frame_files)

@@ -55,17 +55,17 @@ class Worker:
         self.target = None
         self.lens = render.configure(settings)
 
-    def has_mesh(self, mesh_key):
-        return mesh_key in self.meshes
+    def has_mesh(self, object_id):
+        return object_id in self.meshes
 
-    def add_mesh(self, mesh_key, vertices, faces, smooth_angle_deg=30.0):
+    def add_mesh(self, object_id, vertices, faces, smooth_angle_deg=30.0):
         """Caches a mesh from little-endian f64 xyz and u32 triangle bytes."""
-        mesh = mesh_from_bytes(f"f_{mesh_key}", vertices, faces, smooth_angle_deg)
+        mesh = mesh_from_bytes(f"f_{object_id}", vertices, faces, smooth_angle_deg)
         mesh.materials.append(self.object_mat)
-        self.meshes[mesh_key] = mesh
+        self.meshes[object_id] = mesh
 
-    def _place_object(self, plan, mesh_key):
-        mesh = self.meshes[mesh_key]
+    def _place_object(self, plan):
+        mesh = self.meshes[plan["key"]["object"]]
         if self.target is None:
             self.target = bpy.data.objects.new("f_target", mesh)
             self.target.rotation_mode = "QUATERNION"
@@ -77,12 +77,11 @@ class Worker:
         self.target.rotation_quaternion = pose["rotation_wxyz"]
         self.target.scale = axis_scale(plan["object"])
 
-    def prepare(self, plan, mesh_key, object_color, color_range=None):
-        """Swaps in the object (the cached mesh `mesh_key`) and applies this
-        world's draws for the plan (`color_range`: the catalog's plausible
-        colours of the object)."""
+    def prepare(self, plan, object_color, color_range=None):
+        """Swaps in the object and applies this world's draws for the plan
+        (`color_range`: the catalog's plausible colours of the object)."""
         d = draw.draw(plan, object_color, color_range)
-        self._place_object(plan, mesh_key)
+        self._place_object(plan)
         self.room.apply(d)
         self.lights.apply(d)
         finish = materials.finish_of(plan["key"]["object"])
@@ -144,17 +143,8 @@ class Worker:
         if action is not None and action.users == 0:
             bpy.data.actions.remove(action)
 
-    def render(
-        self,
-        plan,
-        mesh_key,
-        out_dir,
-        frame_files,
-        object_color,
-        head_out_dir=None,
-        color_range=None,
-    ):
-        self.prepare(plan, mesh_key, object_color, color_range)
+    def render(self, plan, out_dir, frame_files, object_color, head_out_dir=None, color_range=None):
+        self.prepare(plan, object_color, color_range)
         self.render_camera(plan, "wrist", out_dir, frame_files)
         if head_out_dir is not None:
             raise ValueError("the foreign world has no head camera")

@@ -256,15 +256,6 @@ pub struct ObjectPlacement {
     /// their product 1); absent means [1, 1, 1].
     #[serde(default = "unit_proportions", skip_serializing_if = "is_unit")]
     pub proportions: [f64; 3],
-    /// Which member of the object's family of shapes is placed
-    /// (`[randomize.profiles]`: the procedural model's handle and rim
-    /// profiles); 0, or absent, is the catalog's model.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub shape_member: u32,
-}
-
-fn is_zero(n: &u32) -> bool {
-    *n == 0
 }
 
 fn unit_scale() -> f64 {
@@ -442,7 +433,6 @@ mod tests {
                 on_table_border: false,
                 scale: 1.0,
                 proportions: [1.0; 3],
-                shape_member: 0,
             },
             target: [0.0, 0.0, 0.0],
             other_end: [0.0, 0.0, 0.0],

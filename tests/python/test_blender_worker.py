@@ -107,7 +107,7 @@ def test_worker_renders_a_sequence(tmp_path):
     worker.add_mesh("cube", *cube_bytes())
     assert worker.has_mesh("cube")
     names = ["00000.png", "00001.png"]
-    worker.render(plan(), "cube", str(tmp_path), names, [0.5, 0.5, 0.5])
+    worker.render(plan(), str(tmp_path), names, [0.5, 0.5, 0.5])
     for name in names:
         image = bpy.data.images.load(str(tmp_path / name))
         assert tuple(image.size) == (32, 24)
@@ -122,7 +122,7 @@ def test_center_region_renders_only_the_central_square(tmp_path):
     settings = dict(SETTINGS, engine="cycles", samples=1, denoiser="none", center_region=0.5)
     worker = Worker(GEOMETRY, settings)
     worker.add_mesh("cube", *cube_bytes())
-    worker.render(plan(frames=1), "cube", str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
+    worker.render(plan(frames=1), str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
     image = bpy.data.images.load(str(tmp_path / "00000.png"))
     assert tuple(image.size) == (32, 24)
     # Rows bottom-up; the square is 0.5 x 24 = 12 px: columns 10-21, rows 6-17.
@@ -165,7 +165,7 @@ def test_depth_and_instance_passes_write_an_exr(tmp_path):
     settings["passes"] = ["rgb", "depth", "instance"]
     worker = Worker(GEOMETRY, settings)
     worker.add_mesh("cube", *cube_bytes())
-    worker.render(plan(frames=1), "cube", str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
+    worker.render(plan(frames=1), str(tmp_path), ["00000.png"], [0.5, 0.5, 0.5])
     assert sorted(os.listdir(tmp_path)) == ["00000.exr", "00000.png"]
     header = (tmp_path / "00000.exr").read_bytes()[:4096]
     assert header[:4] == b"\x76\x2f\x31\x01"  # the OpenEXR magic number
@@ -206,7 +206,7 @@ def test_worker_applies_unseen_lights_world_tone_and_distractors(tmp_path):
             box, shape="sphere", pose={"position": [-0.2, 0.1, 0.8], "rotation_wxyz": [1, 0, 0, 0]}
         ),
     ]
-    worker.render(p, "cube", str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
+    worker.render(p, str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
     scene = bpy.context.scene
     assert scene.view_settings.view_transform == "Khronos PBR Neutral"
     assert scene.world.name == "world_hdri"
@@ -225,7 +225,7 @@ def test_worker_applies_unseen_lights_world_tone_and_distractors(tmp_path):
     # Workbench renders no motion blur.
     assert not scene.render.use_motion_blur
     # The next plan without them restores the closed room and the defaults.
-    worker.render(plan(), "cube", str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
+    worker.render(plan(), str(tmp_path), ["00000.png", "00001.png"], [0.5, 0.5, 0.5])
     assert scene.view_settings.view_transform == "AgX"
     assert scene.world.name == "world"
     assert not bpy.data.objects["ceiling"].hide_render

@@ -109,9 +109,7 @@ def test_worker_renders_a_lit_sequence_and_refuses_what_it_cannot_draw(bpy, tmp_
     worker.add_mesh("025_mug", *cube_bytes())
     names = ["00000.png", "00001.png"]
     p = plan(5)
-    worker.render(
-        copy.deepcopy(p), "025_mug", str(tmp_path), names, [0.5, 0.5, 0.5], color_range=RANGE
-    )
+    worker.render(copy.deepcopy(p), str(tmp_path), names, [0.5, 0.5, 0.5], color_range=RANGE)
     assert sorted(os.listdir(tmp_path)) == names
     for name in names:
         image = bpy.data.images.load(str(tmp_path / name))

@@ -204,19 +204,6 @@ impl ObjectSpec {
         Ok(self.mesh_cache.get_or_init(|| mesh).clone())
     }
 
-    /// Member `member` of the object's family of shapes
-    /// (`[randomize.profiles]`; 0 is the model, [`Self::mesh`]). An object
-    /// with one member (no profiles, a mesh from a file) is its model
-    /// whatever the member.
-    pub fn member_mesh(&self, member: u32) -> Result<TriMesh> {
-        match &self.mesh {
-            MeshSource::Procedural(shape) if member > 0 && shape.has_profiles() => {
-                Ok(shape.member_mesh(member))
-            }
-            _ => self.mesh(),
-        }
-    }
-
     /// "FILE: object 'ID': field 'FIELD'", for error messages.
     pub fn context(&self, field: &str) -> String {
         let file = self

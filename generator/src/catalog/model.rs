@@ -90,12 +90,6 @@ impl MeshSource {
     pub fn is_procedural(&self) -> bool {
         matches!(self, MeshSource::Procedural(_))
     }
-
-    /// Whether the mesh is a procedural model with a family of handle or
-    /// rim profiles (`[randomize.profiles]`).
-    pub fn has_profiles(&self) -> bool {
-        matches!(self, MeshSource::Procedural(s) if s.has_profiles())
-    }
 }
 
 pub fn identity_wxyz() -> [f64; 4] {

@@ -26,7 +26,6 @@ pub struct RandomizeConfig {
     pub object_color: ObjectColorLever,
     pub distractors: DistractorLever,
     pub proportions: ProportionsLever,
-    pub profiles: ProfilesLever,
     pub surface: SurfaceLever,
     pub standoff: StandoffLever,
     pub aim: AimLever,
@@ -47,7 +46,6 @@ impl Default for RandomizeConfig {
             object_color: Default::default(),
             distractors: Default::default(),
             proportions: Default::default(),
-            profiles: Default::default(),
             surface: Default::default(),
             standoff: Default::default(),
             aim: Default::default(),
@@ -271,34 +269,6 @@ impl Default for ProportionsLever {
     }
 }
 
-/// The procedural object's handle and rim profiles: each sequence renders
-/// one of `members` shapes of the object's family (the catalog's model and
-/// `members - 1` others with another handle cross-section, span and bend,
-/// rim or well; `catalog::procedural::Profile`), chosen uniformly. The
-/// plan records the member; its validity checks, Blender and the part
-/// labels use that member's mesh, the catalog's part boxes stay. Objects
-/// without a handle or rim, and meshes from a file, have one member.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ProfilesLever {
-    pub enabled: bool,
-    /// How many shapes each family has, the model included.
-    pub members: u32,
-}
-
-impl Default for ProfilesLever {
-    fn default() -> Self {
-        ProfilesLever {
-            enabled: false,
-            members: 8,
-        }
-    }
-}
-
-/// Most members a family may have (each is a mesh the planner and every
-/// render worker keep).
-pub const MAX_PROFILE_MEMBERS: u32 = 64;
-
 /// The procedural object's surface: its sharp edges rounded and a fine
 /// relief in its shading, as real objects are worn, moulded or scanned,
 /// where the models are ideal. Rendering alone: the plan's geometry and the
@@ -400,7 +370,6 @@ impl RandomizeConfig {
             r.object_color.enabled = false;
             r.distractors.enabled = false;
             r.proportions.enabled = false;
-            r.profiles.enabled = false;
             r.surface.enabled = false;
             r.standoff.enabled = false;
             r.aim.enabled = false;

@@ -16,7 +16,6 @@
 //! | `object_color` | the object's colour within its plausible range | object material |
 //! | `distractors` | primitives on the table, clear of the target and the reach | plan, Blender |
 //! | `proportions` | the object's proportions (mesh and part boxes, per axis, size kept) | plan, Blender, part labels |
-//! | `profiles` | the object's handle and rim profiles (one of its family's meshes) | plan, Blender, part labels |
 //! | `surface` | the object's edges rounded, a relief in its shading | Blender |
 //! | `standoff` | where the approach stops short of the target | plan |
 //! | `aim` | the aim point within the target part's end face | plan |
@@ -25,7 +24,7 @@
 //! The `unseen_look` condition takes its appearance from
 //! `[appearance.unseen_look]` instead (see [`crate::unseen_look`]); of these
 //! levers it keeps the geometric ones (principal point, object colour,
-//! distractors, proportions, profiles, surface, standoff, aim, approach ends).
+//! distractors, proportions, surface, standoff, aim, approach ends).
 
 //!
 //! The lever config types are in `levers`, their checks in `validate`, the

@@ -30,17 +30,6 @@ pub fn proportions(levers: &RandomizeConfig, stream: u64) -> [f64; 3] {
     logs.map(|l| (l - mean).exp())
 }
 
-/// The member of the object's family of shapes a sequence renders
-/// ([`ProfilesLever`]; 0, the catalog's model, with the lever off). Objects
-/// with one member take 0 whatever this draws.
-pub fn profile_member(levers: &RandomizeConfig, stream: u64) -> u32 {
-    let lever = &levers.profiles;
-    if !lever.enabled || lever.members <= 1 {
-        return 0;
-    }
-    lever_rng(stream, "profiles").gen_range(0..lever.members)
-}
-
 /// A procedural object's surface ([`SurfaceLever`]; none with the lever
 /// off): edge radius and relief strength uniform, relief size log-uniform.
 pub fn object_surface(levers: &RandomizeConfig, stream: u64) -> Option<ObjectSurface> {

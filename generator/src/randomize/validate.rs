@@ -1,7 +1,7 @@
 //! Checks of `[randomize]`, and the check that training's appearance and
 //! levers never reach the `unseen_look` condition's values.
 
-use super::{RandomizeConfig, DISTRACTOR_SHAPES, MAX_DISTRACTORS, MAX_PROFILE_MEMBERS};
+use super::{RandomizeConfig, DISTRACTOR_SHAPES, MAX_DISTRACTORS};
 use crate::appearance::AppearanceConfig;
 use crate::config::{ConfigError, Result};
 use crate::look::unseen_config::{UnseenLookConfig, UNSEEN_FAMILIES, UNSEEN_LIGHT_KINDS};
@@ -113,13 +113,6 @@ impl RandomizeConfig {
             return Err(ConfigError::invalid(
                 "[randomize.proportions] spread",
                 format!("must be in [0, 1], got {spread}"),
-            ));
-        }
-        let members = self.profiles.members;
-        if !(1..=MAX_PROFILE_MEMBERS).contains(&members) {
-            return Err(ConfigError::invalid(
-                "[randomize.profiles] members",
-                format!("must be in [1, {MAX_PROFILE_MEMBERS}], got {members}"),
             ));
         }
         let surface = &self.surface;

@@ -17,14 +17,14 @@ pub fn from_config(config: &GeneratorConfig) -> Result<Arc<dyn RenderSource>> {
 }
 
 impl RenderSource for PlannerSource {
-    fn mesh(&self, object: &str, member: u32) -> Result<Mesh> {
+    fn mesh(&self, object: &str) -> Result<Mesh> {
         let spec = self
             .catalog
             .object(object)
             .ok_or_else(|| RenderError::UnknownObject {
                 object: object.to_string(),
             })?;
-        let m = spec.member_mesh(member)?;
+        let m = spec.mesh()?;
         Ok(Mesh {
             vertices: m.vertices,
             faces: m.faces,

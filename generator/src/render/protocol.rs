@@ -46,9 +46,7 @@ pub struct RenderRequest {
 /// A cached object mesh: little-endian f64 xyz vertices and u32 triangles.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MeshFiles {
-    /// The mesh's name in the workers' caches
-    /// ([`super::source::mesh_key`]).
-    pub key: String,
+    pub object: String,
     pub vertices: PathBuf,
     pub faces: PathBuf,
 }

@@ -17,21 +17,9 @@ pub struct Mesh {
     pub faces: Vec<[u32; 3]>,
 }
 
-/// The name of member `member` of `object`'s family of shapes
-/// (`[randomize.profiles]`) wherever meshes are cached or keyed: the
-/// object's id for its model, `ID.memberK` for member K.
-pub fn mesh_key(object: &str, member: u32) -> String {
-    match member {
-        0 => object.to_string(),
-        k => format!("{object}.member{k}"),
-    }
-}
-
 /// A plan source that can also give what the renderer draws.
 pub trait RenderSource: PlanSource {
-    /// Member `member` of the object's family of shapes (0: its model;
-    /// the plan's `object.shape_member`).
-    fn mesh(&self, object: &str, member: u32) -> Result<Mesh>;
+    fn mesh(&self, object: &str) -> Result<Mesh>;
     fn scene(&self) -> SceneGeometry;
     /// The object's grasp-part boxes in catalog order (the `part` pass).
     fn parts(&self, object: &str) -> Result<Vec<PartBox>>;
@@ -49,8 +37,6 @@ pub trait RenderSource: PlanSource {
 /// Renders a fixed set of plans with given meshes (tests, re-renders).
 pub struct StaticSource {
     pub plans: Vec<SequencePlan>,
-    /// By [`mesh_key`]: a plan placing another member of a family needs
-    /// that member's mesh.
     pub meshes: BTreeMap<String, Mesh>,
     /// Part boxes per object (needed only for the `part` pass).
     pub parts: BTreeMap<String, Vec<PartBox>>,
@@ -80,12 +66,12 @@ impl PlanSource for StaticSource {
 }
 
 impl RenderSource for StaticSource {
-    fn mesh(&self, object: &str, member: u32) -> Result<Mesh> {
-        match self.meshes.get(&mesh_key(object, member)) {
+    fn mesh(&self, object: &str) -> Result<Mesh> {
+        match self.meshes.get(object) {
             Some(m) => Ok(m.clone()),
             None => Err(RenderError::NoObjectData {
                 what: "mesh",
-                object: mesh_key(object, member),
+                object: object.to_string(),
             }),
         }
     }

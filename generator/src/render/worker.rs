@@ -311,10 +311,10 @@ fn render(
         let plan = json_to_py(py, &req.plan)?;
         let color = req.object_color.to_vec();
         match world {
-            World::Studio => w.call_method1("prepare", (plan.clone(), &req.mesh.key, color)),
+            World::Studio => w.call_method1("prepare", (plan.clone(), color)),
             World::Foreign => {
                 let range = json_to_py(py, &req.object_color_range)?;
-                w.call_method1("prepare", (plan.clone(), &req.mesh.key, color, range))
+                w.call_method1("prepare", (plan.clone(), color, range))
             }
         }
         .map_err(blender(format!("preparing sequence {}", req.id)))?;
@@ -381,7 +381,7 @@ fn process_cpu_seconds() -> Option<f64> {
 
 fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result<()> {
     let cached: bool = w
-        .call_method1("has_mesh", (mesh.key.as_str(),))
+        .call_method1("has_mesh", (mesh.object.as_str(),))
         .and_then(|v| v.extract())
         .map_err(py_err)?;
     if cached {
@@ -394,12 +394,12 @@ fn ensure_mesh(py: Python<'_>, w: &Bound<'_, PyAny>, mesh: &MeshFiles) -> Result
     w.call_method1(
         "add_mesh",
         (
-            mesh.key.as_str(),
+            mesh.object.as_str(),
             PyBytes::new(py, &v),
             PyBytes::new(py, &f),
         ),
     )
-    .map_err(blender(format!("loading the mesh of '{}'", mesh.key)))?;
+    .map_err(blender(format!("loading the mesh of '{}'", mesh.object)))?;
     Ok(())
 }
 
@@ -434,12 +434,12 @@ fn part_labeler(settings: &serde_json::Value, req: &RenderRequest) -> Result<Par
     if bad {
         return Err(RenderError::Labels(format!(
             "mesh of '{}': a face index is out of range",
-            req.mesh.key
+            req.mesh.object
         )));
     }
     let tolerance = settings["part_tolerance_m"].as_f64().unwrap_or(0.005);
     PartLabeler::new(&req.parts, &mesh, tolerance)
-        .map_err(step(format!("the parts of object '{}'", req.mesh.key)))
+        .map_err(step(format!("the parts of object '{}'", req.mesh.object)))
 }
 
 /// Turns each frame's EXR (depth, object index) into `partNNNNN.png`, and

@@ -158,7 +158,6 @@ pub fn plan(
             on_table_border: false,
             scale: 1.0,
             proportions: [1.0; 3],
-            shape_member: 0,
         },
         target,
         other_end: target,

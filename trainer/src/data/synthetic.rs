@@ -267,7 +267,6 @@ fn record(
                 on_table_border: false,
                 scale: 1.0,
                 proportions: [1.0; 3],
-                shape_member: 0,
             },
             target: [0.0; 3],
             other_end: [0.0; 3],

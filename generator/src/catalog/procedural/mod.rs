@@ -5,7 +5,6 @@
 
 mod containers;
 mod elongated;
-mod profile;
 mod tools;
 mod vessels;
 
@@ -13,7 +12,6 @@ use super::mesh::TriMesh;
 use super::shapes::ellipsoid;
 use containers::{bottle, can, tin};
 use elongated::{banana, marker};
-pub use profile::Profile;
 use serde::{Deserialize, Serialize};
 use tools::{hammer, scissors, spatula, spoon};
 use vessels::{mug, pitcher, plate};
@@ -186,32 +184,9 @@ impl ProceduralShape {
         }
     }
 
-    /// Whether the shape has a family of handle or rim profiles
-    /// ([`Profile`]); the others have one member, the model.
-    pub fn has_profiles(&self) -> bool {
-        use ProceduralShape::*;
-        matches!(
-            self,
-            Mug { .. }
-                | Pitcher { .. }
-                | Plate { .. }
-                | Hammer { .. }
-                | Scissors { .. }
-                | Spatula { .. }
-                | Spoon { .. }
-        )
-    }
-
-    /// The model's mesh in the object frame.
+    /// The mesh in the object frame.
     pub fn mesh(&self) -> TriMesh {
-        self.member_mesh(0)
-    }
-
-    /// Member `variant` of the shape's family (0: the model; a shape
-    /// without profiles is its model whatever the member).
-    pub fn member_mesh(&self, variant: u32) -> TriMesh {
         use ProceduralShape::*;
-        let p = &Profile::member(self.kind(), variant);
         let m = match *self {
             Block { size } => tin(size, size[0].min(size[1]) * 0.04),
             Can {
@@ -231,14 +206,14 @@ impl ProceduralShape {
                 height,
                 wall,
                 handle_reach,
-            } => mug(radius, height, wall, handle_reach, p),
+            } => mug(radius, height, wall, handle_reach),
             Pitcher {
                 radius,
                 height,
                 wall,
                 handle_reach,
-            } => pitcher(radius, height, wall, handle_reach, p),
-            Plate { radius, height } => plate(radius, height, p),
+            } => pitcher(radius, height, wall, handle_reach),
+            Plate { radius, height } => plate(radius, height),
             Banana {
                 length,
                 bend,
@@ -248,22 +223,22 @@ impl ProceduralShape {
                 length,
                 head_width,
                 thickness,
-            } => hammer(length, head_width, thickness, p),
+            } => hammer(length, head_width, thickness),
             Scissors {
                 length,
                 width,
                 thickness,
-            } => scissors(length, width, thickness, p),
+            } => scissors(length, width, thickness),
             Spatula {
                 length,
                 blade_width,
                 height,
-            } => spatula(length, blade_width, height, p),
+            } => spatula(length, blade_width, height),
             Spoon {
                 length,
                 bowl_width,
                 height,
-            } => spoon(length, bowl_width, height, p),
+            } => spoon(length, bowl_width, height),
             Marker { length, radius } => marker(length, radius),
         };
         m.recentred()

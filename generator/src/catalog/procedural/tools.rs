@@ -1,13 +1,10 @@
-//! Flat or handled tools that lie along X on the table. Each takes a family
-//! member's [`Profile`]: its handle's width, thickness and rise, the
-//! scissors' loops.
+//! Flat or handled tools that lie along X on the table.
 
-use super::profile::Profile;
 use crate::catalog::mesh::TriMesh;
 use crate::catalog::shapes::*;
 use std::f64::consts::PI;
 
-pub(super) fn hammer(length: f64, head_width: f64, thickness: f64, p: &Profile) -> TriMesh {
+pub(super) fn hammer(length: f64, head_width: f64, thickness: f64) -> TriMesh {
     let hr = thickness / 2.0;
     let head_x = -length / 2.0 + hr * 1.1;
     // Handle: an oval rod from inside the head to the +X end, widening a bit.
@@ -18,12 +15,11 @@ pub(super) fn hammer(length: f64, head_width: f64, thickness: f64, p: &Profile) 
             [x, 0.0, hr]
         })
         .collect();
-    let (widen, flat) = (0.25 * p.factor(2, 0.6), p.factor(1, 0.2));
     let radii: Vec<(f64, f64)> = (0..=n)
         .map(|i| {
             let u = i as f64 / n as f64;
-            let w = hr * (0.85 + widen * u) * p.factor(0, 0.15);
-            (w, hr * (0.7 + 0.1 * u) * flat)
+            let w = hr * (0.85 + 0.25 * u);
+            (w, hr * (0.7 + 0.1 * u))
         })
         .collect();
     let mut m = tube(&path, &radii, [0.0, 0.0, 1.0], false, 20);
@@ -57,7 +53,7 @@ pub(super) fn hammer(length: f64, head_width: f64, thickness: f64, p: &Profile) 
     m
 }
 
-pub(super) fn scissors(length: f64, width: f64, t: f64, p: &Profile) -> TriMesh {
+pub(super) fn scissors(length: f64, width: f64, t: f64) -> TriMesh {
     let pivot_x = length * 0.05;
     let tip = -length / 2.0;
     let zc = t / 2.0;
@@ -84,13 +80,10 @@ pub(super) fn scissors(length: f64, width: f64, t: f64, p: &Profile) -> TriMesh 
     // Finger loops: elliptic rings left and right of the axis.
     let loop_end = length / 2.0;
     let ring_r = t / 2.0;
-    // Members vary how round the loops are and how wide their rims.
     let (ax, ay) = (
         (loop_end - pivot_x - 0.018) / 2.0 - ring_r,
-        (width / 4.0 - ring_r) * p.factor(1, 0.2),
+        width / 4.0 - ring_r,
     );
-    // The rim's width in the loop's plane (its thickness is the object's).
-    let rim = ring_r * 0.9 * p.factor(0, 0.3);
     for side in [-1.0, 1.0] {
         let c = [loop_end - ring_r - ax, side * (width / 2.0 - ring_r - ay)];
         let path: Vec<V3> = (0..36)
@@ -99,7 +92,7 @@ pub(super) fn scissors(length: f64, width: f64, t: f64, p: &Profile) -> TriMesh 
                 [c[0] + ax * a.cos(), c[1] + ay * a.sin(), zc]
             })
             .collect();
-        let radii = vec![(rim, ring_r); path.len()];
+        let radii = vec![(ring_r * 0.9, ring_r); path.len()];
         m.append(tube(&path, &radii, [0.0, 0.0, 1.0], true, 12));
         // Shank from the pivot to the ring.
         let shank = [
@@ -126,27 +119,24 @@ pub(super) fn scissors(length: f64, width: f64, t: f64, p: &Profile) -> TriMesh 
     m
 }
 
-pub(super) fn spatula(length: f64, blade_w: f64, height: f64, p: &Profile) -> TriMesh {
+pub(super) fn spatula(length: f64, blade_w: f64, height: f64) -> TriMesh {
     let x0 = -length / 2.0;
     let blade_len = length * 0.33;
     let neck_x = length / 2.0 - blade_len;
-    // Handle: a flat oval rod, thickest at its end, rising to the neck;
-    // members vary its width, thickness and rise.
-    let (wide, thick) = (p.factor(0, 0.25), p.factor(1, 0.25));
-    let rise = 0.008 * p.factor(2, 0.5);
+    // Handle: a flat oval rod, thickest at its end, rising to the neck.
     let n = 16;
     let mut path = Vec::new();
     let mut radii = Vec::new();
     for i in 0..=n {
         let u = i as f64 / n as f64;
         let x = x0 + 0.006 + u * (neck_x - x0 - 0.006);
-        let z = 0.009 + rise * (PI * u).sin() - 0.004 * u;
+        let z = 0.009 + 0.008 * (PI * u).sin() - 0.004 * u;
         path.push([x, 0.0, z]);
-        let w = (0.014 - 0.006 * u) * wide;
-        radii.push((w, (0.009 - 0.005 * u) * thick));
+        let w = 0.014 - 0.006 * u;
+        radii.push((w, 0.009 - 0.005 * u));
     }
     let mut m = tube(&path, &radii, [0.0, 0.0, 1.0], false, 20);
-    m.append(ellipsoid([0.006, 0.014 * wide, 0.009 * thick], 10).translated(path[0]));
+    m.append(ellipsoid([0.006, 0.014, 0.009], 10).translated(path[0]));
     // Blade: a thin rounded plate tilted up towards +X.
     let outline = rounded_rect(blade_len, blade_w, 0.012, 6);
     let tilt = ((height - 0.004) / blade_len).atan();
@@ -158,7 +148,7 @@ pub(super) fn spatula(length: f64, blade_w: f64, height: f64, p: &Profile) -> Tr
     m
 }
 
-pub(super) fn spoon(length: f64, bowl_w: f64, height: f64, p: &Profile) -> TriMesh {
+pub(super) fn spoon(length: f64, bowl_w: f64, height: f64) -> TriMesh {
     let bowl_len = length * 0.33;
     let bowl_c = length / 2.0 - bowl_len / 2.0;
     let bowl_h = height * 0.4;
@@ -177,9 +167,7 @@ pub(super) fn spoon(length: f64, bowl_w: f64, height: f64, p: &Profile) -> TriMe
     let mut m = lathe(&profile, SEGMENTS)
         .scaled([bowl_len / 2.0, bowl_w / 2.0, 1.0])
         .translated([bowl_c, 0.0, 0.0]);
-    // Handle: a flat strip rising from the bowl to its end at -X; members
-    // vary its width, thickness and how early it rises.
-    let (wide, thick, early) = (p.factor(0, 0.25), p.factor(1, 0.3), p.octaves(2, 0.5));
+    // Handle: a flat strip rising from the bowl to its end at -X.
     let n = 16;
     let x1 = bowl_c - bowl_len / 2.0 + 0.004;
     let x0 = -length / 2.0 + 0.008;
@@ -188,13 +176,13 @@ pub(super) fn spoon(length: f64, bowl_w: f64, height: f64, p: &Profile) -> TriMe
     for i in 0..=n {
         let u = i as f64 / n as f64;
         let x = x1 + u * (x0 - x1);
-        let z = bowl_h * 0.9 + (height - 0.003 - bowl_h * 0.9) * u.powf(1.3 * early);
+        let z = bowl_h * 0.9 + (height - 0.003 - bowl_h * 0.9) * u.powf(1.3);
         path.push([x, 0.0, z]);
-        let w = (0.0035 + 0.0045 * u.powf(0.7)) * wide;
-        radii.push((w, 0.0018 * thick));
+        let w = 0.0035 + 0.0045 * u.powf(0.7);
+        radii.push((w, 0.0018));
     }
     m.append(tube(&path, &radii, [0.0, 0.0, 1.0], false, 16));
     let end = *path.last().expect("path");
-    m.append(ellipsoid([0.008, 0.008 * wide, 0.0018 * thick], 10).translated(end));
+    m.append(ellipsoid([0.008, 0.008, 0.0018], 10).translated(end));
     m
 }

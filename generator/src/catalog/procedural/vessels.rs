@@ -1,52 +1,43 @@
 //! Open vessels: a hollow turned body, with a handle where the real
-//! object has one. Each takes a family member's [`Profile`]: the handle's
-//! cross-section, span and bend, the wall's taper, the plate's well and rim.
+//! object has one.
 
-use super::profile::Profile;
 use crate::catalog::mesh::TriMesh;
 use crate::catalog::shapes::*;
 use std::f64::consts::PI;
 
-pub(super) fn mug(r: f64, h: f64, wall: f64, reach: f64, p: &Profile) -> TriMesh {
+pub(super) fn mug(r: f64, h: f64, wall: f64, reach: f64) -> TriMesh {
     let bottom = wall * 1.5;
-    // The wall tapers or flares up to the rim (+-6 % of the radius).
-    let rim = r * p.factor(5, 0.06);
-    let wall_at = |z: f64| r + (rim - r) * (z / h);
     let profile = [
         (0.0, 0.0),
         (r - 0.003, 0.0),
         (r, 0.003),
-        (rim, h),
-        (rim - wall, h),
-        (wall_at(bottom + 0.004) - wall, bottom + 0.004),
+        (r, h),
+        (r - wall, h),
+        (r - wall, bottom + 0.004),
         (r - wall - 0.004, bottom),
         (0.0, bottom),
     ];
     let mut m = lathe(&profile, SEGMENTS * 2);
     // The handle: a C from near the rim out to `reach` beyond the wall and
-    // back near the bottom, sunk 2 mm into the wall at both ends. Members
-    // vary its thickness and width (a round rod to a flat strap), where it
-    // meets the wall and how square its bend is; its reach stays.
-    let (zt, zb) = (h * (0.82 + p.shift(2, 0.08)), h * (0.25 - p.shift(3, 0.08)));
+    // back near the bottom, sunk 2 mm into the wall at both ends.
+    let (zt, zb) = (h * 0.82, h * 0.25);
     let zc = (zt + zb) / 2.0;
     let rz = (zt - zb) / 2.0;
-    let t = 0.006 * p.factor(1, 0.3);
-    let bend = 0.8 * p.octaves(4, 0.8);
+    let t = 0.006;
     let path: Vec<V3> = (0..=24)
         .map(|i| {
             let a = PI / 2.0 - PI * i as f64 / 24.0;
-            let z = zc + rz * a.sin();
-            let x = wall_at(z) - wall / 2.0 + (reach - t) * a.cos().max(0.0).powf(bend);
-            [x, 0.0, z]
+            let x = r - wall / 2.0 + (reach - t) * a.cos().max(0.0).powf(0.8);
+            [x, 0.0, zc + rz * a.sin()]
         })
         .collect();
-    let radii = vec![(t, 0.0075 * p.factor(0, 0.35)); path.len()];
+    let radii = vec![(t, 0.0075); path.len()];
     m.append(tube(&path, &radii, [0.0, 1.0, 0.0], false, 20));
     m
 }
 
-pub(super) fn pitcher(r: f64, h: f64, wall: f64, reach: f64, p: &Profile) -> TriMesh {
-    let top = r * (0.9 + p.shift(5, 0.05));
+pub(super) fn pitcher(r: f64, h: f64, wall: f64, reach: f64) -> TriMesh {
+    let top = r * 0.9;
     let mut profile = vec![(0.0, 0.0), (r * 0.93, 0.0), (r * 0.97, 0.004)];
     for i in 0..=10 {
         let t = i as f64 / 10.0;
@@ -64,20 +55,18 @@ pub(super) fn pitcher(r: f64, h: f64, wall: f64, reach: f64, p: &Profile) -> Tri
     profile.push((r * 0.97 - wall - 0.004, wall * 2.0));
     profile.push((0.0, wall * 2.0));
     let mut m = lathe(&profile, SEGMENTS * 2);
-    // Handle: an open loop from under the rim down the side; members vary
-    // its cross-section, span and bend.
-    let (zt, zb) = (h * (0.88 + p.shift(2, 0.04)), h * (0.38 - p.shift(3, 0.1)));
-    let bend = 0.6 * p.octaves(4, 0.8);
+    // Handle: an open loop from under the rim down the side.
+    let (zt, zb) = (h * 0.88, h * 0.38);
     let path: Vec<V3> = (0..=28)
         .map(|i| {
             let u = i as f64 / 28.0;
             let a = PI / 2.0 - PI * u;
             let wall_r = top + (r - top) * (1.0 - (u * 0.8));
-            let x = wall_r - wall + (reach - 0.01) * a.cos().max(0.0).powf(bend);
+            let x = wall_r - wall + (reach - 0.01) * a.cos().max(0.0).powf(0.6);
             [x, 0.0, (zt + zb) / 2.0 + (zt - zb) / 2.0 * a.sin()]
         })
         .collect();
-    let radii = vec![(0.007 * p.factor(1, 0.3), 0.012 * p.factor(0, 0.3)); path.len()];
+    let radii = vec![(0.007, 0.012); path.len()];
     m.append(tube(&path, &radii, [0.0, 1.0, 0.0], false, 20));
     // Spout: a short lip leaning out of the rim on -X.
     let spout = [
@@ -91,25 +80,19 @@ pub(super) fn pitcher(r: f64, h: f64, wall: f64, reach: f64, p: &Profile) -> Tri
     m
 }
 
-pub(super) fn plate(r: f64, h: f64, p: &Profile) -> TriMesh {
-    // Members vary the well's width (foot and floor), how high the rim
-    // rises before it rolls over, and the floor's height; the outer radius
-    // and height stay.
-    let well = p.factor(0, 0.15);
-    let rim = h * (0.82 + p.shift(1, 0.08));
-    let floor = p.shift(2, 0.06);
+pub(super) fn plate(r: f64, h: f64) -> TriMesh {
     let profile = [
         (0.0, 0.002),
-        (r * (0.5 * well), 0.002),
-        (r * (0.52 * well), 0.0),
-        (r * (0.6 * well), 0.0),
-        (r * (0.63 * well), 0.004),
-        (r * 0.98, rim),
+        (r * 0.5, 0.002),
+        (r * 0.52, 0.0),
+        (r * 0.6, 0.0),
+        (r * 0.63, 0.004),
+        (r * 0.98, h * 0.82),
         (r, h * 0.93),
         (r * 0.985, h),
         (r * 0.96, h * 0.98),
-        (r * (0.65 * well), h * (0.33 + floor)),
-        (0.0, h * (0.26 + floor)),
+        (r * 0.65, h * 0.33),
+        (0.0, h * 0.26),
     ];
     lathe(&profile, SEGMENTS * 2)
 }

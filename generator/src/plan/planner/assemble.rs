@@ -188,7 +188,6 @@ fn object_placement(c: &Candidate, draws: &SequenceDraws) -> ObjectPlacement {
         on_table_border: c.placement.on_border,
         scale: 1.0,
         proportions: draws.proportions,
-        shape_member: draws.shape_member,
     }
 }
 
@@ -278,9 +277,6 @@ fn sampled_record(
     put("fov_scale", json!(draws.fov_scale));
     if draws.proportions != [1.0; 3] {
         put("proportions", json!(draws.proportions));
-    }
-    if draws.shape_member != 0 {
-        put("shape_member", json!(draws.shape_member));
     }
     put("principal_point_shift", json!(draws.principal_point_shift));
     put(

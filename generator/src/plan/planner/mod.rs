@@ -11,64 +11,23 @@ mod search;
 pub use object_geometry::ObjectGeometry;
 
 use super::selection::selected_pairs;
-use crate::catalog::validate::touch;
-use crate::catalog::{Catalog, ObjectSpec};
+use crate::catalog::Catalog;
 use crate::config::GeneratorConfig;
 use crate::plan::error::{PlanError, Result};
 use crate::randomize::{self, ApproachDraw};
 use grasp_schema::plan::{CameraIntrinsics, SequenceKey, SequencePlan};
 use grasp_schema::Condition;
 use nalgebra::Vector3;
-use std::cell::RefCell;
 use std::collections::BTreeMap;
-use std::rc::Rc;
 
 /// Plans sequences. Holds each object's mesh query.
 pub struct Planner {
     config: GeneratorConfig,
     objects: BTreeMap<String, ObjectGeometry>,
-    /// The other members of the objects' families of shapes
-    /// (`[randomize.profiles]`), built when a sequence first draws one.
-    members: RefCell<BTreeMap<(String, u32), Rc<ObjectGeometry>>>,
     /// `[appearance] image_dir`'s textures, listed once.
     images: Vec<String>,
     /// `[randomize]` as it acts (every lever off with its master switch off).
     levers: crate::randomize::RandomizeConfig,
-}
-
-/// The planner's geometry of member `member` of an object's family of
-/// shapes (0: its model), with its mesh query. Another member must touch
-/// every part box of the catalog, as `grasp-gen objects validate` checks
-/// the model.
-fn geometry(object: &ObjectSpec, member: u32) -> Result<ObjectGeometry> {
-    let mesh = object.member_mesh(member).map_err(|e| PlanError::Mesh {
-        object: object.id.clone(),
-        source: Box::new(e),
-    })?;
-    let query_error = |source| PlanError::MeshQuery {
-        object: object.id.clone(),
-        source,
-    };
-    let query = crate::geometry::MeshQuery::new(&mesh).map_err(query_error)?;
-    if member > 0 {
-        let mut hull = None;
-        for part in &object.parts {
-            if touch(part, &mesh, &query, &mut hull)
-                .map_err(query_error)?
-                .is_none()
-            {
-                return Err(PlanError::BadObject {
-                    object: object.id.clone(),
-                    part: Some(part.name.clone()),
-                    reason: format!(
-                        "member {member} of its family of shapes ([randomize.profiles]) does not \
-                         touch the part's box"
-                    ),
-                });
-            }
-        }
-    }
-    ObjectGeometry::new(object.clone(), &mesh, Box::new(query))
 }
 
 /// Every sequence the config asks for, in a deterministic order (pair,
@@ -101,9 +60,6 @@ struct SequenceDraws {
     /// `[randomize.proportions]`'s per-axis factors ([1, 1, 1] with the
     /// lever off).
     proportions: [f64; 3],
-    /// `[randomize.profiles]`'s member of the object's family (0 with the
-    /// lever off, or for an object with one member).
-    shape_member: u32,
 }
 
 impl Planner {
@@ -116,7 +72,16 @@ impl Planner {
             if !seen.insert(object.id.clone()) {
                 continue;
             }
-            geometries.push(geometry(object, 0)?);
+            let mesh = object.mesh().map_err(|e| PlanError::Mesh {
+                object: object.id.clone(),
+                source: Box::new(e),
+            })?;
+            let query =
+                crate::geometry::MeshQuery::new(&mesh).map_err(|source| PlanError::MeshQuery {
+                    object: object.id.clone(),
+                    source,
+                })?;
+            geometries.push(ObjectGeometry::new(object.clone(), &mesh, Box::new(query))?);
         }
         Planner::from_geometries(config, geometries)
     }
@@ -133,7 +98,6 @@ impl Planner {
                 .into_iter()
                 .map(|g| (g.spec.id.clone(), g))
                 .collect(),
-            members: RefCell::default(),
             images: config.appearance.images()?,
             levers: config.randomize.effective(),
         })
@@ -183,17 +147,6 @@ impl Planner {
             // its proportions are its own (the YCB meshes of a test world).
             draws.proportions = [1.0; 3];
         }
-        if !geo.spec.mesh.has_profiles() {
-            draws.shape_member = 0;
-        }
-        let member;
-        let geo = match draws.shape_member {
-            0 => geo,
-            m => {
-                member = self.member(&geo.spec, m)?;
-                &*member
-            }
-        };
         let resized;
         let geo = if draws.proportions == [1.0; 3] {
             geo
@@ -222,19 +175,7 @@ impl Planner {
             principal_point_shift,
             approach: randomize::approach(r, self.config.plan.trajectory.standoff_m, stream),
             proportions: randomize::proportions(r, stream),
-            shape_member: randomize::profile_member(r, stream),
         }
-    }
-
-    /// Member `m` of the object's family of shapes, built once.
-    fn member(&self, spec: &ObjectSpec, m: u32) -> Result<Rc<ObjectGeometry>> {
-        let key = (spec.id.clone(), m);
-        if let Some(g) = self.members.borrow().get(&key) {
-            return Ok(g.clone());
-        }
-        let g = Rc::new(geometry(spec, m)?);
-        self.members.borrow_mut().insert(key, g.clone());
-        Ok(g)
     }
 
     /// The lens of a sequence drawn from `stream`: its intrinsics, lens

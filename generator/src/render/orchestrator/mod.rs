@@ -14,6 +14,7 @@ mod resume;
 mod slot;
 mod worker_proc;
 
+use super::protocol::MeshFiles;
 use super::source::RenderSource;
 use super::{RenderConfig, SceneGeometry, Shard};
 use crate::dataset::lock;
@@ -22,10 +23,10 @@ use crate::render::error::{RenderError, Result};
 use grasp_schema::dataset::RenderCost;
 use grasp_schema::SequencePlan;
 use grasp_support::atomic::write_atomic;
-use outputs::{finish_manifest, MeshStore};
+use outputs::{finish_manifest, write_meshes};
 use pool::run_pool;
 use resume::{refuse_other_sequences, unfinished_jobs};
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::PathBuf;
 use std::process::Child;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -126,7 +127,7 @@ struct Shared {
     dataset: DatasetDir,
     geometry: SceneGeometry,
     settings: serde_json::Value,
-    meshes: MeshStore,
+    meshes: BTreeMap<String, MeshFiles>,
     exe: PathBuf,
     worker_env: Vec<(String, String)>,
     recycle_every: usize,
@@ -199,7 +200,7 @@ pub fn render(
     let todo = unfinished_jobs(&dataset, &in_shard, &finished, &mut summary);
     let total = todo.len();
     if total > 0 {
-        let meshes = MeshStore::new(source.as_ref(), &dataset, &todo)?;
+        let meshes = write_meshes(source.as_ref(), &dataset, &todo)?;
         // Kept for re-renders and the naive benchmark script.
         let scene_json =
             serde_json::to_vec_pretty(&source.scene()).map_err(|source| RenderError::Json {

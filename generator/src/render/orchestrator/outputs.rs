@@ -7,13 +7,11 @@ use crate::dataset::lock::{self, OutputLock};
 use crate::dataset::DatasetDir;
 use crate::render::error::{RenderError, Result};
 use crate::render::protocol::MeshFiles;
-use crate::render::source::{mesh_key, RenderSource};
+use crate::render::source::RenderSource;
 use crate::render::Shard;
 use grasp_schema::dataset::{RenderCost, PART_LABELS_KEY, RENDER_COST_KEY};
 use grasp_support::atomic::write_atomic;
 use std::collections::{BTreeMap, VecDeque};
-use std::path::PathBuf;
-use std::sync::Mutex;
 
 /// Rewrites the manifest from the folders. A shard sharing its folder with
 /// other running shards leaves it to the last one to finish (each appended
@@ -38,48 +36,23 @@ pub(super) fn finish_manifest(dataset: &DatasetDir, shard: Shard, lock: OutputLo
     Ok(())
 }
 
-/// The meshes handed to the workers, each written once as raw
-/// little-endian arrays the workers pass to Blender without parsing. The
-/// objects' models are written before any worker starts (a mesh the source
-/// cannot give stops the run there); another member of a family of shapes
-/// (`[randomize.profiles]`) when a sequence first places it.
-pub(super) struct MeshStore {
-    dir: PathBuf,
-    written: Mutex<BTreeMap<String, MeshFiles>>,
-}
-
-impl MeshStore {
-    pub(super) fn new(
-        source: &dyn RenderSource,
-        dataset: &DatasetDir,
-        todo: &VecDeque<Job>,
-    ) -> Result<MeshStore> {
-        let dir = dataset.work_dir().join("meshes");
-        std::fs::create_dir_all(&dir).map_err(|e| RenderError::io("cannot create", &dir, e))?;
-        let store = MeshStore {
-            dir,
-            written: Mutex::default(),
-        };
-        for job in todo {
-            store.files(source, &job.assigned.planned.key.object, 0)?;
+/// Writes each needed object's mesh once, as raw little-endian arrays the
+/// workers pass to Blender without parsing.
+pub(super) fn write_meshes(
+    source: &dyn RenderSource,
+    dataset: &DatasetDir,
+    todo: &VecDeque<Job>,
+) -> Result<BTreeMap<String, MeshFiles>> {
+    let dir = dataset.work_dir().join("meshes");
+    std::fs::create_dir_all(&dir).map_err(|e| RenderError::io("cannot create", &dir, e))?;
+    let mut out = BTreeMap::new();
+    for job in todo {
+        let object = &job.assigned.planned.key.object;
+        if out.contains_key(object) {
+            continue;
         }
-        Ok(store)
-    }
-
-    /// The files of member `member` of `object`'s family, written if new.
-    pub(super) fn files(
-        &self,
-        source: &dyn RenderSource,
-        object: &str,
-        member: u32,
-    ) -> Result<MeshFiles> {
-        let key = mesh_key(object, member);
-        let mut written = self.written.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(files) = written.get(&key) {
-            return Ok(files.clone());
-        }
-        let mesh = source.mesh(object, member).map_err(|e| RenderError::Mesh {
-            object: object.to_string(),
+        let mesh = source.mesh(object).map_err(|e| RenderError::Mesh {
+            object: object.clone(),
             source: Box::new(e),
         })?;
         let vertices: Vec<u8> = mesh
@@ -95,15 +68,15 @@ impl MeshStore {
             .flat_map(|i| i.to_le_bytes())
             .collect();
         let files = MeshFiles {
-            vertices: self.dir.join(format!("{key}.vertices.f64")),
-            faces: self.dir.join(format!("{key}.faces.u32")),
-            key: key.clone(),
+            object: object.clone(),
+            vertices: dir.join(format!("{object}.vertices.f64")),
+            faces: dir.join(format!("{object}.faces.u32")),
         };
         write_atomic(&files.vertices, &vertices)?;
         write_atomic(&files.faces, &faces)?;
-        written.insert(key, files.clone());
-        Ok(files)
+        out.insert(object.clone(), files);
     }
+    Ok(out)
 }
 
 /// The render settings plus this sequence's cost and part names, as stored

@@ -199,7 +199,12 @@ fn prepare(ctx: &Shared, job: &Job) -> Result<(SequencePlan, RenderRequest)> {
     }
     let mesh = ctx
         .meshes
-        .files(ctx.source.as_ref(), &key.object, plan.object.shape_member)?;
+        .get(&key.object)
+        .cloned()
+        .ok_or_else(|| RenderError::NoObjectData {
+            what: "mesh",
+            object: key.object.clone(),
+        })?;
     let out_dir = ctx
         .dataset
         .partial_dir(job.assigned.position, job.attempt)?;
