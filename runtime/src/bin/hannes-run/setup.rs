@@ -70,10 +70,10 @@ pub(crate) fn open_source(
     Ok((Box::new(folder), false))
 }
 
-/// Opens a recording for `classifier`: sets the lens its crop needs and
+/// Opens a recording for `classifier`: sets the lens its crop needs
+/// (`lens_args`' if given, else the one `sequence.json` records) and
 /// checks, at the frames' own size, that the recording holds every pixel
 /// the crop sees.
-/// The lens is `lens_args`' if given, else the one `sequence.json` records.
 pub(crate) fn open_recording(
     source: &str,
     fps: Option<f64>,
