@@ -1,13 +1,15 @@
 //! Command-line pieces that more than one program defines the same way,
 //! each flag written once: the camera's lens, which `grasp-train train`,
 //! `grasp-train eval` and `hannes-run` take for frames without a
-//! `sequence.json`; and the model's named choices as clap values
+//! `sequence.json`; the model's named choices as clap values
 //! ([`ArchitectureArg`], [`HeadKindArg`]), since grasp-model does not
-//! link clap.
+//! link clap; and the decision policy's flags ([`DecisionArgs`]).
 
 mod choices;
+mod policy;
 
 pub use choices::{ArchitectureArg, HeadKindArg};
+pub use policy::{DecisionArgs, OnInvalidArg};
 
 use clap::Args;
 use grasp_model::input::{parse_size, InputError, Lens};

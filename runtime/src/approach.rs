@@ -209,7 +209,7 @@ pub fn classify_window_until(
             Some(FeedItem::Ended | FeedItem::TimedOut) => break vote.finish(),
             Some(FeedItem::Failed(e)) => break vote.abort(format!("frame source failed: {e}")),
         };
-        if frame.time_s >= policy.window_s {
+        if !policy.in_window(frame.time_s) {
             break vote.finish();
         }
         let started = Instant::now();

@@ -46,31 +46,7 @@ pub enum ConfigError {
     },
 }
 
-/// A setting outside its allowed range, named as in the config file
-/// (`policy.window_s`, `link.watchdog_ms`); a flag that overrides it is
-/// checked the same way.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{field} {rule}")]
-pub struct InvalidSetting {
-    pub field: &'static str,
-    /// The rule it breaks, with the value found.
-    pub rule: String,
-}
-
-/// `Err` naming `field` and its `rule` unless `ok`.
-pub(crate) fn ensure(
-    ok: bool,
-    field: &'static str,
-    rule: impl FnOnce() -> String,
-) -> Result<(), InvalidSetting> {
-    match ok {
-        true => Ok(()),
-        false => Err(InvalidSetting {
-            field,
-            rule: rule(),
-        }),
-    }
-}
+pub use grasp_policy::setting::{ensure, InvalidSetting};
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

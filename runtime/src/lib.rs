@@ -23,7 +23,6 @@ pub mod error;
 pub mod feed;
 pub mod link;
 pub mod model;
-pub mod policy;
 pub mod protocol;
 pub mod ptylink;
 pub mod session;
@@ -32,3 +31,6 @@ pub mod simhand;
 pub mod source;
 pub mod transport;
 pub mod trigger;
+
+/// The decision policy, shared with `grasp-train eval` (`grasp-policy`).
+pub use grasp_policy as policy;

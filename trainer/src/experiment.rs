@@ -5,7 +5,7 @@
 use crate::config::TrainConfig;
 use crate::data::{split, BadData, Dataset};
 use crate::error::{DataError, EvalError, Result, TrainError};
-use crate::eval::metrics::FrameWindow;
+use crate::eval::metrics::Scoring;
 use crate::eval::metrics::VideoOutcome;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
@@ -68,7 +68,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
             &cfg.cache_dir,
             cfg.feature_batch,
             &bad,
-            &FrameWindow::default(),
+            &Scoring::default(),
         )?;
         r.bad_data = bad_data_note(&bad, Path::new("../problems.json"));
         write_report(&r, &cfg.out.join("report"))?;
@@ -108,8 +108,9 @@ pub fn evaluate(
     cache_dir: &Path,
     batch: usize,
     bad: &BadData,
-    window: &FrameWindow,
+    scoring: &Scoring,
 ) -> Result<Report, EvalError> {
+    let window = &scoring.window;
     window.validate()?;
     let mut outside = 0;
     let dev = Device::Cpu;
@@ -135,8 +136,11 @@ pub fn evaluate(
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
             seed: m.seed,
-            metrics: compute_metrics(&preds, TIME_BIN_S),
-            videos: preds.iter().map(VideoOutcome::of).collect(),
+            metrics: compute_metrics(&preds, TIME_BIN_S, &scoring.policy),
+            videos: preds
+                .iter()
+                .map(|v| VideoOutcome::of(v, &scoring.policy))
+                .collect(),
         });
     }
     let mut report = Report::new(&mode.unwrap_or_default(), &head, &data.root, runs);
@@ -144,6 +148,7 @@ pub fn evaluate(
     report.sequences_per_pair = cap.flatten();
     report.train_sequences = train_sequences;
     report.window = *window;
+    report.policy = Some(scoring.policy.clone());
     report.videos_outside_window = outside;
     Ok(report)
 }

@@ -65,7 +65,12 @@ fn parts_windows_and_center_crop_through_evaluation() {
         before_tail_s: Some(0.2),
         ..Default::default()
     };
-    let w = trainer::experiment::evaluate(&ckpts, &test, &cfg.cache_dir, 8, &bad, &window).unwrap();
+    let scoring = trainer::eval::metrics::Scoring {
+        window,
+        ..Default::default()
+    };
+    let w =
+        trainer::experiment::evaluate(&ckpts, &test, &cfg.cache_dir, 8, &bad, &scoring).unwrap();
     let all = &report.runs[0].metrics;
     let some = &w.runs[0].metrics;
     assert_eq!(some.videos, all.videos);

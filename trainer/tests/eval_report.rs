@@ -61,7 +61,7 @@ fn videos() -> Vec<VideoPrediction> {
 
 #[test]
 fn hand_made_case_gives_hand_computed_numbers() {
-    let m = compute_metrics(&videos(), 0.5);
+    let m = compute_metrics(&videos(), 0.5, &Default::default());
     // Frames: (3 + 2 + 2 + 3) / 16 correct.
     assert_eq!(m.frames, 16);
     assert!((m.frame_accuracy - 10.0 / 16.0).abs() < 1e-12);
@@ -85,39 +85,82 @@ fn hand_made_case_gives_hand_computed_numbers() {
     assert_eq!(m.baseline.object_preshape["mug"], Preshape::Lateral);
     assert!((m.baseline.video_accuracy - 0.75).abs() < 1e-12);
     assert!((m.baseline.video_accuracy_multi.unwrap() - 2.0 / 3.0).abs() < 1e-12);
-    // Accuracy against time (frame right if it equals the video's pre-shape),
-    // multi-grasp videos a, b, c at t = 0: P/power yes, P/lateral no,
-    // L/lateral yes -> 2/3; at t = 1.5 s: all N -> 0/3.
+    // Accuracy against time counts the pre-shape frames only (frame right if
+    // it equals the video's pre-shape). Multi-grasp videos a, b, c at t = 0:
+    // P/power yes, P/lateral no, L/lateral yes -> 2/3; at 0.5 s: P/power
+    // yes, P/lateral no, N/lateral (an abstention) -> 1/3, no_grasp 1/3; at
+    // 1.5 s every frame is labelled no_grasp: no point.
     let multi = m.time.multi.accuracy();
     assert!((multi[0].unwrap() - 2.0 / 3.0).abs() < 1e-12);
-    assert_eq!(multi[3], Some(0.0));
-    // Single-grasp video d: Q Q Q P -> 1, 1, 1, 0.
+    assert!((multi[1].unwrap() - 1.0 / 3.0).abs() < 1e-12);
+    let abstained = m.time.multi.no_grasp_share();
+    assert_eq!(abstained[0], Some(0.0));
+    assert!((abstained[1].unwrap() - 1.0 / 3.0).abs() < 1e-12);
+    assert_eq!(multi.get(3).copied().flatten(), None);
+    // Single-grasp video d: Q Q Q on its pre-shape frames; the P on its
+    // no_grasp frame is not on the curve.
     assert_eq!(
         m.time.single.accuracy(),
-        vec![Some(1.0), Some(1.0), Some(1.0), Some(0.0)]
+        vec![Some(1.0), Some(1.0), Some(1.0)]
     );
+    // The last second before contact (1.5 s in every video): frames at 0.5
+    // and 1.0 s. a: P yes, L no; b: P no, L yes; c: N no, N no; d: Q, Q.
+    assert_eq!(m.last_second_frames, 8);
+    assert_eq!(m.last_second_accuracy, Some(0.5));
+    // The hand's decision (hannes-run's defaults: 2 s window, 3 votes at
+    // least, half of them, mean probability 0.5, fallback power): a power
+    // (right), b power (wrong), c one lateral vote -> too few -> the power
+    // fallback (wrong, although the vote was right), d pinch3 (right).
+    assert!((m.hand.accuracy - 0.5).abs() < 1e-12);
+    assert_eq!(m.hand.accuracy_single, Some(1.0));
+    assert!((m.hand.accuracy_multi.unwrap() - 1.0 / 3.0).abs() < 1e-12);
+    use grasp_policy::OutcomeKind;
+    assert_eq!(m.hand.outcomes[&OutcomeKind::Majority], 3);
+    assert_eq!(m.hand.outcomes[&OutcomeKind::Fallback], 1);
+    assert_eq!(m.hand.mean_decision_s, Some(1.5));
+    let c = VideoOutcome::of(&videos()[2], &Default::default());
+    let hand = c.hand.unwrap();
+    assert_eq!(
+        (c.vote, hand.preshape),
+        (Preshape::Lateral, Some(Preshape::Power))
+    );
+    assert!(hand.why.unwrap().contains("fewer than 3"), "names why");
+    // Without a fallback the same video commands nothing: wrong as well.
+    let none = grasp_policy::PolicyConfig {
+        fallback: None,
+        ..Default::default()
+    };
+    let m = compute_metrics(&videos(), 0.5, &none);
+    assert_eq!(m.hand.outcomes[&OutcomeKind::NoCommand], 1);
+    assert!((m.hand.accuracy - 0.5).abs() < 1e-12);
 }
 
 #[test]
 fn report_aggregates_seeds_and_writes_its_files() {
-    let m1 = compute_metrics(&videos(), 0.5);
+    let m1 = compute_metrics(&videos(), 0.5, &Default::default());
     // Second "seed": video b now right (frames L L L N): video accuracy 1.
     let mut v2 = videos();
     v2[1].probs = vec![L, L, L, N];
-    let m2 = compute_metrics(&v2, 0.5);
+    let m2 = compute_metrics(&v2, 0.5, &Default::default());
     assert_eq!(m2.video_accuracy, 1.0);
     let runs = vec![
         RunReport {
             checkpoint: "s0".into(),
             seed: 0,
             metrics: m1,
-            videos: videos().iter().map(VideoOutcome::of).collect(),
+            videos: videos()
+                .iter()
+                .map(|v| VideoOutcome::of(v, &Default::default()))
+                .collect(),
         },
         RunReport {
             checkpoint: "s1".into(),
             seed: 1,
             metrics: m2,
-            videos: v2.iter().map(VideoOutcome::of).collect(),
+            videos: v2
+                .iter()
+                .map(|v| VideoOutcome::of(v, &Default::default()))
+                .collect(),
         },
     ];
     let r = Report::new(
@@ -159,7 +202,7 @@ fn report_aggregates_seeds_and_writes_its_files() {
 fn per_part_accuracy_of_the_multi_grasp_objects() {
     // Mug parts: "mug-power" holds a (right); "mug-lateral" holds b (wrong)
     // and c (right). The marker is single-grasp: no per-part row.
-    let m = compute_metrics(&videos(), 0.5);
+    let m = compute_metrics(&videos(), 0.5, &Default::default());
     let parts: Vec<(&str, &str, usize, f64)> = m
         .per_part
         .iter()
@@ -183,7 +226,9 @@ fn per_part_accuracy_of_the_multi_grasp_objects() {
     for v in &mut real {
         v.part = None;
     }
-    assert!(compute_metrics(&real, 0.5).per_part.is_empty());
+    assert!(compute_metrics(&real, 0.5, &Default::default())
+        .per_part
+        .is_empty());
     // In the report: mean ± std over runs, and a Markdown section.
     let mut v2 = videos();
     v2[1].probs = vec![L, L, L, N]; // b right in the second run
@@ -193,7 +238,7 @@ fn per_part_accuracy_of_the_multi_grasp_objects() {
         .map(|(seed, v)| RunReport {
             checkpoint: format!("s{seed}").into(),
             seed: seed as u64,
-            metrics: compute_metrics(v, 0.5),
+            metrics: compute_metrics(v, 0.5, &Default::default()),
             videos: Vec::new(),
         })
         .collect();
@@ -246,7 +291,7 @@ fn a_frame_window_scores_only_its_frames() {
             .apply(v)
         })
         .collect();
-    let m = compute_metrics(&windowed, 0.5);
+    let m = compute_metrics(&windowed, 0.5, &Default::default());
     // a: L (wrong for power), b: L (right), c: N, no pre-shape vote, the
     // most mass goes to pinch (wrong), d: Q (right) -> 2/4.
     assert_eq!(m.videos, 4);

@@ -11,9 +11,19 @@
 //!   dropped). Ties, including a video with no pre-shape vote at all, go to
 //!   the tied pre-shape with the highest probability summed over all frames,
 //!   then to the lowest class index;
-//! - accuracy against time: for every time bin, the fraction of frames in it
-//!   whose prediction equals their video's pre-shape, separately for videos
-//!   of single-grasp and multi-grasp objects (the paper's Fig. 5);
+//! - the hand's decision: what `hannes-run`'s policy (`grasp-policy`, the
+//!   report's settings) commands on the video's frames with their own time
+//!   stamps, the trigger at the first scored frame: right when it names the
+//!   video's pre-shape; a fallback counts by the pre-shape it sends, no
+//!   command or an abort as wrong;
+//! - accuracy against time: for every time bin, the fraction of the frames
+//!   labelled with a pre-shape whose prediction equals it, separately for
+//!   videos of single-grasp and multi-grasp objects (the paper's Fig. 5);
+//!   the share of those frames answered `no_grasp` (an abstention, not a
+//!   wrong part) is counted apart;
+//! - the last second: the accuracy of the pre-shape frames in the second
+//!   before the final `no_grasp` segment (contact), where the part must be
+//!   read up close;
 //! - baseline: a perfect object classifier that always answers the object's
 //!   most frequent pre-shape among the evaluated videos (ties to the lowest
 //!   class index);
@@ -25,6 +35,7 @@
 //! (videos with no frame in it are left out and counted).
 
 use crate::error::ConfigError;
+use grasp_policy::{decide_recorded, OutcomeKind, PolicyConfig};
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -93,10 +104,14 @@ pub struct VideoOutcome {
     pub vote: Preshape,
     /// Frames scored.
     pub frames: usize,
+    /// What the hand would be commanded (None in reports written before
+    /// the hand's decision was scored).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hand: Option<HandDecision>,
 }
 
 impl VideoOutcome {
-    pub fn of(v: &VideoPrediction) -> VideoOutcome {
+    pub fn of(v: &VideoPrediction, policy: &PolicyConfig) -> VideoOutcome {
         VideoOutcome {
             id: v.id.clone(),
             object: v.object.clone(),
@@ -104,25 +119,136 @@ impl VideoOutcome {
             truth: v.preshape,
             vote: Preshape::ALL[video_class(&v.probs)],
             frames: v.probs.len(),
+            hand: Some(HandDecision::of(v, policy)),
         }
     }
 }
 
-/// Accuracy against time for one group of videos.
+/// The decision `hannes-run`'s policy takes on a video.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HandDecision {
+    /// The pre-shape commanded; None: nothing.
+    pub preshape: Option<Preshape>,
+    pub how: OutcomeKind,
+    /// Why the vote was not trusted (fallback, no command) or the approach
+    /// aborted, in words.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub why: Option<String>,
+    /// Frame time of the last frame the policy read, seconds after the
+    /// first scored frame.
+    pub at_s: Option<f64>,
+}
+
+impl HandDecision {
+    pub fn of(v: &VideoPrediction, policy: &PolicyConfig) -> HandDecision {
+        let frames = (0..v.probs.len()).map(|i| (v.time_s(i), v.probs[i]));
+        let d = decide_recorded(policy, frames);
+        let outcome = &d.decision.outcome;
+        let why = match outcome {
+            grasp_policy::Outcome::Fallback { why, .. }
+            | grasp_policy::Outcome::NoCommand { why } => Some(why.to_string()),
+            grasp_policy::Outcome::Aborted { error } => Some(error.clone()),
+            _ => None,
+        };
+        HandDecision {
+            preshape: outcome.preshape(),
+            how: outcome.kind(),
+            why,
+            at_s: d.at_s,
+        }
+    }
+
+    pub fn is_right(&self, truth: Preshape) -> bool {
+        self.preshape == Some(truth)
+    }
+}
+
+impl VideoPrediction {
+    /// Frame `i`'s time, seconds (0 where the data has none).
+    pub fn time_s(&self, i: usize) -> f64 {
+        self.times_s.get(i).copied().unwrap_or(0.0)
+    }
+}
+
+/// The hand's decisions over a set of videos.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct HandMetrics {
+    pub accuracy: f64,
+    pub accuracy_single: Option<f64>,
+    pub accuracy_multi: Option<f64>,
+    /// Videos by how the decision was taken.
+    pub outcomes: BTreeMap<OutcomeKind, usize>,
+    /// Mean frame time of the decision, seconds after the first frame.
+    pub mean_decision_s: Option<f64>,
+}
+
+/// `outcomes`: per video, whether its object is multi-grasp, the decision,
+/// and whether it is right.
+fn hand_metrics(outcomes: &[(bool, HandDecision, bool)]) -> HandMetrics {
+    let mut h = HandMetrics::default();
+    let (mut ok, mut s, mut m) = (0, [0usize; 2], [0usize; 2]);
+    let mut times = Vec::new();
+    for (multi, d, right) in outcomes {
+        ok += usize::from(*right);
+        let group = if *multi { &mut m } else { &mut s };
+        group[0] += 1;
+        group[1] += usize::from(*right);
+        *h.outcomes.entry(d.how).or_default() += 1;
+        times.extend(d.at_s);
+    }
+    h.accuracy = ratio(ok, outcomes.len());
+    h.accuracy_single = opt_ratio(s[1], s[0]);
+    h.accuracy_multi = opt_ratio(m[1], m[0]);
+    h.mean_decision_s = (!times.is_empty()).then(|| times.iter().sum::<f64>() / times.len() as f64);
+    h
+}
+
+/// Accuracy against time for one group of videos: per bin, the frames
+/// labelled with a pre-shape, those predicted right, and those answered
+/// `no_grasp`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Curve {
     pub correct: Vec<u64>,
     pub total: Vec<u64>,
+    #[serde(default)]
+    pub no_grasp: Vec<u64>,
 }
 
 impl Curve {
-    fn add(&mut self, bin: usize, ok: bool) {
-        if self.total.len() <= bin {
-            self.total.resize(bin + 1, 0);
-            self.correct.resize(bin + 1, 0);
-        }
+    fn add(&mut self, bin: usize, predicted: usize, truth: usize) {
+        self.grow(bin + 1);
         self.total[bin] += 1;
-        self.correct[bin] += u64::from(ok);
+        self.correct[bin] += u64::from(predicted == truth);
+        self.no_grasp[bin] += u64::from(predicted == Class::NoGrasp.index());
+    }
+
+    fn grow(&mut self, bins: usize) {
+        for v in [&mut self.total, &mut self.correct, &mut self.no_grasp] {
+            if v.len() < bins {
+                v.resize(bins, 0);
+            }
+        }
+    }
+
+    /// Adds another curve's counts bin by bin.
+    pub fn merge(&mut self, other: &Curve) {
+        self.grow(other.total.len());
+        for (i, t) in other.total.iter().enumerate() {
+            self.total[i] += t;
+            self.correct[i] += other.correct.get(i).copied().unwrap_or(0);
+            self.no_grasp[i] += other.no_grasp.get(i).copied().unwrap_or(0);
+        }
+    }
+
+    /// The share of each bin's pre-shape frames answered `no_grasp`.
+    pub fn no_grasp_share(&self) -> Vec<Option<f64>> {
+        self.total
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                (*t > 0).then(|| self.no_grasp.get(i).copied().unwrap_or(0) as f64 / *t as f64)
+            })
+            .collect()
     }
 
     pub fn accuracy(&self) -> Vec<Option<f64>> {
@@ -162,6 +288,14 @@ pub struct PartAccuracy {
     /// Frames labelled with the pre-shape, and the fraction predicted right.
     pub grasp_frames: usize,
     pub frame_accuracy: Option<f64>,
+}
+
+/// How an evaluation scores its videos: which frames, and the policy the
+/// hand's decision is taken with (`hannes-run`'s defaults unless given).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scoring {
+    pub window: FrameWindow,
+    pub policy: PolicyConfig,
 }
 
 /// Which frames are scored, by time since the start of the video. `from_s`
@@ -300,7 +434,20 @@ pub struct Metrics {
     /// when the data records no parts).
     #[serde(default)]
     pub per_part: Vec<PartAccuracy>,
+    /// What the hand would be commanded (see the module docs).
+    #[serde(default)]
+    pub hand: HandMetrics,
+    /// Pre-shape frames in the last second before contact, and the share
+    /// predicted right.
+    #[serde(default)]
+    pub last_second_frames: usize,
+    #[serde(default)]
+    pub last_second_accuracy: Option<f64>,
 }
+
+/// How long before contact (the final `no_grasp` segment) the last-second
+/// accuracy looks.
+pub const LAST_SECOND_S: f64 = 1.0;
 
 fn ratio(num: usize, den: usize) -> f64 {
     if den == 0 {
@@ -314,7 +461,7 @@ fn opt_ratio(num: usize, den: usize) -> Option<f64> {
     (den > 0).then(|| num as f64 / den as f64)
 }
 
-pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
+pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64, policy: &PolicyConfig) -> Metrics {
     let mut m = Metrics {
         frame_confusion: vec![vec![0; Class::COUNT]; Class::COUNT],
         video_confusion: vec![vec![0; 4]; 4],
@@ -326,26 +473,37 @@ pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
     };
     let (mut frame_ok, mut grasp_ok, mut video_ok) = (0, 0, 0);
     let (mut single_ok, mut multi_ok) = (0, 0);
+    let (mut last_n, mut last_ok) = (0, 0);
+    let mut decisions = Vec::with_capacity(videos.len());
     for v in videos {
         let truth = Class::from(v.preshape).index();
+        let contact = tail_start(v);
         for (i, (p, label)) in v.probs.iter().zip(&v.labels).enumerate() {
             let c = frame_class(p);
             m.frames += 1;
             m.frame_confusion[label.index()][c] += 1;
             frame_ok += usize::from(c == label.index());
-            if *label != Class::NoGrasp {
-                m.grasp_frames += 1;
-                grasp_ok += usize::from(c == label.index());
+            if *label == Class::NoGrasp {
+                continue;
             }
-            let t = v.times_s.get(i).copied().unwrap_or(0.0);
+            m.grasp_frames += 1;
+            grasp_ok += usize::from(c == label.index());
+            let t = v.time_s(i);
+            if t >= contact - LAST_SECOND_S - 1e-9 {
+                last_n += 1;
+                last_ok += usize::from(c == label.index());
+            }
             let bin = (t / bin_s + 1e-9).floor().max(0.0) as usize;
             let curve = if v.multi_grasp {
                 &mut m.time.multi
             } else {
                 &mut m.time.single
             };
-            curve.add(bin, c == truth);
+            curve.add(bin, c, label.index());
         }
+        let hand = HandDecision::of(v, policy);
+        let right = hand.is_right(v.preshape);
+        decisions.push((v.multi_grasp, hand, right));
         let voted = video_class(&v.probs);
         m.video_confusion[truth][voted] += 1;
         m.videos += 1;
@@ -366,6 +524,9 @@ pub fn compute_metrics(videos: &[VideoPrediction], bin_s: f64) -> Metrics {
     m.video_accuracy_multi = opt_ratio(multi_ok, m.multi_grasp_videos);
     m.baseline = baseline(videos);
     m.per_part = per_part(videos);
+    m.hand = hand_metrics(&decisions);
+    m.last_second_frames = last_n;
+    m.last_second_accuracy = opt_ratio(last_ok, last_n);
     m
 }
 
@@ -479,6 +640,10 @@ pub fn scalars(metrics: &Metrics) -> Vec<(&'static str, Option<f64>)> {
             "baseline_video_accuracy",
             Some(metrics.baseline.video_accuracy),
         ),
+        ("hand_accuracy", Some(metrics.hand.accuracy)),
+        ("hand_accuracy_single", metrics.hand.accuracy_single),
+        ("hand_accuracy_multi", metrics.hand.accuracy_multi),
+        ("last_second_accuracy", metrics.last_second_accuracy),
     ]
 }
 

@@ -93,6 +93,10 @@ pub struct Report {
     /// Videos left out because no frame of theirs lies in the window.
     #[serde(default)]
     pub videos_outside_window: usize,
+    /// The policy the hand's decision was taken with (None in reports
+    /// written before it was scored).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub policy: Option<grasp_policy::PolicyConfig>,
     /// Lead-in frames (before the target entered the view) dropped before
     /// inference; None when `eval --keep-lead-in` kept them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -185,8 +189,8 @@ impl Report {
         for r in &runs {
             add_matrix(&mut fc, &r.metrics.frame_confusion);
             add_matrix(&mut vc, &r.metrics.video_confusion);
-            add_curve(&mut single, &r.metrics.time.single);
-            add_curve(&mut multi, &r.metrics.time.multi);
+            single.merge(&r.metrics.time.single);
+            multi.merge(&r.metrics.time.multi);
         }
         let per_part = part_summaries(&runs);
         Report {
@@ -206,6 +210,7 @@ impl Report {
             bad_data: None,
             window: FrameWindow::default(),
             videos_outside_window: 0,
+            policy: None,
             lead_in_trimmed: None,
             sensor_probe: None,
             pooled_with: Vec::new(),
@@ -220,17 +225,6 @@ fn add_matrix(acc: &mut [Vec<u64>], m: &[Vec<u64>]) {
         for (x, y) in a.iter_mut().zip(r) {
             *x += y;
         }
-    }
-}
-
-fn add_curve(acc: &mut Curve, c: &Curve) {
-    if acc.total.len() < c.total.len() {
-        acc.total.resize(c.total.len(), 0);
-        acc.correct.resize(c.total.len(), 0);
-    }
-    for i in 0..c.total.len() {
-        acc.total[i] += c.total[i];
-        acc.correct[i] += c.correct[i];
     }
 }
 

@@ -2,8 +2,7 @@
 //! help lists.
 
 use clap::Args;
-use grasp_cli::LensArgs;
-use runtime::policy::OnInvalid;
+use grasp_cli::{DecisionArgs, LensArgs};
 use runtime::simhand::FaultSpec;
 use std::path::PathBuf;
 
@@ -33,27 +32,13 @@ pub(crate) struct PolicyArgs {
     /// Config file (TOML, sections [policy] and [link]); flags override it.
     #[arg(long)]
     pub(crate) config: Option<PathBuf>,
-    /// Approach window in seconds.
-    #[arg(long)]
-    pub(crate) window: Option<f64>,
     /// A decision older than this (ms) is never executed: the pre-shape
     /// must be acknowledged within it of the vote (not of the frames'
     /// capture), the closure within it of its trigger (default 300).
     #[arg(long)]
     pub(crate) max_decision_age_ms: Option<u64>,
-    /// Decide early once the leading pre-shape is this many votes ahead.
-    #[arg(long)]
-    pub(crate) early_margin: Option<u32>,
-    /// Pre-shape sent on low confidence (power, lateral, pinch, pinch3), or
-    /// `none` to send nothing.
-    #[arg(long)]
-    pub(crate) fallback: Option<String>,
-    /// Minimum mean probability of the winning class.
-    #[arg(long)]
-    pub(crate) min_confidence: Option<f64>,
-    /// What an invalid model output (NaN, Inf) does.
-    #[arg(long, value_enum)]
-    pub(crate) on_invalid: Option<OnInvalid>,
+    #[command(flatten)]
+    pub(crate) decision: DecisionArgs,
 }
 
 #[derive(Args, Clone)]

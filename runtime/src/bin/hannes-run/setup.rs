@@ -7,7 +7,6 @@ use anyhow::{Context, Result};
 use grasp_cli::LensArgs;
 use grasp_model::checkpoint::Classifier;
 use grasp_model::input::{Crop, Lens};
-use grasp_schema::taxonomy::Preshape;
 use runtime::config::RuntimeConfig;
 use runtime::source::{FrameSource, Pacing, SequenceFolder};
 use std::path::Path;
@@ -21,25 +20,11 @@ pub(crate) fn config(policy_args: &PolicyArgs) -> Result<RuntimeConfig> {
         Some(path) => RuntimeConfig::load(path)?,
         None => RuntimeConfig::default(),
     };
+    policy_args
+        .decision
+        .apply(&mut cfg.policy)
+        .context("--fallback")?;
     let policy = &mut cfg.policy;
-    if let Some(w) = policy_args.window {
-        policy.window_s = w;
-    }
-    if policy_args.early_margin.is_some() {
-        policy.early_margin = policy_args.early_margin;
-    }
-    if let Some(f) = &policy_args.fallback {
-        policy.fallback = match f.as_str() {
-            "none" => None,
-            name => Some(name.parse::<Preshape>().context("--fallback")?),
-        };
-    }
-    if let Some(c) = policy_args.min_confidence {
-        policy.min_confidence = c;
-    }
-    if let Some(o) = policy_args.on_invalid {
-        policy.on_invalid = o;
-    }
     if let Some(ms) = policy_args.max_decision_age_ms {
         policy.max_decision_age_ms = ms;
     }

@@ -268,6 +268,13 @@ struct EvalArgs {
     /// frame) before the probe's noise, as a defocused lens would.
     #[arg(long, value_name = "PX")]
     probe_blur: Option<f32>,
+    /// The hand's decision is scored with hannes-run's policy: its defaults,
+    /// or these flags (as hannes-run takes them).
+    #[command(
+        flatten,
+        next_help_heading = "The hand's decision (hannes-run's policy)"
+    )]
+    policy: grasp_cli::DecisionArgs,
 }
 
 fn stand_in(args: StandInArgs) -> Result<()> {
@@ -334,6 +341,10 @@ fn eval(args: EvalArgs) -> Result<()> {
         before_tail_s: args.before_tail_s,
     };
     window.validate()?;
+    let mut policy = grasp_policy::PolicyConfig::default();
+    args.policy.apply(&mut policy).context("--fallback")?;
+    policy.validate()?;
+    let scoring = trainer::eval::metrics::Scoring { window, policy };
     let input = EvalInput::of(&args)?;
     let mut data = if args.data.is_empty() {
         trainer::experiment::test_split_of(&args.checkpoints[0], &bad)?
@@ -371,9 +382,15 @@ fn eval(args: EvalArgs) -> Result<()> {
         let (videos, frames) = data.trim_lead_ins();
         trainer::eval::report::LeadInTrim { videos, frames }
     });
-    let mut report =
-        trainer::experiment::evaluate(&args.checkpoints, &data, &args.cache_dir, 32, &bad, &window)
-            .context("evaluation failed")?;
+    let mut report = trainer::experiment::evaluate(
+        &args.checkpoints,
+        &data,
+        &args.cache_dir,
+        32,
+        &bad,
+        &scoring,
+    )
+    .context("evaluation failed")?;
     report.lead_in_trimmed = trimmed;
     report.input = Some(input.record());
     report.sensor_probe = probe;

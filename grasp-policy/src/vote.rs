@@ -6,14 +6,14 @@
 //! A model output that is not a probability vector (NaN, Inf, out of range)
 //! never reaches the vote: it aborts the approach (default) or is skipped.
 
-use crate::classifier::{InvalidOutput, Probabilities};
-use crate::config::{ensure, InvalidSetting};
+use crate::probabilities::{InvalidOutput, Probabilities};
+use crate::setting::{ensure, InvalidSetting};
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// What to do with a frame whose model output is invalid.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OnInvalid {
     /// End the approach without commanding the hand.
@@ -22,7 +22,7 @@ pub enum OnInvalid {
     Skip,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PolicyConfig {
     /// Length of the approach window after the trigger, in seconds of
@@ -107,6 +107,13 @@ impl PolicyConfig {
         )
     }
 
+    /// Whether a frame taken `since_trigger_s` seconds after the trigger
+    /// (frame time) belongs to the approach window. The one rule of the
+    /// live loop and of a recorded approach.
+    pub fn in_window(&self, since_trigger_s: f64) -> bool {
+        since_trigger_s < self.window_s
+    }
+
     /// [`PolicyConfig::max_decision_age_ms`] as a duration.
     pub fn max_decision_age(&self) -> std::time::Duration {
         std::time::Duration::from_millis(self.max_decision_age_ms)
@@ -166,7 +173,53 @@ pub enum Outcome {
     Stopped,
 }
 
+/// How an approach's decision was taken, without its evidence: what
+/// reports count (fallbacks, approaches with no command).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutcomeKind {
+    Majority,
+    Early,
+    Fallback,
+    NoCommand,
+    Aborted,
+    Stopped,
+}
+
+impl OutcomeKind {
+    pub const ALL: [OutcomeKind; 6] = [
+        OutcomeKind::Majority,
+        OutcomeKind::Early,
+        OutcomeKind::Fallback,
+        OutcomeKind::NoCommand,
+        OutcomeKind::Aborted,
+        OutcomeKind::Stopped,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            OutcomeKind::Majority => "majority",
+            OutcomeKind::Early => "early",
+            OutcomeKind::Fallback => "fallback",
+            OutcomeKind::NoCommand => "no_command",
+            OutcomeKind::Aborted => "aborted",
+            OutcomeKind::Stopped => "stopped",
+        }
+    }
+}
+
 impl Outcome {
+    pub fn kind(&self) -> OutcomeKind {
+        match self {
+            Outcome::Majority { .. } => OutcomeKind::Majority,
+            Outcome::Early { .. } => OutcomeKind::Early,
+            Outcome::Fallback { .. } => OutcomeKind::Fallback,
+            Outcome::NoCommand { .. } => OutcomeKind::NoCommand,
+            Outcome::Aborted { .. } => OutcomeKind::Aborted,
+            Outcome::Stopped => OutcomeKind::Stopped,
+        }
+    }
+
     /// The pre-shape to command, if any.
     pub fn preshape(&self) -> Option<Preshape> {
         match self {
