@@ -394,6 +394,11 @@ pub enum SummaryError {
     #[error("model {model} has no report on test set {set}: every model is judged on every set")]
     MissingSet { model: String, set: String },
     #[error(
+        "report `{label}` ({path}) has no hand's decision (written by an older grasp-train \
+         eval): evaluate it again to rank models by what the hand would do"
+    )]
+    NoHandDecision { label: String, path: PathBuf },
+    #[error(
         "no model can ship: the hand classifies frame by frame and every head here reads \
          sequences ({heads}); add a model with an FC head"
     )]

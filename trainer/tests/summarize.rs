@@ -2,7 +2,7 @@
 //! worked out by hand below.
 
 use std::path::{Path, PathBuf};
-use trainer::eval::metrics::{Baseline, Metrics};
+use trainer::eval::metrics::{Baseline, HandMetrics, Metrics};
 use trainer::eval::report::RunReport;
 use trainer::eval::summary::{Entry, Summary, SummarySpec};
 use trainer::eval::Report;
@@ -11,10 +11,17 @@ use trainer::eval::Report;
 /// 0.75 in every run, single-grasp videos 1.0, multi-grasp videos 0.2 below
 /// all videos.
 fn write_report(dir: &Path, runs: &[(f64, f64)]) -> PathBuf {
+    let runs: Vec<_> = runs.iter().map(|&(v, f)| (v, f, v)).collect();
+    write_report_with_hand(dir, &runs)
+}
+
+/// [`write_report`] with the hand's decision's accuracy of each run given
+/// (the third value).
+fn write_report_with_hand(dir: &Path, runs: &[(f64, f64, f64)]) -> PathBuf {
     let runs = runs
         .iter()
         .enumerate()
-        .map(|(seed, (video, frame))| RunReport {
+        .map(|(seed, (video, frame, hand))| RunReport {
             checkpoint: PathBuf::from(format!("run/seed-{seed}")),
             seed: seed as u64,
             metrics: Metrics {
@@ -26,6 +33,10 @@ fn write_report(dir: &Path, runs: &[(f64, f64)]) -> PathBuf {
                 frame_accuracy_without_no_grasp: frame - 0.1,
                 baseline: Baseline {
                     video_accuracy: 0.75,
+                    ..Default::default()
+                },
+                hand: HandMetrics {
+                    accuracy: *hand,
                     ..Default::default()
                 },
                 ..Default::default()
@@ -77,16 +88,16 @@ fn table_and_plot_of_error_against_x() {
     s.write(&out).unwrap();
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(
-        md.contains("| label | samples | runs | per-video accuracy | per-video error |"),
+        md.contains("| label | samples | runs | the hand's decision | per-video accuracy | per-video error |"),
         "{md}"
     );
     assert!(
-        md.contains("| cycles-16 | 16 | 2 | 60.0 ± 10.0 | 40.0 ± 10.0 | 70.0 ± 10.0 | 60.0 ± 10.0 | 75.0 ± 0.0 | 100.0 ± 0.0 | 40.0 ± 10.0 |"),
+        md.contains("| cycles-16 | 16 | 2 | 60.0 ± 10.0 | 60.0 ± 10.0 | 40.0 ± 10.0 | 70.0 ± 10.0 | 60.0 ± 10.0 | – | 75.0 ± 0.0 | 100.0 ± 0.0 | 40.0 ± 10.0 |"),
         "{md}"
     );
     assert!(
         md.contains(
-            "| cycles-1 | 1 | 3 | 90.0 ± 8.2 | 10.0 ± 8.2 | 80.0 ± 0.0 | 70.0 ± 0.0 | 75.0 ± 0.0 | 100.0 ± 0.0 | 70.0 ± 8.2 |"
+            "| cycles-1 | 1 | 3 | 90.0 ± 8.2 | 90.0 ± 8.2 | 10.0 ± 8.2 | 80.0 ± 0.0 | 70.0 ± 0.0 | – | 75.0 ± 0.0 | 100.0 ± 0.0 | 70.0 ± 8.2 |"
         ),
         "{md}"
     );
@@ -201,10 +212,12 @@ fn the_shipped_model_is_chosen_by_its_worst_test_set() {
     let order: Vec<&str> = choice.standings.iter().map(|s| s.model.as_str()).collect();
     assert_eq!(order, ["frozen", "even", "tuned"]);
     assert_eq!(choice.standings[2].worst_set, "world_foreign");
-    assert!((choice.standings[2].worst_accuracy - 0.75).abs() < 1e-12);
+    assert!((choice.standings[2].worst_hand_accuracy - 0.75).abs() < 1e-12);
     let md = s.markdown();
     assert!(
-        md.contains("| frozen (shipped) | world_foreign | 80.0 | 85.0 |"),
+        md.contains(
+            "| frozen (shipped) | world_foreign | 80.0 | 80.0 (world_foreign) | 85.0 | 85.0 |"
+        ),
         "{md}"
     );
     let out = dir.path().join("out");
@@ -228,6 +241,50 @@ fn the_shipped_model_is_chosen_by_its_worst_test_set() {
     let mut flat = spec(vec![entry("a/default", None, &r("x", 0.9))]);
     flat.by_condition = false;
     assert!(format!("{:#}", Summary::load(flat).unwrap_err()).contains("--by-condition"));
+}
+
+/// The ranking is by the hand's decision on the worst set, not by the
+/// vote: a model whose vote holds up but whose hand falls back to the wrong
+/// pre-shape loses; equal hands go to the better worst vote.
+#[test]
+fn the_hands_decision_ranks_before_the_vote() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = |name: &str, vote: f64, hand: f64| {
+        write_report_with_hand(&dir.path().join(name), &[(vote, 0.5, hand)])
+    };
+    // voter: votes 0.9 / 0.85, but the hand 0.9 / 0.7; steady: votes 0.9 /
+    // 0.8, the hand 0.9 / 0.78; twin: steady's hand, a vote of 0.75 abroad.
+    let s = Summary::load(shipping(vec![
+        entry("voter/default", None, &r("vd", 0.9, 0.9)),
+        entry("voter/world_foreign", None, &r("vw", 0.85, 0.7)),
+        entry("twin/default", None, &r("td", 0.9, 0.9)),
+        entry("twin/world_foreign", None, &r("tw", 0.75, 0.78)),
+        entry("steady/default", None, &r("sd", 0.9, 0.9)),
+        entry("steady/world_foreign", None, &r("sw", 0.8, 0.78)),
+    ]))
+    .unwrap();
+    let choice = s.choice.as_ref().unwrap();
+    let order: Vec<&str> = choice.standings.iter().map(|s| s.model.as_str()).collect();
+    assert_eq!(order, ["steady", "twin", "voter"]);
+    assert_eq!(choice.shipped, "steady");
+    let md = s.markdown();
+    assert!(md.contains("## The hand's decision (what hannes-run's policy commands) by test set"));
+    assert!(md.contains("| voter | 90.0 ± 0.0 | 70.0 ± 0.0 |"), "{md}");
+    // A report that predates the hand's decision cannot be ranked.
+    let old = r("old", 0.9, 0.9).join("report.json");
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&old).unwrap()).unwrap();
+    json["aggregate"]
+        .as_object_mut()
+        .unwrap()
+        .remove("hand_accuracy");
+    std::fs::write(&old, json.to_string()).unwrap();
+    let err = Summary::load(shipping(vec![
+        entry("old/default", None, &old),
+        entry("old/world_foreign", None, &old),
+    ]))
+    .unwrap_err();
+    assert!(format!("{err:#}").contains("no hand's decision"), "{err:#}");
 }
 
 /// A head that reads sequences cannot drive the hand, so it never ships,
@@ -339,11 +396,11 @@ fn command_line_and_toml_list() {
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.starts_with("# Error against samples"), "{md}");
     assert!(
-        md.contains("| q1 | 1 | 1 | 50.0 ± 0.0 | 50.0 ± 0.0 |"),
+        md.contains("| q1 | 1 | 1 | 50.0 ± 0.0 | 50.0 ± 0.0 | 50.0 ± 0.0 |"),
         "{md}"
     );
     assert!(
-        md.contains("| q4 | 4 | 1 | 75.0 ± 0.0 | 25.0 ± 0.0 |"),
+        md.contains("| q4 | 4 | 1 | 75.0 ± 0.0 | 75.0 ± 0.0 | 25.0 ± 0.0 |"),
         "{md}"
     );
     assert!(out.join("error.png").is_file());

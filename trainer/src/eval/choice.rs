@@ -1,10 +1,12 @@
-//! Which model to ship: the one whose worst test set is best. A model
-//! chosen on its own conditions can lose most where it was never tuned
-//! (another renderer, real meshes, another reach), so the choice looks at
-//! every test set of a by-condition summary and ranks each model by its
-//! lowest per-video accuracy (mean over seeds); ties go to the higher
-//! mean over all sets, then to the model listed first. Only a model whose
-//! head classifies frame by frame can ship, because the hand's loop
+//! Which model to ship: the one whose worst test set is best, judged by
+//! what the hand would do. A model chosen on its own conditions can lose
+//! most where it was never tuned (another renderer, real meshes, another
+//! reach), so the choice looks at every test set of a by-condition summary
+//! and ranks each model by its lowest accuracy of the hand's decision
+//! (`hannes-run`'s policy on each video, mean over seeds); ties go to the
+//! higher worst per-video vote, then to the higher mean of the hand's
+//! decision over all sets, then to the model listed first. Only a model
+//! whose head classifies frame by frame can ship, because the hand's loop
 //! (`hannes-run`) runs nothing else; the others are ranked and marked.
 
 use super::summary::Summary;
@@ -13,13 +15,19 @@ use grasp_model::heads::HeadKind;
 use serde::Serialize;
 use std::fmt::Write;
 
-/// One model's standing: its worst test set and its mean over all sets.
+/// One model's standing: its worst test set by the hand's decision, its
+/// worst per-video vote, and its means over all sets.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Standing {
     pub model: String,
+    /// The set where the hand's decision is least often right.
     pub worst_set: String,
-    pub worst_accuracy: f64,
-    pub mean_accuracy: f64,
+    pub worst_hand_accuracy: f64,
+    /// The lowest per-video (vote) accuracy over the sets, and its set.
+    pub worst_vote_set: String,
+    pub worst_vote_accuracy: f64,
+    pub mean_hand_accuracy: f64,
+    pub mean_vote_accuracy: f64,
     /// The head of its reports (`fc`, `lstm`).
     pub head: String,
 }
@@ -45,7 +53,8 @@ impl Choice {
         let sets = summary.conditions();
         let mut standings = Vec::new();
         for model in summary.models() {
-            let mut accuracies = Vec::new();
+            let mut hand = Vec::new();
+            let mut vote = Vec::new();
             let mut head = String::new();
             for set in &sets {
                 let Some(row) = summary
@@ -56,31 +65,29 @@ impl Choice {
                     let set = set.clone();
                     return Err(SummaryError::MissingSet { model, set });
                 };
-                accuracies.push((set, row.video_accuracy.mean));
+                hand.push((set, row.hand()?.mean));
+                vote.push((set, row.video_accuracy.mean));
                 head = row.head.clone();
             }
-            let (worst_set, worst_accuracy) = accuracies
-                .iter()
-                .fold(None, |acc: Option<(&String, f64)>, &(s, a)| match acc {
-                    Some((_, best)) if best <= a => acc,
-                    _ => Some((s, a)),
-                })
-                .expect("a summary has at least one report");
-            let mean_accuracy =
-                accuracies.iter().map(|(_, a)| a).sum::<f64>() / accuracies.len() as f64;
+            let (worst_set, worst_hand_accuracy) = lowest(&hand);
+            let (worst_vote_set, worst_vote_accuracy) = lowest(&vote);
             standings.push(Standing {
                 model,
                 worst_set: worst_set.clone(),
-                worst_accuracy,
-                mean_accuracy,
+                worst_hand_accuracy,
+                worst_vote_set: worst_vote_set.clone(),
+                worst_vote_accuracy,
+                mean_hand_accuracy: mean(&hand),
+                mean_vote_accuracy: mean(&vote),
                 head,
             });
         }
         // Stable: equal standings keep the order given.
         standings.sort_by(|a, b| {
-            b.worst_accuracy
-                .total_cmp(&a.worst_accuracy)
-                .then(b.mean_accuracy.total_cmp(&a.mean_accuracy))
+            b.worst_hand_accuracy
+                .total_cmp(&a.worst_hand_accuracy)
+                .then(b.worst_vote_accuracy.total_cmp(&a.worst_vote_accuracy))
+                .then(b.mean_hand_accuracy.total_cmp(&a.mean_hand_accuracy))
         });
         let Some(shipped) = standings.iter().find(|s| s.runs_on_hand()) else {
             let heads = standings
@@ -98,8 +105,9 @@ impl Choice {
     /// The Markdown section of summary.md.
     pub fn markdown(&self) -> String {
         let mut s = String::from(
-            "\n## The shipped model: the best worst test set\n\n\
-             | model | worst test set | its per-video accuracy | mean over the sets |\n|---|---|---|---|\n",
+            "\n## The shipped model: the best worst test set by the hand's decision\n\n\
+             | model | worst test set (hand) | the hand's decision there | worst per-video vote \
+             | mean of the hand's decision | mean per-video vote |\n|---|---|---|---|---|---|\n",
         );
         for st in &self.standings {
             let mark = if st.model == self.shipped {
@@ -114,13 +122,31 @@ impl Choice {
             };
             let _ = writeln!(
                 s,
-                "| {}{mark} | {} | {:.1} | {:.1} |",
+                "| {}{mark} | {} | {:.1} | {:.1} ({}) | {:.1} | {:.1} |",
                 st.model,
                 st.worst_set,
-                st.worst_accuracy * 100.0,
-                st.mean_accuracy * 100.0
+                st.worst_hand_accuracy * 100.0,
+                st.worst_vote_accuracy * 100.0,
+                st.worst_vote_set,
+                st.mean_hand_accuracy * 100.0,
+                st.mean_vote_accuracy * 100.0
             );
         }
         s
     }
+}
+
+/// The lowest `(set, accuracy)`; the first of equals.
+fn lowest(accuracies: &[(&String, f64)]) -> (String, f64) {
+    let mut worst = accuracies[0];
+    for &(set, a) in &accuracies[1..] {
+        if a < worst.1 {
+            worst = (set, a);
+        }
+    }
+    (worst.0.clone(), worst.1)
+}
+
+fn mean(accuracies: &[(&String, f64)]) -> f64 {
+    accuracies.iter().map(|(_, a)| a).sum::<f64>() / accuracies.len() as f64
 }

@@ -41,12 +41,16 @@ fn render_png(width: u32, height: u32, draw: impl FnOnce(&Area) -> Result<()>) -
 }
 
 /// Accuracy against time, as the paper's Fig. 5: per-bin accuracy (0 to 1,
-/// `None` for an empty bin) of single-grasp and multi-grasp objects.
+/// `None` for an empty bin) of single-grasp and multi-grasp objects, and
+/// the share of their pre-shape frames answered `no_grasp` (empty: not
+/// drawn).
 pub struct TimeAccuracy<'a> {
     pub title: String,
     pub bin_s: f64,
     pub single: &'a [Option<f64>],
     pub multi: &'a [Option<f64>],
+    pub single_no_grasp: &'a [Option<f64>],
+    pub multi_no_grasp: &'a [Option<f64>],
 }
 
 /// The time-accuracy plot: single-grasp objects dashed, multi-grasp solid.
@@ -77,7 +81,7 @@ pub fn time_accuracy(plot: &TimeAccuracy) -> Result<Vec<u8>> {
         chart
             .configure_mesh()
             .x_desc("time since onset (s)")
-            .y_desc("accuracy (%)")
+            .y_desc("pre-shape frames (%)")
             .draw()
             .map_err(err)?;
         let blue = RGBColor(31, 119, 180);
@@ -92,6 +96,36 @@ pub fn time_accuracy(plot: &TimeAccuracy) -> Result<Vec<u8>> {
             .map_err(err)?
             .label("multi-grasp objects (solid)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], pink));
+        // The abstentions, thin and pale: an answer of no_grasp is not a
+        // wrong part.
+        let pale_blue = RGBColor(140, 180, 215);
+        let pale_pink = RGBColor(235, 150, 200);
+        for (values, colour, label) in [
+            (
+                plot.single_no_grasp,
+                pale_blue,
+                "single-grasp: answered no_grasp",
+            ),
+            (
+                plot.multi_no_grasp,
+                pale_pink,
+                "multi-grasp: answered no_grasp",
+            ),
+        ] {
+            if values.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(DashedLineSeries::new(
+                    series(values),
+                    3,
+                    4,
+                    colour.stroke_width(1),
+                ))
+                .map_err(err)?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+        }
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
@@ -303,6 +337,8 @@ mod tests {
             bin_s: 0.1,
             single: &curve,
             multi: &curve,
+            single_no_grasp: &curve,
+            multi_no_grasp: &[],
         };
         let titled = decode(&time_accuracy(&plot("Accuracy against time (fc)")).unwrap());
         let untitled = decode(&time_accuracy(&plot("")).unwrap());

@@ -243,6 +243,8 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<(), EvalError> {
         bin_s: report.time_bin_s,
         single: &report.time_single.accuracy(),
         multi: &report.time_multi.accuracy(),
+        single_no_grasp: &report.time_single.no_grasp_share(),
+        multi_no_grasp: &report.time_multi.no_grasp_share(),
     })?;
     grasp_support::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
     let confusion =
@@ -262,6 +264,9 @@ pub fn videos_csv(report: &Report) -> String {
     for r in &report.runs {
         let _ = write!(s, ",vote_seed{}", r.seed);
     }
+    for r in &report.runs {
+        let _ = write!(s, ",hand_seed{}", r.seed);
+    }
     s.push('\n');
     let Some(first) = report.runs.first() else {
         return s;
@@ -275,13 +280,31 @@ pub fn videos_csv(report: &Report) -> String {
             csv_field(v.part.as_deref().unwrap_or("")),
             v.truth.name()
         );
-        for r in &report.runs {
-            let vote = r.videos.get(i).filter(|o| o.id == v.id);
-            let _ = write!(s, ",{}", vote.map_or("", |o| o.vote.name()));
+        let outcomes: Vec<_> = report
+            .runs
+            .iter()
+            .map(|r| r.videos.get(i).filter(|o| o.id == v.id))
+            .collect();
+        for o in &outcomes {
+            let _ = write!(s, ",{}", o.map_or("", |o| o.vote.name()));
+        }
+        for o in &outcomes {
+            let hand = o.and_then(|o| o.hand.as_ref());
+            let _ = write!(s, ",{}", hand.map_or(String::new(), hand_cell));
         }
         s.push('\n');
     }
     s
+}
+
+/// The hand's decision in a CSV cell: the pre-shape, with how when not by
+/// the majority (`power (fallback)`), or `none (no_command)`.
+fn hand_cell(h: &super::metrics::HandDecision) -> String {
+    let name = h.preshape.map_or("none", |p| p.name());
+    match h.how {
+        grasp_policy::OutcomeKind::Majority => name.to_string(),
+        how => format!("{name} ({})", how.name()),
+    }
 }
 
 /// A CSV field, quoted when it holds a comma, quote or line break.
@@ -386,6 +409,18 @@ pub fn markdown(report: &Report) -> String {
     let _ = writeln!(s, "| metric | value |\n|---|---|");
     let rows = [
         (
+            "the hand's decision (hannes-run's policy on each video)",
+            "hand_accuracy",
+        ),
+        (
+            "the hand's decision, single-grasp objects",
+            "hand_accuracy_single",
+        ),
+        (
+            "the hand's decision, multi-grasp objects",
+            "hand_accuracy_multi",
+        ),
+        (
             "per-video (majority vote, no_grasp excluded)",
             "video_accuracy",
         ),
@@ -397,6 +432,10 @@ pub fn markdown(report: &Report) -> String {
             "frame_accuracy_without_no_grasp",
         ),
         (
+            "per-frame, pre-shape frames in the last second before contact",
+            "last_second_accuracy",
+        ),
+        (
             "baseline: perfect object classifier",
             "baseline_video_accuracy",
         ),
@@ -404,17 +443,19 @@ pub fn markdown(report: &Report) -> String {
     for (label, key) in rows {
         let _ = writeln!(s, "| {label} | {} |", pct_ms(report.aggregate.get(key)));
     }
+    hand_section(&mut s, report);
     let _ = writeln!(
         s,
-        "\n## Runs\n\n| seed | checkpoint | video | single | multi | frame | frame w/o no_grasp | baseline |\n|---|---|---|---|---|---|---|---|"
+        "\n## Runs\n\n| seed | checkpoint | hand | video | single | multi | frame | frame w/o no_grasp | baseline |\n|---|---|---|---|---|---|---|---|---|"
     );
     for run in &report.runs {
         let m = &run.metrics;
         let _ = writeln!(
             s,
-            "| {} | `{}` | {} | {} | {} | {} | {} | {} |",
+            "| {} | `{}` | {} | {} | {} | {} | {} | {} | {} |",
             run.seed,
             run.checkpoint.display(),
+            pct(Some(m.hand.accuracy)),
             pct(Some(m.video_accuracy)),
             pct(m.video_accuracy_single),
             pct(m.video_accuracy_multi),
@@ -447,16 +488,27 @@ pub fn markdown(report: &Report) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Accuracy against time (Fig. 5)\n\n![accuracy against time](time_accuracy.png)\n\n| time (s) | single-grasp (%) | multi-grasp (%) |\n|---|---|---|"
+        "\n## Accuracy against time (Fig. 5)\n\nFrames labelled with a pre-shape only; \
+         the `no_grasp` columns are the share of them answered `no_grasp` (an abstention, not \
+         a wrong part).\n\n![accuracy against time](time_accuracy.png)\n\n| time (s) | \
+         single-grasp (%) | multi-grasp (%) | single: no_grasp (%) | multi: no_grasp (%) |\n\
+         |---|---|---|---|---|"
     );
     let (a, b) = (report.time_single.accuracy(), report.time_multi.accuracy());
+    let (na, nb) = (
+        report.time_single.no_grasp_share(),
+        report.time_multi.no_grasp_share(),
+    );
+    let at = |v: &[Option<f64>], i: usize| pct(v.get(i).copied().flatten());
     for i in 0..a.len().max(b.len()) {
         let _ = writeln!(
             s,
-            "| {:.2} | {} | {} |",
+            "| {:.2} | {} | {} | {} | {} |",
             i as f64 * report.time_bin_s,
-            pct(a.get(i).copied().flatten()),
-            pct(b.get(i).copied().flatten())
+            at(&a, i),
+            at(&b, i),
+            at(&na, i),
+            at(&nb, i)
         );
     }
     let _ = writeln!(
@@ -469,6 +521,45 @@ pub fn markdown(report: &Report) -> String {
          Std is the population std over runs."
     );
     s
+}
+
+/// How the hand's decisions were taken (summed over runs), with the policy.
+fn hand_section(s: &mut String, r: &Report) {
+    let mut counts: BTreeMap<grasp_policy::OutcomeKind, usize> = BTreeMap::new();
+    let mut times = Vec::new();
+    for run in &r.runs {
+        for (k, n) in &run.metrics.hand.outcomes {
+            *counts.entry(*k).or_default() += n;
+        }
+        times.extend(run.metrics.hand.mean_decision_s);
+    }
+    if counts.is_empty() {
+        return;
+    }
+    let listed: Vec<String> = counts
+        .iter()
+        .map(|(k, n)| format!("{} {n}", k.name()))
+        .collect();
+    let when = mean_std(&times)
+        .map(|m| format!("; decided {:.2} s after the first frame on average", m.mean))
+        .unwrap_or_default();
+    let _ = writeln!(
+        s,
+        "\nThe hand's decisions, summed over runs: {}{when}.",
+        listed.join(", ")
+    );
+    if let Some(p) = &r.policy {
+        let fallback = p.fallback.map_or("none".to_string(), |f| f.to_string());
+        let early = p
+            .early_margin
+            .map_or("off".to_string(), |m| format!("{m} votes"));
+        let _ = writeln!(
+            s,
+            "Policy: window {} s, early decision {early}, at least {} votes, share {}, mean \
+             probability {}, fallback {fallback}.",
+            p.window_s, p.min_votes, p.min_share, p.min_confidence
+        );
+    }
 }
 
 /// The per-part section: each part of each multi-grasp object.

@@ -146,6 +146,17 @@ pub struct Row {
     /// The frames the report scored.
     #[serde(default)]
     pub window: super::metrics::FrameWindow,
+    /// What the hand would be commanded (`hannes-run`'s policy), overall and
+    /// by kind of object (None for reports written before it was scored).
+    #[serde(default)]
+    pub hand_accuracy: Option<MeanStd>,
+    #[serde(default)]
+    pub hand_accuracy_single: Option<MeanStd>,
+    #[serde(default)]
+    pub hand_accuracy_multi: Option<MeanStd>,
+    /// Pre-shape frames right in the last second before contact.
+    #[serde(default)]
+    pub last_second_accuracy: Option<MeanStd>,
 }
 
 impl Row {
@@ -194,7 +205,21 @@ impl Row {
             video_accuracy_multi: get("video_accuracy_multi"),
             per_part: r.per_part,
             window: r.window,
+            hand_accuracy: get("hand_accuracy"),
+            hand_accuracy_single: get("hand_accuracy_single"),
+            hand_accuracy_multi: get("hand_accuracy_multi"),
+            last_second_accuracy: get("last_second_accuracy"),
         })
+    }
+
+    /// The hand's decision's accuracy, or the error naming a report that
+    /// predates it.
+    pub fn hand(&self) -> Result<MeanStd, SummaryError> {
+        self.hand_accuracy
+            .ok_or_else(|| SummaryError::NoHandDecision {
+                label: self.label.clone(),
+                path: self.source.clone(),
+            })
     }
 
     /// `(group, name)` of a `GROUP/NAME` label (the model and condition in
@@ -292,7 +317,10 @@ impl Summary {
         let _ = writeln!(s, "# {title}\n");
         let _ = writeln!(
             s,
-            "Percentages, mean ± std (population) over each report's runs (seeds).\n"
+            "Percentages, mean ± std (population) over each report's runs (seeds). The hand's \
+             decision is what hannes-run's policy commands on each video (grasp-policy; a \
+             fallback counts by the pre-shape it sends, no command as wrong); the per-video \
+             accuracy is the paper's vote over every frame.\n"
         );
         if self.spec.by_condition {
             self.condition_table(&mut s);
@@ -362,11 +390,11 @@ impl Summary {
         };
         let _ = writeln!(
             s,
-            "| label |{xh} runs | per-video accuracy | per-video error | per-frame accuracy | per-frame w/o no_grasp | baseline | single-grasp videos | multi-grasp videos |"
+            "| label |{xh} runs | the hand's decision | per-video accuracy | per-video error | per-frame accuracy | per-frame w/o no_grasp | last second | baseline | single-grasp videos | multi-grasp videos |"
         );
         let _ = writeln!(
             s,
-            "|---|{}---|---|---|---|---|---|---|---|",
+            "|---|{}---|---|---|---|---|---|---|---|---|---|",
             if x { "---|" } else { "" }
         );
         for r in &self.rows {
@@ -377,13 +405,15 @@ impl Summary {
             };
             let _ = writeln!(
                 s,
-                "| {} |{xv} {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} |{xv} {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 r.label,
                 r.runs,
+                pct(r.hand_accuracy.as_ref()),
                 pct(Some(&r.video_accuracy)),
                 pct(Some(&r.video_error)),
                 pct(r.frame_accuracy.as_ref()),
                 pct(r.frame_accuracy_without_no_grasp.as_ref()),
+                pct(r.last_second_accuracy.as_ref()),
                 pct(r.baseline_video_accuracy.as_ref()),
                 pct(r.video_accuracy_single.as_ref()),
                 pct(r.video_accuracy_multi.as_ref()),
@@ -421,19 +451,49 @@ impl Summary {
     }
 
     fn condition_table(&self, s: &mut String) {
+        type Metric = fn(&Row) -> Option<&MeanStd>;
+        let tables: [(&str, Metric); 4] = [
+            (
+                "The hand's decision (what hannes-run's policy commands) by test set",
+                |r| r.hand_accuracy.as_ref(),
+            ),
+            (
+                "Per-video accuracy (the paper's vote) by test condition",
+                |r| Some(&r.video_accuracy),
+            ),
+            (
+                "Multi-grasp objects: the hand's decision by test set",
+                |r| r.hand_accuracy_multi.as_ref(),
+            ),
+            (
+                "Pre-shape frames right in the last second before contact",
+                |r| r.last_second_accuracy.as_ref(),
+            ),
+        ];
+        for (i, (title, metric)) in tables.into_iter().enumerate() {
+            if i > 0 {
+                s.push('\n');
+            }
+            self.condition_metric_table(s, title, metric);
+        }
+    }
+
+    /// One table: a row per model, a column per test set, `metric`'s cells.
+    fn condition_metric_table(
+        &self,
+        s: &mut String,
+        title: &str,
+        metric: fn(&Row) -> Option<&MeanStd>,
+    ) {
         let conditions = self.conditions();
-        let _ = writeln!(
-            s,
-            "## Per-video accuracy by test condition\n\n| model | {} |",
-            conditions.join(" | ")
-        );
+        let _ = writeln!(s, "## {title}\n\n| model | {} |", conditions.join(" | "));
         let _ = writeln!(s, "|---|{}", "---|".repeat(conditions.len()));
         for m in self.models() {
             let cells: Vec<String> = conditions
                 .iter()
                 .map(|c| {
                     let row = self.rows.iter().find(|r| r.group_name() == (&m, c));
-                    pct(row.map(|r| &r.video_accuracy))
+                    pct(row.and_then(metric))
                 })
                 .collect();
             let _ = writeln!(s, "| {m} | {} |", cells.join(" | "));

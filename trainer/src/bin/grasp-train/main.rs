@@ -482,10 +482,10 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
     if let Some(choice) = &summary.choice {
         let best = &choice.standings[0];
         println!(
-            "shipped: {} (worst test set {}: {:.1} %)",
+            "shipped: {} (worst test set {}: the hand's decision {:.1} %)",
             choice.shipped,
             best.worst_set,
-            best.worst_accuracy * 100.0
+            best.worst_hand_accuracy * 100.0
         );
     }
     if summary.has_x() {
