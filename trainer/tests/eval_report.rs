@@ -187,10 +187,25 @@ fn report_aggregates_seeds_and_writes_its_files() {
     // videos.csv: b is voted power by the first seed, lateral by the second.
     let csv = std::fs::read_to_string(dir.path().join("videos.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
-    assert_eq!(rows[0], "id,object,part,truth,vote_seed0,vote_seed1");
-    assert_eq!(rows[1], "a,mug,mug-power,power,power,power");
-    assert_eq!(rows[2], "b,mug,mug-lateral,lateral,power,lateral");
-    assert_eq!(rows[4], "d,marker,marker-pinch3,pinch3,pinch3,pinch3");
+    // The hand's decision beside it: c's one lateral vote is too few, so
+    // the hand gets the power fallback in both seeds.
+    assert_eq!(
+        rows[0],
+        "id,object,part,truth,vote_seed0,vote_seed1,hand_seed0,hand_seed1"
+    );
+    assert_eq!(rows[1], "a,mug,mug-power,power,power,power,power,power");
+    assert_eq!(
+        rows[2],
+        "b,mug,mug-lateral,lateral,power,lateral,power,lateral"
+    );
+    assert_eq!(
+        rows[3],
+        "c,mug,mug-lateral,lateral,lateral,lateral,power (fallback),power (fallback)"
+    );
+    assert_eq!(
+        rows[4],
+        "d,marker,marker-pinch3,pinch3,pinch3,pinch3,pinch3,pinch3"
+    );
     assert_eq!(rows.len(), 5);
     for png in ["time_accuracy.png", "confusion.png"] {
         let img = image::open(dir.path().join(png)).unwrap();
