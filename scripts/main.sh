@@ -11,10 +11,11 @@
 # sequences per pair (24, 2); --models: recipes of configs/recipes/ (fc-tuned
 # loses on the worst world: lab/cross-world.sh trains it); --ycb DIR: train
 # on the authors' YCB meshes; --weights FILE: another frozen backbone (FC and
-# LSTM heads). Test sets: the paper's five conditions, unseen_look and two
-# foreign worlds: world_reach (another reach, seen at 5 frames/s) and the
-# hardest, the real meshes of ../shared/ycb in the foreign scene reached so
-# (without them, the built-in objects there). The lab adds looks B-D and
+# LSTM heads). Test sets: the paper's five conditions, unseen_look and three
+# foreign worlds: world_reach (another reach, seen at 5 frames/s),
+# world_camera (a real wrist camera's sensor, lens, shake, blur and noise on
+# a seated reach) and the hardest, the real meshes of ../shared/ycb in the
+# foreign scene reached so (without them, the built-in objects there). The lab adds looks B-D and
 # the foreign scene alone (lab/cross-world.sh). OUT: runs/main; a re-run
 # resumes; SKIP_SETUP=1, BIN.
 set -euo pipefail
@@ -33,7 +34,7 @@ while [ $# -gt 0 ]; do
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
         --set views.style=0 --set view_damping=0) MODELS="fc lstm" && shift ;;
-    -h | --help) head -19 "$0" | tail -18 && exit 0 ;;
+    -h | --help) head -20 "$0" | tail -19 && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -45,9 +46,9 @@ CONDITIONS=(default fast from_ground seated background unseen_look)
 # (never copied into the repository). It is the worst set of every candidate.
 SHARED_YCB=../shared/ycb
 if [ -z "$YCB" ] && [ -f "$SHARED_YCB/annotations.json" ]; then
-  WORLDS=(world_reach world_foreign_ycb_reach)
+  WORLDS=(world_reach world_camera world_foreign_ycb_reach)
 else
-  WORLDS=(world_reach world_foreign_reach)
+  WORLDS=(world_reach world_camera world_foreign_reach)
   [ -n "$YCB" ] || echo "note: no real-mesh test worlds (they need $SHARED_YCB):" \
     "world_foreign_reach draws the built-in objects in the foreign scene"
 fi
@@ -84,6 +85,7 @@ for condition in "${CONDITIONS[@]}"; do
   render "test-$condition" "${TEST[@]}" --set "dataset.conditions=[\"$condition\"]"
 done
 render test-world_reach --config configs/test-world-reach.toml "${TEST[@]}"
+render test-world_camera --config configs/test-world-camera.toml "${TEST[@]}"
 STACKED=(--config configs/test-world-foreign.toml --config configs/test-world-reach.toml "${TEST[@]}")
 if [[ " ${WORLDS[*]} " == *" world_foreign_ycb_reach "* ]]; then
   [ -d "$OUT/ycb-objects" ] ||

@@ -781,6 +781,55 @@ fn a_held_out_world_is_recorded_in_every_plan_and_changes_nothing_else() {
     assert_eq!(reach.plan.trajectory.fps, 2.0 * main.plan.trajectory.fps);
 }
 
+/// The camera world (`configs/test-world-camera.toml`): a 4:3 image behind a
+/// 69-degree lens, a seated reach, and a handheld shake that moves only the
+/// camera's poses (drawn from its own sub-stream) and is recorded.
+#[test]
+fn the_camera_world_has_a_wide_4_by_3_lens_and_shakes_only_the_camera() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let camera = GeneratorConfig::load_layers(
+        &[dir.join("main.toml"), dir.join("test-world-camera.toml")],
+        &[],
+    )
+    .unwrap();
+    assert_eq!(camera.dataset.held_out.as_deref(), Some("camera"));
+    assert_eq!(camera.dataset.conditions, [Condition::Seated]);
+    let mut still = camera.clone();
+    still.plan.shake.enabled = false;
+    let shaken = plans(&camera, &[Condition::Seated], 2);
+    let calm = plans(&still, &[Condition::Seated], 2);
+    assert!(!shaken.is_empty());
+    for (mut s, c) in shaken.into_iter().zip(calm) {
+        let k = &s.intrinsics;
+        assert_eq!((k.width, k.height), (320, 240));
+        assert!((k.fov_x_deg - 69.0).abs() < 0.5, "{k:?}");
+        let record = s.sampled.remove("shake").expect("the shake is recorded");
+        assert!(record["rotation"].is_array(), "{record}");
+        let mut turned = 0.0f64;
+        for (a, b) in s.frames.iter_mut().zip(&c.frames) {
+            let dot: f64 = (0..4)
+                .map(|i| a.camera.rotation_wxyz[i] * b.camera.rotation_wxyz[i])
+                .sum();
+            turned = turned.max(2.0 * dot.abs().min(1.0).acos().to_degrees());
+            let moved: f64 = (0..3)
+                .map(|i| (a.camera.position[i] - b.camera.position[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(moved < 0.02, "a shake of millimetres, not {moved} m");
+            a.camera = b.camera.clone();
+        }
+        assert!(
+            turned > 0.2 && turned < 8.0,
+            "largest turn {turned} degrees"
+        );
+        assert_eq!(s, c, "only the camera's poses change");
+    }
+    refused(
+        |c| c.plan.shake.rotation_deg = f64::NAN,
+        "plan.shake.rotation_deg",
+    );
+}
+
 /// The fourth held-out look (`configs/test-look-d.toml`) has a lens and
 /// light temperatures apart from the other three; its families are one of
 /// look B's and one of look C's.

@@ -14,6 +14,7 @@ mod planner;
 pub mod plot_paths;
 pub mod scene;
 pub mod selection;
+pub mod shake;
 pub mod source;
 pub mod trajectory;
 pub mod validity;
@@ -26,6 +27,7 @@ pub use head_camera::HeadCameraConfig;
 pub use jsonl::read_jsonl;
 pub use planner::{sequence_keys, ObjectGeometry, Planner};
 pub use scene::SceneConfig;
+pub use shake::ShakeConfig;
 pub use source::{PlanSource, PlannedKey, PlannerSource};
 pub use trajectory::TrajectoryConfig;
 pub use validity::ValidityConfig;
@@ -91,6 +93,8 @@ pub struct PlanConfig {
     pub conditions: ConditionsConfig,
     /// The optional egocentric (head-mounted) camera; off by default.
     pub head_camera: HeadCameraConfig,
+    /// Handheld shake over the reach; off by default (the camera world).
+    pub shake: ShakeConfig,
 }
 
 impl PlanConfig {
@@ -103,6 +107,7 @@ impl PlanConfig {
         self.trajectory.validate()?;
         self.conditions.validate()?;
         self.head_camera.validate(&self.scene)?;
+        self.shake.validate()?;
         for c in Condition::ALL {
             let d = self.conditions.duration_s(c, self.trajectory.duration_s);
             self.trajectory.frame_count(d)?;

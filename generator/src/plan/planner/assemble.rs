@@ -54,6 +54,13 @@ impl Planner {
         );
         let class = Class::from(part.grasp_type.preshape());
         let mut frames = frame_poses(traj, n, c, &wrist, class);
+        let shake = cfg
+            .shake
+            .enabled
+            .then(|| crate::plan::shake::Shake::sample(&cfg.shake, stream));
+        if let Some(shake) = &shake {
+            shake.apply(&mut frames);
+        }
         let head = self.head_camera(key, geo, &c.placement, stream);
         let elbows = head.as_ref().map(|h| attach_head_camera(h, &mut frames));
 
@@ -66,6 +73,9 @@ impl Planner {
         }
         if let Some(elbows) = elbows {
             put("head_elbows", json!(elbows));
+        }
+        if let Some(shake) = &shake {
+            put("shake", shake.sampled());
         }
         if let Some(world) = &self.config.dataset.held_out {
             put("held_out", json!(world));
