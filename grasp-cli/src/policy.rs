@@ -38,7 +38,14 @@ pub struct DecisionArgs {
     /// `none` to send nothing.
     #[arg(long, value_name = "PRESHAPE")]
     pub fallback: Option<String>,
-    /// Minimum mean probability of the winning class.
+    /// Fewer pre-shape votes than this is a weak vote (default 3).
+    #[arg(long, value_name = "VOTES")]
+    pub min_votes: Option<u32>,
+    /// Minimum share of the pre-shape votes the winner must get (default
+    /// 0.5).
+    #[arg(long, value_name = "SHARE")]
+    pub min_share: Option<f64>,
+    /// Minimum mean probability of the winning class (default 0.5).
     #[arg(long, value_name = "P")]
     pub min_confidence: Option<f64>,
     /// What an invalid model output (NaN, Inf) does.
@@ -60,6 +67,12 @@ impl DecisionArgs {
                 "none" => None,
                 name => Some(name.parse::<Preshape>()?),
             };
+        }
+        if let Some(v) = self.min_votes {
+            policy.min_votes = v;
+        }
+        if let Some(v) = self.min_share {
+            policy.min_share = v;
         }
         if let Some(c) = self.min_confidence {
             policy.min_confidence = c;
