@@ -102,7 +102,7 @@ fn shipped(s: &mut String, choice: &crate::eval::choice::Choice) {
         };
         let _ = writeln!(
             s,
-            "<tr{class}><td>{}</td><td>{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td></tr>",
+            "<tr{class}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.1}</td><td>{:.1}</td><td class=\"l\">{}</td></tr>",
             esc(&st.model),
             esc(&st.head),
             esc(&st.worst_set),
@@ -161,8 +161,9 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
         let _ = write!(s, "<th>{}</th>", esc(summary.x_label()));
     }
     s.push_str(
-        "<th>runs</th><th>per-video</th><th>per-frame</th><th>per-frame w/o no_grasp</th>\
-         <th>baseline</th><th>single-grasp videos</th><th>multi-grasp videos</th>\
+        "<th>runs</th><th>per-video</th><th>the hand's decision</th><th>per-frame</th>\
+         <th>per-frame w/o no_grasp</th><th>last second before contact</th><th>baseline</th>\
+         <th>single-grasp videos</th><th>multi-grasp videos</th>\
          <th>head</th><th>test data</th><th>frames scored</th></tr></thead><tbody>\n",
     );
     for r in &summary.rows {
@@ -171,14 +172,17 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
             let xv = r.x.map(|v| v.to_string()).unwrap_or_else(|| "–".into());
             let _ = write!(s, "<td>{xv}</td>");
         }
+        let extra = |key| pct_ms(aggregate(r, key).as_ref());
         let _ = writeln!(
             s,
-            "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td>{}</td><td><code>{}</code></td><td>{}</td></tr>",
+            "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{}</td><td class=\"l\">{}</td><td class=\"l\"><code>{}</code></td><td class=\"l\">{}</td></tr>",
             r.runs,
             pct_ms(Some(&r.video_accuracy)),
+            extra("hand_accuracy"),
             pct_ms(r.frame_accuracy.as_ref()),
             pct_ms(r.frame_accuracy_without_no_grasp.as_ref()),
+            extra("last_second_accuracy"),
             pct_ms(r.baseline_video_accuracy.as_ref()),
             pct_ms(r.video_accuracy_single.as_ref()),
             pct_ms(r.video_accuracy_multi.as_ref()),
@@ -188,6 +192,14 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
         );
     }
     s.push_str("</tbody></table>\n</section>\n");
+}
+
+/// A headline scalar of a row's report.json that the summary's rows do not
+/// carry (the hand's decision, the last second).
+fn aggregate(row: &Row, key: &str) -> Option<crate::eval::metrics::MeanStd> {
+    let text = std::fs::read_to_string(&row.source).ok()?;
+    let json: serde_json::Value = serde_json::from_str(&text).ok()?;
+    serde_json::from_value(json.get("aggregate")?.get(key)?.clone()).ok()
 }
 
 /// Per-video accuracy of each part of the multi-grasp objects: one row per
@@ -224,7 +236,7 @@ fn parts(s: &mut String, summary: &Summary) {
             for (object, part, preshape) in &parts {
                 let _ = write!(
                     s,
-                    "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+                    "<tr><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td>",
                     esc(&m),
                     esc(object),
                     esc(part),
@@ -246,7 +258,7 @@ fn parts(s: &mut String, summary: &Summary) {
         for (object, part, preshape) in &parts {
             let _ = write!(
                 s,
-                "<tr><td>{}</td><td>{}</td><td>{}</td>",
+                "<tr><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td>",
                 esc(object),
                 esc(part),
                 esc(preshape)
@@ -264,8 +276,8 @@ fn timing(s: &mut String, file: &Path, dir: &Path) {
     s.push_str("<section id=\"timing\"><h2>Time per phase</h2>\n");
     let parsed = std::fs::read_to_string(file)
         .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-    let Some(serde_json::Value::Object(phases)) = parsed else {
+        .and_then(|t| serde_json::from_str::<Ordered>(&t).ok());
+    let Some(Ordered(phases)) = parsed else {
         let _ = writeln!(
             s,
             "<p class=\"note\">No timing yet (<code>{}</code> is absent or not a JSON object).</p></section>",
@@ -275,6 +287,7 @@ fn timing(s: &mut String, file: &Path, dir: &Path) {
     };
     s.push_str("<table class=\"num\"><thead><tr><th>phase</th><th>seconds</th><th>minutes</th></tr></thead><tbody>\n");
     for (name, v) in &phases {
+        let name = name.as_str();
         match v.as_f64() {
             Some(sec) => {
                 let _ = writeln!(
@@ -299,6 +312,32 @@ fn timing(s: &mut String, file: &Path, dir: &Path) {
         "</tbody></table>\n<p class=\"note\">From <a href=\"{0}\">{0}</a>.</p>\n</section>",
         esc(&href(dir, file))
     );
+}
+
+/// A JSON object's entries in the file's order (the phases run in it).
+struct Ordered(Vec<(String, serde_json::Value)>);
+
+impl<'de> serde::Deserialize<'de> for Ordered {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Entries;
+        impl<'de> serde::de::Visitor<'de> for Entries {
+            type Value = Ordered;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a JSON object")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut m: A,
+            ) -> Result<Ordered, A::Error> {
+                let mut entries = Vec::new();
+                while let Some(entry) = m.next_entry()? {
+                    entries.push(entry);
+                }
+                Ok(Ordered(entries))
+            }
+        }
+        d.deserialize_map(Entries)
+    }
 }
 
 fn preview(s: &mut String, file: &Path, dir: &Path) {

@@ -320,7 +320,7 @@ fn parts(s: &mut String, r: &Report) {
     for p in &r.per_part {
         let _ = writeln!(
             s,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             esc(&p.object),
             esc(&p.part),
             p.preshape.name(),
