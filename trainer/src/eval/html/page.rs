@@ -595,8 +595,9 @@ fn video(
                     };
                     let _ = write!(
                         s,
-                        "<span class=\"{class}\" title=\"frame {c}, {:.2} s\">{}</span>",
+                        "<span class=\"{class}\" title=\"frame {c}, {:.2} s: label {}\">{}</span>",
                         m.time_s,
+                        m.label.name(),
                         short(m.label)
                     );
                 }
@@ -627,11 +628,8 @@ fn video(
                         };
                         let _ = write!(
                             s,
-                            "<span class=\"m {class}\" title=\"frame {c}, {:.2} s: label {}, \
-                             seed {}: {} {:.0} %\">{} {:.0}</span>",
+                            "<span class=\"m {class}\" title=\"{:.2} s: {} {:.0} %\">{} {:.0}</span>",
                             m.time_s,
-                            m.label.name(),
-                            run.seed,
                             m.class.name(),
                             m.confidence * 100.0,
                             short(m.class),
