@@ -46,9 +46,12 @@ fn base(browser: &Path, profile: &Path) -> Command {
     c
 }
 
-fn url(page: &Path) -> String {
+fn url(page: &Path, fragment: &str) -> String {
     let abs = std::path::absolute(page).unwrap_or_else(|_| page.to_path_buf());
-    format!("file://{}", abs.display())
+    match fragment {
+        "" => format!("file://{}", abs.display()),
+        f => format!("file://{}#{f}", abs.display()),
+    }
 }
 
 /// Runs `cmd` to the end (at most [`TIMEOUT`]): stdout and stderr.
@@ -79,9 +82,15 @@ fn run(mut cmd: Command, what: &str) -> (String, String) {
 
 /// Opens `page` and returns its DOM after the scripts ran.
 pub fn dump_dom(browser: &Path, page: &Path) -> Rendered {
+    dump_dom_at(browser, page, "")
+}
+
+/// [`dump_dom`] at `page#fragment` (what a page's script reads from the
+/// address, e.g. preset filters).
+pub fn dump_dom_at(browser: &Path, page: &Path, fragment: &str) -> Rendered {
     let profile = tempdir("dom");
     let mut cmd = base(browser, &profile);
-    cmd.arg("--dump-dom").arg(url(page));
+    cmd.arg("--dump-dom").arg(url(page, fragment));
     let (dom, log) = run(cmd, &page.display().to_string());
     let _ = std::fs::remove_dir_all(&profile);
     Rendered { dom, log }
@@ -93,7 +102,7 @@ pub fn screenshot(browser: &Path, page: &Path, png: &Path, width: u32, height: u
     let mut cmd = base(browser, &profile);
     cmd.arg(format!("--screenshot={}", png.display()))
         .arg(format!("--window-size={width},{height}"))
-        .arg(url(page));
+        .arg(url(page, ""));
     let (_, log) = run(cmd, &page.display().to_string());
     let _ = std::fs::remove_dir_all(&profile);
     assert!(

@@ -550,6 +550,23 @@ fn eval_writes_a_report_page_that_renders_in_a_browser() {
         r.dom.contains(&count),
         "the filters did not count the videos"
     );
+    // The outcome filter, preset from the address, keeps the wrong votes.
+    let wrong = csv
+        .lines()
+        .skip(1)
+        .filter(|row| {
+            let f: Vec<&str> = row.split(',').collect();
+            f[4..].iter().any(|vote| *vote != f[3])
+        })
+        .count();
+    let r = browser::dump_dom_at(&browser, &page, "outcome=vote-wrong");
+    let count = format!("{wrong} of {videos} videos shown");
+    assert!(r.dom.contains(&count), "expected {count}");
+    assert_eq!(r.dom.matches(" hidden=\"\"").count(), videos - wrong);
+    let r = browser::dump_dom_at(&browser, &page, "outcome=vote-right");
+    let count = format!("{} of {videos} videos shown", videos - wrong);
+    assert!(r.dom.contains(&count), "expected {count}");
+    assert_eq!(r.dom.matches(" hidden=\"\"").count(), wrong);
     let png = work.join("report.png");
     browser::screenshot(&browser, &page, &png, 1200, 1600);
     let shot = image::open(&png).unwrap().to_luma8();

@@ -167,7 +167,14 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
          <th>head</th><th>test data</th><th>frames scored</th></tr></thead><tbody>\n",
     );
     for r in &summary.rows {
-        let _ = write!(s, "<tr><td>{}</td>", linked(&r.label, r, dir));
+        let wrong = match report_link(r, dir) {
+            (link, true) => format!(
+                " <a class=\"note\" href=\"{}#outcome=vote-wrong\">wrong videos</a>",
+                esc(&link)
+            ),
+            _ => String::new(),
+        };
+        let _ = write!(s, "<tr><td>{}{wrong}</td>", linked(&r.label, r, dir));
         if x {
             let xv = r.x.map(|v| v.to_string()).unwrap_or_else(|| "–".into());
             let _ = write!(s, "<td>{xv}</td>");

@@ -7,6 +7,15 @@ var pick = {};
     pick[key].addEventListener('change', apply);
   }
 });
+// Filters preset from the address: report.html#outcome=vote-wrong&object=025_mug
+// (other fragments, the sections' anchors, are left alone).
+location.hash.replace(/^#/, '').split('&').forEach(function (pair) {
+  var kv = pair.split('=');
+  var key = decodeURIComponent(kv[0] || '');
+  if (kv.length === 2 && pick.hasOwnProperty(key) && pick[key]) {
+    pick[key].value = decodeURIComponent(kv[1]);
+  }
+});
 function value(key) {
   return pick[key] ? pick[key].value : '';
 }
