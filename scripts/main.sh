@@ -117,9 +117,11 @@ for model in $MODELS; do
     REPORTS+=(--report "$model/$set:$OUT/report/$model/$set")
   done
 done
-# The shipped model: the best accuracy on its worst test set (report/shipped.txt).
-$BIN/grasp-train summarize --by-condition --title "Per-video accuracy by test set" \
-  --ship-by-worst --out "$OUT/report" "${REPORTS[@]}"
+# The shipped model: the best accuracy on its worst test set (report/shipped.txt);
+# report/index.html links every test set's report.html.
+SUMMARY=(--by-condition --title "Per-video accuracy by test set" --ship-by-worst
+  --preview "$OUT/preview/contact_sheet.png" --out "$OUT/report" "${REPORTS[@]}")
+$BIN/grasp-train summarize "${SUMMARY[@]}"
 phase_done train_evaluate
 
 echo "== runtime: replay one test sequence against the simulated hand"
@@ -141,4 +143,6 @@ echo "the simulated hand's events ($OUT/hand-events.jsonl):" && cat "$OUT/hand-e
 phase_done replay
 printf '{%s"total_after_setup": %d}\n' "$PHASES" $((LAST - START)) >"$OUT/timing.json.tmp"
 mv "$OUT/timing.json.tmp" "$OUT/timing.json"
-echo "== done: $OUT/report/summary.md, times $OUT/timing.json, shipped $SHIPPED, preview $OUT/preview, replay $OUT/replay.jsonl"
+# index.html again, now with the phases' times (the tables are the same).
+$BIN/grasp-train summarize "${SUMMARY[@]}" --timing "$OUT/timing.json" >/dev/null
+echo "== done: $OUT/report/index.html (summary.md), times $OUT/timing.json, shipped $SHIPPED, preview $OUT/preview, replay $OUT/replay.jsonl"

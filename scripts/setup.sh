@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Sets up a fresh machine: the Python venv from pyproject.toml (bpy, trimesh,
 # rtree, numpy, the EfficientNet-Lite0 ImageNet weights, pytest, ruff,
-# scikit-image) and the release build of the three programs.
+# scikit-image), Debian's chromium where missing (the report pages' test)
+# and the release build of the three programs.
 # Idempotent: re-running only redoes what changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +19,20 @@ if [ ! -f "$STAMP" ]; then
   "$VENV/bin/pip" install --quiet --upgrade pip
   "$VENV/bin/pip" install --quiet -e ".[dev]"
   touch "$STAMP"
+fi
+
+# The report pages' browser test (docs/testing.md) opens them in headless
+# Chromium: Debian's package, installed where missing.
+if ! command -v chromium >/dev/null; then
+  SUDO=''
+  [ "$(id -u)" -eq 0 ] || SUDO=sudo
+  if command -v apt-get >/dev/null && { [ -z "$SUDO" ] || command -v sudo >/dev/null; }; then
+    echo "== installing chromium (headless browser for the report pages' test)"
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null
+  else
+    echo "note: no chromium and no apt-get to install it: the report pages' browser test will fail under GRASP_REQUIRE_BROWSER=1" >&2
+  fi
 fi
 
 echo "== building the Rust workspace (release)"

@@ -8,11 +8,12 @@ cd "$(dirname "$0")/.."
 scripts/setup.sh
 VENV=${GRASP_VENV:-$(pwd)/.venv}
 export PYO3_PYTHON="$VENV/bin/python"
-# Tests that need the venv (bpy, the pip-installed ImageNet weights) or
-# ../shared/ycb fail, instead of skipping, when it is missing
-# (docs/testing.md).
+# Tests that need the venv (bpy, the pip-installed ImageNet weights),
+# ../shared/ycb or Chromium (the report pages) fail, instead of skipping,
+# when it is missing (docs/testing.md).
 export GRASP_REQUIRE_BLENDER=1
 export GRASP_REQUIRE_SHARED=1
+export GRASP_REQUIRE_BROWSER=1
 
 echo "== lint"
 cargo fmt --all -- --check

@@ -1,9 +1,11 @@
 //! What the workspace's tests repeat: running a program as a user does and
 //! checking its command-line conventions ([`program`]), the prerequisites
-//! that live outside the repository ([`prerequisite`]), and listing the
-//! files a program wrote ([`files_under`]).
+//! that live outside the repository ([`prerequisite`]), opening a page in
+//! headless Chromium ([`browser`]), and listing the files a program wrote
+//! ([`files_under`]).
 //! A dev-dependency only: nothing the programs ship links it.
 
+pub mod browser;
 pub mod prerequisite;
 pub mod program;
 

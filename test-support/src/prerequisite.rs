@@ -1,10 +1,13 @@
 //! Tests whose prerequisite lies outside the repository: the Python venv
 //! with Blender (`scripts/setup.sh`), the authors' YCB release in
-//! `../shared/ycb`, and a GPU that Blender's Cycles can render on. Rust's test harness has no "skipped" status, so a test
+//! `../shared/ycb`, a GPU that Blender's Cycles can render on, and a
+//! headless Chromium (Debian's `chromium`, which `scripts/setup.sh`
+//! installs where missing). Rust's test harness has no "skipped" status, so a test
 //! without its prerequisite prints `SKIPPED: <test>: <reason>` to stderr and
 //! returns; under the test command (`scripts/test.sh` sets
-//! [`REQUIRE_BLENDER_ENV`] and [`REQUIRE_SHARED_ENV`] to 1) it fails
-//! instead, so that CI can never pass without having run it.
+//! [`REQUIRE_BLENDER_ENV`], [`REQUIRE_SHARED_ENV`] and
+//! [`REQUIRE_BROWSER_ENV`] to 1) it fails instead, so that CI can never
+//! pass without having run it.
 
 use std::path::{Path, PathBuf};
 
@@ -18,6 +21,12 @@ pub const REQUIRE_SHARED_ENV: &str = "GRASP_REQUIRE_SHARED";
 /// failure instead of a skip. `scripts/test.sh` leaves it unset: CI has no
 /// GPU. Set it on a workstation to be sure the GPU test ran.
 pub const REQUIRE_GPU_ENV: &str = "GRASP_REQUIRE_GPU";
+/// Set to 1 to make a machine without Chromium (the pages' browser test)
+/// a test failure instead of a skip.
+pub const REQUIRE_BROWSER_ENV: &str = "GRASP_REQUIRE_BROWSER";
+/// The browser's names, looked up on `PATH` in this order (Debian's
+/// package installs `chromium`).
+pub const BROWSERS: [&str; 3] = ["chromium", "chromium-browser", "google-chrome"];
 
 /// Whether `var` is set to 1.
 pub fn required(var: &str) -> bool {
@@ -60,6 +69,39 @@ pub fn require_ycb(test: &str, workspace_root: &Path) -> Option<PathBuf> {
         Ok(dir) => Some(dir),
         Err(why) => {
             check(test, REQUIRE_SHARED_ENV, Some(why));
+            None
+        }
+    }
+}
+
+/// The first of [`BROWSERS`] on `PATH`, or why there is none.
+pub fn browser() -> Result<PathBuf, String> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    for name in BROWSERS {
+        for dir in std::env::split_paths(&path) {
+            let candidate = dir.join(name);
+            if is_executable(&candidate) {
+                return Ok(candidate);
+            }
+        }
+    }
+    Err(format!(
+        "no headless browser on PATH ({}; scripts/setup.sh installs Debian's chromium)",
+        BROWSERS.join(", ")
+    ))
+}
+
+fn is_executable(p: &Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+}
+
+/// [`browser`] checked for `test`: `None` when the test is skipped.
+pub fn require_browser(test: &str) -> Option<PathBuf> {
+    match browser() {
+        Ok(path) => Some(path),
+        Err(why) => {
+            check(test, REQUIRE_BROWSER_ENV, Some(why));
             None
         }
     }

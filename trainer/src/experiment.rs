@@ -116,6 +116,7 @@ pub fn evaluate(
     let dev = Device::Cpu;
     let cache = FeatureCache::new(cache_dir, batch);
     let mut runs = Vec::new();
+    let mut frames = crate::eval::html::FrameRecord::new(data);
     let (mut mode, mut backbone, mut cap) = (None, None, None);
     let (mut head, mut train_sequences) = (String::new(), None);
     for ckpt in checkpoints {
@@ -133,6 +134,7 @@ pub fn evaluate(
             let window = window.describe();
             return Err(EvalError::EmptyWindow { window });
         }
+        frames.add_run(&preds);
         runs.push(RunReport {
             checkpoint: ckpt.clone(),
             seed: m.seed,
@@ -150,6 +152,7 @@ pub fn evaluate(
     report.window = *window;
     report.policy = Some(scoring.policy.clone());
     report.videos_outside_window = outside;
+    report.frames = Some(std::sync::Arc::new(frames));
     Ok(report)
 }
 

@@ -450,3 +450,135 @@ fn eval_refuses_a_mix_of_inputs_and_records_a_replaced_crop() {
     );
     assert!(text.contains("dots/can/010_can"), "{text}");
 }
+
+/// `eval` writes report.html: one file that needs nothing beside it, with
+/// every video's strip and each seed's per-frame answers. Opened in
+/// headless Chromium (`GRASP_REQUIRE_BROWSER=1` makes a missing browser a
+/// failure), its script runs without an error, a known video's strip is
+/// in the DOM and the screenshot is not blank; `summarize` writes
+/// index.html linking to it.
+#[test]
+fn eval_writes_a_report_page_that_renders_in_a_browser() {
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    write_synthetic(&work.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let crop = ["--set", "reader.crop={ fraction = 0.5 }", "--seeds", "2"];
+    train_tiny_on_data(work, &crop);
+    let args = [
+        "eval",
+        "-c",
+        "run/seed-0",
+        "-c",
+        "run/seed-1",
+        "--data",
+        "data",
+        "--out",
+        "report",
+    ];
+    let (ok, text) = grasp_train(work, &args);
+    assert!(ok, "{text}");
+    let page = work.join("report/report.html");
+    let html = std::fs::read_to_string(&page).unwrap();
+    // Self-contained: no outside address, pictures inline.
+    assert!(
+        !html.contains("http://") && !html.contains("https://"),
+        "report.html names an outside URL"
+    );
+    assert!(html.contains("src=\"data:image/jpeg;base64,"));
+    // A known video, from videos.csv: its strip and a mark row per seed.
+    let csv = std::fs::read_to_string(work.join("report/videos.csv")).unwrap();
+    let known = csv.lines().nth(1).unwrap().split(',').next().unwrap();
+    let article = format!("data-id=\"{known}\"");
+    let at = html.find(&article).expect("the known video's article");
+    let own = &html[at..at + html[at..].find("</article>").unwrap()];
+    assert!(own.contains("<img class=\"frames\""), "{own}");
+    for seed in ["seed 0", "seed 1"] {
+        assert!(own.contains(seed), "{seed} missing: {own}");
+    }
+    let videos = csv.lines().count() - 1;
+    assert_eq!(html.matches("<article class=\"video\"").count(), videos);
+    // The summary's page links to it.
+    std::fs::write(
+        work.join("timing.json"),
+        "{\"render\": 12, \"total_after_setup\": 40}",
+    )
+    .unwrap();
+    let args = [
+        "summarize",
+        "--report",
+        "tiny:report",
+        "--out",
+        "summary",
+        "--timing",
+        "timing.json",
+        "--preview",
+        "no-such-sheet.png",
+    ];
+    let (ok, text) = grasp_train(work, &args);
+    assert!(ok, "{text}");
+    let index = std::fs::read_to_string(work.join("summary/index.html")).unwrap();
+    assert!(index.contains("href=\"../report/report.html\""), "{index}");
+    assert!(index.contains("total_after_setup") && index.contains("no-such-sheet.png"));
+
+    let test = "eval_writes_a_report_page_that_renders_in_a_browser";
+    let Some(browser) = grasp_test_support::prerequisite::require_browser(test) else {
+        return;
+    };
+    use grasp_test_support::browser;
+    for p in [&page, &work.join("summary/index.html")] {
+        let r = browser::dump_dom(&browser, p);
+        assert!(
+            r.dom.contains("data-script=\"ok\"") && !r.dom.contains("<pre id=\"script-error\""),
+            "the page's script did not run cleanly in {}:\n{}\n{}",
+            p.display(),
+            r.dom
+                .lines()
+                .filter(|l| l.contains("script"))
+                .collect::<Vec<_>>()
+                .join("\n"),
+            r.log
+        );
+        assert!(r.script_errors().is_empty(), "{:?}", r.script_errors());
+    }
+    let r = browser::dump_dom(&browser, &page);
+    assert!(
+        r.dom.contains(&article),
+        "the known video is not in the DOM"
+    );
+    let count = format!("{videos} of {videos} videos shown");
+    assert!(
+        r.dom.contains(&count),
+        "the filters did not count the videos"
+    );
+    // The outcome filter, preset from the address, keeps the wrong votes.
+    let wrong = csv
+        .lines()
+        .skip(1)
+        .filter(|row| {
+            let f: Vec<&str> = row.split(',').collect();
+            f[4..].iter().any(|vote| *vote != f[3])
+        })
+        .count();
+    let r = browser::dump_dom_at(&browser, &page, "outcome=vote-wrong");
+    let count = format!("{wrong} of {videos} videos shown");
+    assert!(r.dom.contains(&count), "expected {count}");
+    assert_eq!(r.dom.matches(" hidden=\"\"").count(), videos - wrong);
+    let r = browser::dump_dom_at(&browser, &page, "outcome=vote-right");
+    let count = format!("{} of {videos} videos shown", videos - wrong);
+    assert!(r.dom.contains(&count), "expected {count}");
+    assert_eq!(r.dom.matches(" hidden=\"\"").count(), wrong);
+    let png = work.join("report.png");
+    browser::screenshot(&browser, &page, &png, 1200, 1600);
+    let shot = image::open(&png).unwrap().to_luma8();
+    let n = f64::from(shot.width() * shot.height());
+    let mean = shot.pixels().map(|p| f64::from(p.0[0])).sum::<f64>() / n;
+    let var = shot
+        .pixels()
+        .map(|p| (f64::from(p.0[0]) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    assert!(
+        var > 100.0,
+        "the screenshot looks blank (luma variance {var:.1})"
+    );
+}

@@ -322,3 +322,88 @@ fn a_frame_window_scores_only_its_frames() {
     };
     assert!(bad.validate().is_err());
 }
+
+/// report.html on a hand-made case: every frame of every synthetic video
+/// predicted `power`. The videos of other pre-shapes (a wrong vote) come
+/// first; each frame's mark says right on a power video's pre-shape
+/// frames, wrong on its `no_grasp` tail; every video has its strip with
+/// the model's crop.
+#[test]
+fn report_page_puts_the_wrong_videos_first_with_every_frames_answer() {
+    use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+    use trainer::data::{read_dataset, BadData, OnBadData, ReaderOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let spec = SyntheticSpec::small(Layout::Generated);
+    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let opts = ReaderOptions {
+        crop: grasp_model::input::Crop::Fraction(0.5),
+        ..Default::default()
+    };
+    let bad = BadData::new(OnBadData::Fail);
+    let data = read_dataset(&dir.path().join("data"), &opts, &bad).unwrap();
+    let multi = data.multi_grasp_objects();
+    let preds: Vec<VideoPrediction> = data
+        .sequences
+        .iter()
+        .map(|s| VideoPrediction {
+            id: s.id.clone(),
+            object: s.object.clone(),
+            part: s.part.clone(),
+            preshape: s.preshape,
+            multi_grasp: multi.contains(&s.object),
+            labels: s.labels.clone(),
+            probs: vec![P; s.frames.len()],
+            times_s: (0..s.frames.len()).map(|i| s.time_s(i)).collect(),
+        })
+        .collect();
+    let mut frames = trainer::eval::html::FrameRecord::new(&data);
+    frames.add_run(&preds);
+    let run = RunReport {
+        checkpoint: "s0".into(),
+        seed: 0,
+        metrics: compute_metrics(&preds, 0.1, &Default::default()),
+        videos: preds
+            .iter()
+            .map(|v| VideoOutcome::of(v, &Default::default()))
+            .collect(),
+    };
+    let mut r = Report::new("from-scratch", "fc", &dir.path().join("data"), vec![run]);
+    r.frames = Some(std::sync::Arc::new(frames));
+    let out = dir.path().join("out");
+    write_report(&r, &out).unwrap();
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let articles: Vec<&str> = html.split("<article class=\"video\"").skip(1).collect();
+    assert_eq!(articles.len(), preds.len());
+    let truth = |a: &str| {
+        a.split("data-truth=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    let order: Vec<String> = articles.iter().map(|a| truth(a)).collect();
+    let first_power = order.iter().position(|t| t == "power").unwrap();
+    assert!(first_power > 0, "{order:?}");
+    assert!(
+        order[first_power..].iter().all(|t| t == "power"),
+        "{order:?}"
+    );
+    let per_video = spec.frames - spec.no_grasp_frames;
+    for a in &articles {
+        assert!(
+            a.contains("<img class=\"frames\"") && a.contains("centre 0.50"),
+            "{a}"
+        );
+        let (ok, bad) = (
+            a.matches("class=\"m ok\"").count(),
+            a.matches("class=\"m bad\"").count(),
+        );
+        if truth(a) == "power" {
+            assert_eq!((ok, bad), (per_video, spec.no_grasp_frames), "{a}");
+        } else {
+            assert_eq!((ok, bad), (0, spec.frames), "{a}");
+        }
+    }
+}

@@ -2,6 +2,7 @@
 //! baseline, accuracy against time, and the Markdown/JSON/PNG report.
 
 pub mod choice;
+pub mod html;
 pub mod metrics;
 pub mod plots;
 pub mod predict;

@@ -118,6 +118,10 @@ pub struct Report {
     /// record, the lens given, and any flag that replaced part of it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input: Option<InputRecord>,
+    /// Every scored frame's place and each run's answer on it, for
+    /// report.html's strips (kept by `eval`; not in report.json).
+    #[serde(skip)]
+    pub frames: Option<std::sync::Arc<super::html::FrameRecord>>,
 }
 
 /// The input record an evaluation used.
@@ -215,6 +219,7 @@ impl Report {
             sensor_probe: None,
             pooled_with: Vec::new(),
             input: None,
+            frames: None,
             per_part,
         }
     }
@@ -251,6 +256,7 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<(), EvalError> {
         super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
     grasp_support::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
     grasp_support::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
+    super::html::write_report_html(report, dir)?;
     Ok(grasp_support::atomic::write_atomic(
         &dir.join("report.md"),
         markdown(report).as_bytes(),

@@ -49,14 +49,17 @@ enum Command {
     /// --lens-size, --hfov-deg, or --lens-file.
     #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
-    /// Evaluate checkpoints and write report.md, report.json and PNG plots.
+    /// Evaluate checkpoints and write report.md, report.json, PNG plots and
+    /// report.html (every video's frames with each run's answers).
     Eval(EvalArgs),
     /// Tabulate several evaluation reports; plot per-video error against x.
     ///
     /// Each --report is LABEL[=X]:PATH, PATH being a report.json written by
     /// `grasp-train eval` or its directory. Writes OUT/summary.md (per-video
     /// accuracy and error, per-frame accuracy, baseline: mean ± std over the
-    /// report's seeds), OUT/summary.json and, when entries carry an X,
+    /// report's seeds), OUT/summary.json, OUT/index.html (the tables with
+    /// links to each report.html; --preview and --timing add the dataset's
+    /// contact sheet and a timing.json) and, when entries carry an X,
     /// OUT/error.png (per-video error against X, error bars ± std; labels
     /// GROUP/NAME draw one line per GROUP).
     ///
@@ -211,6 +214,14 @@ struct SummarizeArgs {
     /// Title of the summary and of the plot.
     #[arg(long)]
     title: Option<String>,
+    /// A picture of the dataset for index.html (e.g. `grasp-gen preview`'s
+    /// contact_sheet.png), embedded when the file exists.
+    #[arg(long, value_name = "FILE.png")]
+    preview: Option<PathBuf>,
+    /// A JSON object of phase names to seconds (scripts/main.sh's
+    /// timing.json), shown in index.html when the file exists.
+    #[arg(long, value_name = "FILE.json")]
+    timing: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -478,7 +489,13 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
     spec.title = args.title.or(spec.title);
     let summary = Summary::load(spec)?;
     summary.write(&args.out)?;
+    let extras = trainer::eval::html::IndexExtras {
+        preview: args.preview,
+        timing: args.timing,
+    };
+    trainer::eval::html::write_index(&summary, &args.out, &extras)?;
     println!("summary: {}", args.out.join("summary.md").display());
+    println!("page: {}", args.out.join("index.html").display());
     if let Some(choice) = &summary.choice {
         let best = &choice.standings[0];
         println!(
