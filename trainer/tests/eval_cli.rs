@@ -289,13 +289,18 @@ fn eval_pools_repeated_data_roots_into_one_report() {
     // videos.csv: one row per pooled video with its run's vote.
     let csv = std::fs::read_to_string(dir.path().join("both/videos.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
-    assert_eq!(rows[0], "id,object,part,truth,vote_seed0");
+    assert_eq!(rows[0], "id,object,part,truth,vote_seed0,hand_seed0");
     assert_eq!(rows.len() as u64, 1 + videos("both"));
     assert!(rows.iter().any(|r| r.starts_with("draw-2/")), "{csv}");
     let names = ["power", "lateral", "pinch", "pinch3"];
-    assert!(rows[1..]
-        .iter()
-        .all(|r| names.contains(&r.rsplit(',').next().unwrap())));
+    for r in &rows[1..] {
+        let mut cells = r.rsplit(',');
+        let hand = cells.next().unwrap();
+        let vote = cells.next().unwrap();
+        assert!(names.contains(&vote), "{r}");
+        let commanded = hand.split(' ').next().unwrap();
+        assert!(names.contains(&commanded) || commanded == "none", "{r}");
+    }
 
     // An empty draw is named, not silently pooled.
     std::fs::create_dir_all(dir.path().join("empty")).unwrap();

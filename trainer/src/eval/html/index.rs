@@ -77,14 +77,16 @@ fn shipped(s: &mut String, choice: &crate::eval::choice::Choice) {
         "<section id=\"shipped\"><h2>The shipped model: <code>{}</code></h2>\n\
          <p>Chosen by its <b>worst</b> test set: a model tuned on its own conditions can \
          lose most where it was never tuned (another renderer, real meshes, another reach), \
-         so each model is ranked by its lowest per-video accuracy over every test set (mean \
-         over seeds; ties by the mean over the sets). Only a head that classifies frame by \
+         so each model is ranked by its lowest accuracy of the hand's decision (what \
+         hannes-run's policy commands) over every test set (mean over seeds; ties by the worst \
+         per-video vote, then the mean over the sets). Only a head that classifies frame by \
          frame (FC) can ship: the hand's loop (hannes-run) runs nothing else.</p>",
         esc(&choice.shipped)
     );
     s.push_str(
-        "<table class=\"num\"><thead><tr><th>model</th><th>head</th><th>worst test set</th>\
-         <th>its per-video accuracy</th><th>mean over the sets</th><th></th></tr></thead><tbody>\n",
+        "<table class=\"num\"><thead><tr><th>model</th><th>head</th><th>worst test set \
+         (the hand)</th><th>the hand's decision there</th><th>worst per-video vote</th>\
+         <th>mean of the hand's decision</th><th></th></tr></thead><tbody>\n",
     );
     for st in &choice.standings {
         let (class, mark) = if st.model == choice.shipped {
@@ -102,12 +104,14 @@ fn shipped(s: &mut String, choice: &crate::eval::choice::Choice) {
         };
         let _ = writeln!(
             s,
-            "<tr{class}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.1}</td><td>{:.1}</td><td class=\"l\">{}</td></tr>",
+            "<tr{class}><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.1}</td><td>{:.1} ({})</td><td>{:.1}</td><td class=\"l\">{}</td></tr>",
             esc(&st.model),
             esc(&st.head),
             esc(&st.worst_set),
-            st.worst_accuracy * 100.0,
-            st.mean_accuracy * 100.0,
+            st.worst_hand_accuracy * 100.0,
+            st.worst_vote_accuracy * 100.0,
+            esc(&st.worst_vote_set),
+            st.mean_hand_accuracy * 100.0,
             esc(&mark)
         );
     }
