@@ -9,7 +9,7 @@
 //! | 0 | every approach ended as decided (a pre-shape executed, or no command on a weak vote without fallback) |
 //! | 1 | an error outside the approaches (arguments, config, checkpoint, source, report file) |
 //! | 2 | a command-line usage error |
-//! | 3 ([`EXIT_ABORTED`]) | an approach was aborted: the frame source or the classifier failed, or the model output was invalid |
+//! | 3 ([`EXIT_ABORTED`]) | an approach was aborted: the frame source or the classifier failed, the model output was invalid, or the closure trigger ended before it fired (the hand opened) |
 //! | 4 ([`EXIT_HAND`]) | the hand could not be reached or did not acknowledge a command |
 //! | 5 ([`EXIT_EXPIRED`]) | a decision (or closure) became older than its age limit before the hand acknowledged it: not executed |
 //! | 128 + N ([`Signal::exit_code`]: 130 SIGINT, 143 SIGTERM, 129 SIGHUP) | stopped by signal N: during an approach (nothing sent after it; the hand opened if a command may have reached it) or between approaches |

@@ -252,3 +252,33 @@ fn bench_paces_its_frames_at_a_camera_rate() {
     let out = bench(&[]);
     assert!(text(&out.stdout).contains("(10 frames, back to back)"));
 }
+
+#[test]
+fn run_with_a_stdin_closure_at_end_of_input_opens_the_hand_and_exits_3() {
+    // Issue 60, case 3: stdin ends before the closure key: no "commanded".
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let mut args = run.args(pty.path().to_str().unwrap());
+    let closure = args.iter().position(|a| *a == "--closure").unwrap();
+    args[closure + 1] = "stdin";
+    args.extend(["--report", run.report.to_str().unwrap()]);
+    let out = hannes_run(&args); // stdin is /dev/null
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.contains("ended before it fired") && reason.ends_with("hand opened"),
+        "{reason}"
+    );
+    assert!(stderr.contains("0 commanded"), "{stderr}");
+    let line: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&run.report).unwrap().trim()).unwrap();
+    assert_eq!(line["result"], "aborted");
+    assert!(!line["reopened"].is_null());
+    assert_eq!(line["hand"]["state"], "open");
+    assert!(matches!(
+        pty.hand.events().last(),
+        Some(HandEvent::Open { .. })
+    ));
+}

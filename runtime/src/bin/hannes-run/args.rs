@@ -11,10 +11,13 @@ Exit codes:
   0  every approach ended as decided (pre-shape executed, or no command on a weak vote)
   1  error outside the approaches (arguments, config, checkpoint, source, report file)
   2  command-line usage error
-  3  an approach was aborted (frame source or classifier failed, invalid model output)
-  4  the hand could not be reached or did not acknowledge a command
-  5  a decision was older than --max-decision-age-ms before the hand acknowledged it
-     (not executed, no closure; the hand is opened if a copy may have reached it)
+  3  an approach was aborted (frame source or classifier failed, invalid model output,
+     the closure trigger ended before it fired: the hand is opened)
+  4  the hand could not be reached or did not acknowledge a command (the hand is
+     opened if a command may have reached it; never closed unless it says it is
+     in the decided pre-shape)
+  5  a decision or closure was older than --max-decision-age-ms before the hand
+     acknowledged it (the hand is opened if a copy may have reached it)
   128+N  stopped by signal N: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; nothing
      is sent after it, and the hand is opened if a command may have reached it
 With several approaches, the code of the first failed one (a stop counts where it
