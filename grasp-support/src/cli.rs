@@ -61,7 +61,9 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
 
 /// The one line printed for an error.
 pub fn error_line(e: &anyhow::Error) -> String {
-    format!("Error: {e:#}")
+    // Each cause on one line, a backtrace it captured left out (candle's).
+    let chain: Vec<String> = e.chain().map(|c| crate::one_line(&c.to_string())).collect();
+    format!("Error: {}", chain.join(": "))
 }
 
 /// The programs' log subscriber: stderr, `RUST_LOG` (default `info`), ANSI

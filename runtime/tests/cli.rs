@@ -282,3 +282,38 @@ fn run_with_a_stdin_closure_at_end_of_input_opens_the_hand_and_exits_3() {
         Some(HandEvent::Open { .. })
     ));
 }
+
+#[test]
+fn a_checkpoint_error_under_rust_backtrace_is_one_line() {
+    // Issue 60, case 4: candle captured a 64-line backtrace into the error.
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = dir.path().join("ckpt");
+    std::fs::create_dir_all(&ckpt).unwrap();
+    for entry in std::fs::read_dir(checkpoint()).unwrap() {
+        let entry = entry.unwrap();
+        if entry.file_type().unwrap().is_file() {
+            std::fs::copy(entry.path(), ckpt.join(entry.file_name())).unwrap();
+        }
+    }
+    let best = ckpt.join("best.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&best).unwrap()).unwrap();
+    meta["head"]["feature_dim"] = 1000.into();
+    std::fs::write(&best, meta.to_string()).unwrap();
+    let seq = sequence(dir.path(), 3, None);
+    let finished = program().run([
+        "replay".as_ref(),
+        "--checkpoint".as_ref(),
+        ckpt.as_os_str(),
+        "--source".as_ref(),
+        seq.as_os_str(),
+    ]);
+    let reason = finished.assert_user_error();
+    assert!(reason.contains("shape mismatch"), "{reason}");
+    assert!(
+        !finished.stderr.contains("candle_core::"),
+        "{}",
+        finished.stderr
+    );
+    assert_eq!(finished.stderr.lines().count(), 1, "{}", finished.stderr);
+}
