@@ -51,6 +51,32 @@ impl Default for ReaderOptions {
     }
 }
 
+impl ReaderOptions {
+    /// `real_fps` finite and positive (at most 10000), `no_grasp_tail_s`
+    /// finite and not negative: checked before any data is read.
+    pub fn validate_numbers(&self) -> Result<(), crate::error::ConfigError> {
+        let fps = self.real_fps;
+        if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+            return Err(crate::error::ConfigError::invalid(
+                "reader.real_fps",
+                format!(
+                    "reader.real_fps (--real-fps) must be a frame rate in (0, 10000], got {fps}"
+                ),
+            ));
+        }
+        let tail = self.no_grasp_tail_s;
+        if !(tail.is_finite() && tail >= 0.0) {
+            return Err(crate::error::ConfigError::invalid(
+                "reader.no_grasp_tail_s",
+                format!(
+                    "reader.no_grasp_tail_s must be 0 or a positive number of seconds, got {tail}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Reads every sequence under `root`. Problems (unparseable or missing labels,
 /// missing frames) go through `bad`; a root that cannot be listed is an error.
 pub fn read_dataset(

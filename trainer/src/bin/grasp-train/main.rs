@@ -357,6 +357,7 @@ fn eval(args: EvalArgs) -> Result<()> {
             camera: input.camera_folder.clone(),
             ..Default::default()
         };
+        opts.validate_numbers()?;
         let mut draws = Vec::new();
         for root in &args.data {
             let draw = trainer::data::read_dataset(root, &opts, &bad)?;
