@@ -75,14 +75,18 @@ impl Default for PolicyConfig {
     }
 }
 
+/// The longest approach window accepted, in seconds (an hour; a window is
+/// seconds long, and a larger one cannot be a time span).
+pub const MAX_WINDOW_S: f64 = 3600.0;
+
 impl PolicyConfig {
     pub fn validate(&self) -> Result<(), InvalidSetting> {
         ensure(
-            self.window_s.is_finite() && self.window_s > 0.0,
+            self.window_s.is_finite() && self.window_s > 0.0 && self.window_s <= MAX_WINDOW_S,
             "policy.window_s",
             || {
                 format!(
-                    "must be a positive number of seconds, got {}",
+                    "must be a positive number of seconds, at most {MAX_WINDOW_S}, got {}",
                     self.window_s
                 )
             },
@@ -572,6 +576,21 @@ mod tests {
             ..PolicyConfig::default()
         };
         assert!(bad.validate().unwrap_err().to_string().contains("window_s"));
+        // Issue 60, case 7: finite but no time span (Duration panicked).
+        for window_s in [1e30, MAX_WINDOW_S * 1.01] {
+            let bad = PolicyConfig {
+                window_s,
+                ..PolicyConfig::default()
+            };
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.contains("window_s") && e.contains("at most"), "{e}");
+        }
+        let longest = PolicyConfig {
+            window_s: MAX_WINDOW_S,
+            ..PolicyConfig::default()
+        };
+        assert!(longest.validate().is_ok());
+        let _ = std::time::Duration::from_secs_f64(longest.window_s);
         let bad = PolicyConfig {
             early_margin: Some(0),
             ..PolicyConfig::default()

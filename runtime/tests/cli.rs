@@ -317,3 +317,29 @@ fn a_checkpoint_error_under_rust_backtrace_is_one_line() {
     );
     assert_eq!(finished.stderr.lines().count(), 1, "{}", finished.stderr);
 }
+
+#[test]
+fn a_window_of_1e30_seconds_is_refused_before_the_hand_is_told_anything() {
+    // Issue 60, case 7: it panicked converting the window to a Duration,
+    // after `run` had sent HELLO.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let mut args = run.args(pty.path().to_str().unwrap());
+    args.extend(["--window", "1e30"]);
+    let line = program().user_error(&args);
+    assert!(line.contains("window_s"), "{line}");
+    let seq = run.seq.to_str().unwrap();
+    let ckpt = checkpoint().to_str().unwrap();
+    let line = program().user_error([
+        "replay",
+        "--checkpoint",
+        ckpt,
+        "--source",
+        seq,
+        "--window",
+        "1e30",
+    ]);
+    assert!(line.contains("window_s"), "{line}");
+    assert!(pty.hand.events().is_empty(), "{:?}", pty.hand.events());
+}
