@@ -118,15 +118,40 @@ pub fn evaluate(
     let mut runs = Vec::new();
     let (mut mode, mut backbone, mut cap) = (None, None, None);
     let (mut head, mut train_sequences) = (String::new(), None);
+    let mut head_kind = None;
+    let mut seen: Vec<(PathBuf, PathBuf)> = Vec::new();
     for ckpt in checkpoints {
+        // One checkpoint given twice would count as two seeds.
+        let real = ckpt.canonicalize().unwrap_or_else(|_| ckpt.clone());
+        if let Some((first, _)) = seen.iter().find(|(_, r)| *r == real) {
+            return Err(EvalError::DuplicateCheckpoint {
+                first: first.clone(),
+                checkpoint: ckpt.clone(),
+            });
+        }
+        seen.push((ckpt.clone(), real));
         let clf = Classifier::load(ckpt, &dev)?;
         let m = &clf.meta;
+        // The report scores class indices as the runtime's classes.
+        if clf.classes() != grasp_schema::taxonomy::Class::ALL {
+            return Err(EvalError::Classes {
+                checkpoint: ckpt.clone(),
+                classes: clf.classes().iter().map(|c| c.to_string()).collect(),
+            });
+        }
+        same(
+            "heads",
+            &mut head_kind,
+            m.head.kind.name().to_string(),
+            ckpt,
+        )?;
         same("modes", &mut mode, m.mode.name().to_string(), ckpt)?;
         same("backbones", &mut backbone, m.backbone.describe(), ckpt)?;
         same("sequences_per_pair", &mut cap, m.sequences_per_pair(), ckpt)?;
         head = m.head.kind.name().to_string();
         train_sequences = train_sequences.or(m.train_sequences);
         let all = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        check_outputs(ckpt, &all)?;
         let preds: Vec<_> = all.iter().filter_map(|v| window.apply(v)).collect();
         outside = all.len() - preds.len();
         if preds.is_empty() {
@@ -151,6 +176,28 @@ pub fn evaluate(
     report.policy = Some(scoring.policy.clone());
     report.videos_outside_window = outside;
     Ok(report)
+}
+
+/// Every output a probability distribution, as the runtime requires of
+/// each frame ([`grasp_policy::Probabilities::new`]): a NaN or infinite
+/// output is a broken model, not a prediction to score.
+fn check_outputs(
+    ckpt: &Path,
+    videos: &[crate::eval::metrics::VideoPrediction],
+) -> Result<(), EvalError> {
+    for v in videos {
+        for (k, p) in v.probs.iter().enumerate() {
+            if let Err(e) = grasp_policy::Probabilities::new(*p) {
+                return Err(EvalError::InvalidOutput {
+                    checkpoint: ckpt.to_path_buf(),
+                    video: v.id.clone(),
+                    time_s: v.times_s.get(k).copied().unwrap_or(f64::NAN),
+                    reason: e.to_string(),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Records the first checkpoint's `value` in `seen`; a later one differing
