@@ -191,6 +191,14 @@ pub struct NonFinite {
 pub enum TrainError {
     #[error(transparent)]
     Config(#[from] ConfigError),
+    /// A seed's folder that already holds a checkpoint, and no
+    /// `--overwrite`.
+    #[error(
+        "{} already holds a checkpoint (best.json): pass --overwrite to train over it, or \
+         choose another --out",
+        dir.display()
+    )]
+    CheckpointExists { dir: PathBuf },
     #[error(transparent)]
     Data(#[from] DataError),
     #[error(transparent)]

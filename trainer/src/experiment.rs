@@ -23,6 +23,23 @@ pub struct ExperimentOutcome {
     pub report: Option<Report>,
 }
 
+/// The folder seed `k` of a run trains into.
+pub fn seed_dir(cfg: &TrainConfig, k: usize) -> PathBuf {
+    cfg.out.join(format!("seed-{}", cfg.seed + k as u64))
+}
+
+/// Refuses a run whose seed folders already hold a checkpoint, so that a
+/// finished run is never trained over by mistake (`--overwrite` skips it).
+pub fn check_no_checkpoint(cfg: &TrainConfig, seeds: usize) -> Result<(), TrainError> {
+    for k in 0..seeds.max(1) {
+        let dir = seed_dir(cfg, k);
+        if dir.join("best.json").exists() {
+            return Err(TrainError::CheckpointExists { dir });
+        }
+    }
+    Ok(())
+}
+
 /// Trains `seeds` models (seeds `cfg.seed`, `cfg.seed + 1`, ...) into
 /// `cfg.out/seed-N/`, then evaluates them on the test split into
 /// `cfg.out/report/` when there is one.
@@ -54,7 +71,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     let mut runs = Vec::new();
     for k in 0..seeds.max(1) as u64 {
         let seed = cfg.seed + k;
-        let out = cfg.out.join(format!("seed-{seed}"));
+        let out = seed_dir(cfg, k as usize);
         tracing::info!("training seed {seed} into {}", out.display());
         runs.push(train::train(cfg, &prep, seed, &out)?);
     }

@@ -564,3 +564,62 @@ fn eval_refuses_mixed_heads_duplicates_other_class_lists_and_broken_outputs() {
     let done = program().run(eval_args(&[&fc], &data, &out));
     assert!(done.status.success(), "{}", done.stderr);
 }
+
+#[test]
+fn eval_says_which_folder_the_manifest_lists_but_is_missing() {
+    // Issue 60, case 14: 7 of 8 sequences were scored without a word.
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = trainer::stand_in::stand_in_checkpoint(
+        dir.path(),
+        32,
+        grasp_model::backbone::Architecture::MobileNetV2,
+    )
+    .unwrap();
+    let data = dir.path().join("data");
+    let manifest = std::fs::read_to_string(data.join("manifest.jsonl")).unwrap();
+    let first: serde_json::Value = serde_json::from_str(manifest.lines().next().unwrap()).unwrap();
+    let gone = first["path"].as_str().unwrap().to_string();
+    std::fs::remove_dir_all(data.join(&gone)).unwrap();
+    let out = dir.path().join("report");
+    // Skipping bad data (eval's default), it says so, scores the rest and
+    // lists the folder beside the report.
+    let done = program().run(eval_args(&[&ckpt], &data, &out));
+    assert!(done.status.success(), "{}", done.stderr);
+    assert!(
+        done.stderr.contains(&gone) && done.stderr.contains("listed in manifest.jsonl but missing"),
+        "{}",
+        done.stderr
+    );
+    let problems = std::fs::read_to_string(out.join("problems.json")).unwrap();
+    assert!(problems.contains(&gone), "{problems}");
+    // Told to fail on bad data, it refuses, naming the folder.
+    let mut args = eval_args(&[&ckpt], &data, &dir.path().join("strict"));
+    args.extend(["--on-bad-data".into(), "fail".into()]);
+    let line = program().user_error(args);
+    assert!(line.contains(&gone) && line.contains("missing"), "{line}");
+}
+
+#[test]
+fn train_into_a_folder_holding_a_checkpoint_is_refused_unless_overwritten() {
+    // Issue 60, case 14: the checkpoint was overwritten without a word.
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    let ckpt = train_tiny(work);
+    let before = std::fs::read(ckpt.join("best.safetensors")).unwrap();
+    let mut args: Vec<&str> = vec!["--threads", "2", "train", "--data", "data", "--out", "run"];
+    args.extend(TINY_RECIPE);
+    args.extend(["--set", "seed=0"]);
+    let (ok, text) = grasp_train(work, &args);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("already holds a checkpoint") && text.contains("--overwrite"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read(ckpt.join("best.safetensors")).unwrap(),
+        before
+    );
+    args.push("--overwrite");
+    let (ok, text) = grasp_train(work, &args);
+    assert!(ok, "{text}");
+}

@@ -176,6 +176,9 @@ struct TrainArgs {
     /// report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
+    /// Train over the checkpoints already in `--out` (refused without it).
+    #[arg(long)]
+    overwrite: bool,
     /// Feature cache directory (frozen-pretrained and fine-tuned modes).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
@@ -317,6 +320,10 @@ fn train(args: TrainArgs) -> Result<()> {
         cfg.cache_dir = dir;
     }
     cfg.reader.lens = args.lens.lens()?.or(cfg.reader.lens);
+    cfg.validate()?;
+    if !args.overwrite {
+        trainer::experiment::check_no_checkpoint(&cfg, args.seeds)?;
+    }
     let outcome = trainer::experiment::run(&cfg, args.seeds)?;
     for r in &outcome.runs {
         println!(
