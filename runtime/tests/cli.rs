@@ -343,3 +343,24 @@ fn a_window_of_1e30_seconds_is_refused_before_the_hand_is_told_anything() {
     assert!(line.contains("window_s"), "{line}");
     assert!(pty.hand.events().is_empty(), "{:?}", pty.hand.events());
 }
+
+#[test]
+fn lens_size_alone_says_what_is_missing() {
+    // Issue 60, case 15: it said what the flag is, not what was missing.
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 3, None);
+    let ckpt = checkpoint().to_str().unwrap();
+    let line = program().user_error([
+        "replay",
+        "--checkpoint",
+        ckpt,
+        "--source",
+        seq.to_str().unwrap(),
+        "--lens-size",
+        "640x480",
+    ]);
+    assert!(
+        line.contains("without") && line.contains("--focal-px"),
+        "{line}"
+    );
+}

@@ -141,3 +141,31 @@ fn numeric_training_settings_are_refused_naming_the_field_before_any_data() {
         assert!(line.contains(field), "{set}: {line}");
     }
 }
+
+#[test]
+fn the_help_names_the_default_backbone() {
+    // Issue 60, case 15: it opened with "MobileNetV2 in candle".
+    let done = grasp_train().run(["--help"]);
+    assert!(done.status.success(), "{}", done.stderr);
+    let first = done.stdout.lines().next().unwrap_or_default();
+    assert!(first.contains("EfficientNet-Lite0"), "{first}");
+    assert!(
+        !done.stdout.contains("MobileNetV2 in candle"),
+        "{}",
+        done.stdout
+    );
+}
+
+#[test]
+fn the_docs_name_no_crop_flag_that_no_program_accepts() {
+    // Issue 60, case 15: the fixed-angle crop is `reader.crop`, not a flag.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut files = vec![root.join("README.md")];
+    for e in std::fs::read_dir(root.join("docs")).unwrap().flatten() {
+        files.extend((e.path().extension() == Some("md".as_ref())).then(|| e.path()));
+    }
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        assert!(!text.contains("--crop-angle-deg"), "{}", f.display());
+    }
+}
