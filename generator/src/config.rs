@@ -190,7 +190,7 @@ impl GeneratorConfig {
                 format!(
                     "= {} renders a square of {side:.3} pixels of the {w}x{h} frames; \
                      it must span at least {MIN_CENTER_PX} pixels (at least {:.4} here)",
-                    self.render.center_region,
+                    grasp_support::num(self.render.center_region),
                     MIN_CENTER_PX / f64::from(w.min(h))
                 ),
             ));

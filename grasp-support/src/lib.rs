@@ -26,6 +26,17 @@ pub fn error_chain(error: &dyn std::error::Error) -> String {
     line
 }
 
+/// A number as a message shows it: `1e308`, not its 309 digits (Rust's
+/// `{}` writes an f64 in full), small ones as `1e-9`.
+pub fn num(x: f64) -> String {
+    let a = x.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e9).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// An error's message on one line: its lines joined with ": ", and a
 /// backtrace it captured left out (candle's errors print theirs in their
 /// message when `RUST_BACKTRACE` is set; a user error shows none).
@@ -71,5 +82,10 @@ mod one_line_tests {
             "loading head: tensor missing"
         );
         assert_eq!(one_line("2: not a frame"), "2: not a frame");
+        assert_eq!(
+            (num(1e308), num(1e-9), num(0.5), num(-1.0)),
+            ("1e308".into(), "1e-9".into(), "0.5".into(), "-1".into())
+        );
+        assert_eq!(num(f64::NAN), "NaN");
     }
 }

@@ -364,3 +364,19 @@ fn lens_size_alone_says_what_is_missing() {
         "{line}"
     );
 }
+
+#[test]
+fn a_baud_rate_of_0_is_a_usage_error() {
+    // Issue 60's note: --baud 0 was accepted.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let mut args = run.args("/dev/null");
+    args.extend(["--baud", "0"]);
+    let out = hannes_run(&args);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--baud"),
+        "{}",
+        text(&out.stderr)
+    );
+}

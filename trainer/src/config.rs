@@ -9,6 +9,7 @@ use crate::error::ConfigError;
 use crate::optim::AdamConfig;
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
+use grasp_support::num;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -252,13 +253,16 @@ impl TrainConfig {
         let positive = [("optimizer.lr", o.lr), ("optimizer.eps", o.eps)];
         for (field, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return refuse(field, format!("{field} must be a positive number, got {v}"));
+                return refuse(
+                    field,
+                    format!("{field} must be a positive number, got {}", num(v)),
+                );
             }
         }
         let fractions = [("optimizer.beta1", o.beta1), ("optimizer.beta2", o.beta2)];
         for (field, v) in fractions {
             if !(v.is_finite() && (0.0..1.0).contains(&v)) {
-                return refuse(field, format!("{field} must be in [0, 1), got {v}"));
+                return refuse(field, format!("{field} must be in [0, 1), got {}", num(v)));
             }
         }
         if !(o.weight_decay.is_finite() && o.weight_decay >= 0.0) {
@@ -266,7 +270,7 @@ impl TrainConfig {
                 "optimizer.weight_decay",
                 format!(
                     "optimizer.weight_decay must be 0 or positive, got {}",
-                    o.weight_decay
+                    num(o.weight_decay)
                 ),
             );
         }
@@ -287,7 +291,7 @@ impl TrainConfig {
                 "plateau_factor",
                 format!(
                     "plateau_factor must be in (0, 1], got {}",
-                    self.plateau_factor
+                    num(self.plateau_factor)
                 ),
             );
         }

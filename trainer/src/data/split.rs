@@ -30,7 +30,10 @@ impl SplitConfig {
             ("split.test_fraction", self.test_fraction),
         ] {
             if !(v.is_finite() && (0.0..1.0).contains(&v)) {
-                return invalid(field, format!("{field} must be in [0, 1), got {v}"));
+                return invalid(
+                    field,
+                    format!("{field} must be in [0, 1), got {}", grasp_support::num(v)),
+                );
             }
         }
         if self.val_fraction + self.test_fraction >= 1.0 {

@@ -69,7 +69,8 @@ pub(crate) struct RunArgs {
     /// Serial device of the hand (USB adapter, /dev/rfcomm0, pty link).
     #[arg(long)]
     pub(crate) port: PathBuf,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Starts an approach: `stdin` (Enter), `now`, or `timer:SECONDS`.
     #[arg(long, default_value = "stdin")]
@@ -116,7 +117,8 @@ pub(crate) struct SimArgs {
     /// PATH.owner naming this process; both are removed when it stops).
     #[arg(long)]
     pub(crate) pty: Option<PathBuf>,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Inject link faults, e.g. `drop=0.1,corrupt=0.05,duplicate=0.1,
     /// delay=0.2:400,disconnect=0.05:1500,outage=1500:7500,after=1000,
@@ -164,7 +166,8 @@ pub(crate) struct BenchArgs {
     /// Whole approaches (2 s window at 30 fps each) to time (0: none).
     #[arg(long, default_value_t = 5)]
     pub(crate) approaches: usize,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Input size of the synthetic frames.
     #[arg(long, default_value_t = 224, conflicts_with = "recording")]
