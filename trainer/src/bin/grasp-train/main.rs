@@ -50,7 +50,7 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json and PNG plots.
-    Eval(EvalArgs),
+    Eval(Box<EvalArgs>),
     /// Tabulate several evaluation reports; plot per-video error against x.
     ///
     /// Each --report is LABEL[=X]:PATH, PATH being a report.json written by
@@ -296,7 +296,7 @@ fn main() -> std::process::ExitCode {
         }
         match cli.command {
             Command::Train(a) => train(*a),
-            Command::Eval(a) => eval(a),
+            Command::Eval(a) => eval(*a),
             Command::Summarize(a) => summarize(a),
             Command::BenchHeads(a) => bench(a),
             Command::BenchBackbone(a) => bench_backbone(a),
