@@ -560,6 +560,23 @@ fn eval_refuses_mixed_heads_duplicates_other_class_lists_and_broken_outputs() {
     let line = program().user_error(eval_args(&[&broken], &data, &out));
     assert!(line.contains("invalid model output"), "{line}");
     assert!(!out.join("report.json").exists(), "a report was written");
+    // Case 8: a frame rate of 0 (or NaN) for data without sequence.json
+    // panicked; refused before any data is read.
+    for fps in ["0", "nan"] {
+        let missing = dir.path().join("no-data-here");
+        let mut args = eval_args(&[&fc], &missing, &out);
+        args.extend([
+            "--hfov-deg".into(),
+            "45".into(),
+            "--real-fps".into(),
+            fps.into(),
+        ]);
+        let line = program().user_error(args);
+        assert!(
+            line.contains("real_fps") && !line.contains("no-data-here"),
+            "{line}"
+        );
+    }
     // The checkpoint itself is fine.
     let done = program().run(eval_args(&[&fc], &data, &out));
     assert!(done.status.success(), "{}", done.stderr);
