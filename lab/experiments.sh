@@ -61,7 +61,7 @@ BIN=${BIN:-target/release}
 SEEDS=${SEEDS:-3}
 CROP=${CROP:-0.42}
 INPUT_SIZE=${INPUT_SIZE:-128}
-# The heads' crop as a recipe override (grasp-train train --overwrite --set).
+# The heads' crop as a recipe override (grasp-train train --set).
 CROP_SET=(--set "reader.crop={ fraction = $CROP }")
 # The main job's FC head's style views and damping (configs/recipes/fc.toml);
 # words without spaces, so that they also travel in a string.
