@@ -39,7 +39,7 @@ if [ -d "$OUT/ycb-objects" ]; then
   SETS+=(world_foreign_ycb_reach)
 fi
 [ -f "$DIR/model/.done" ] || {
-  $BIN/grasp-train train --recipe configs/recipes/fc.toml --set "reader.crop={ angle_deg = $ANGLE }" \
+  $BIN/grasp-train train --overwrite --recipe configs/recipes/fc.toml --set "reader.crop={ angle_deg = $ANGLE }" \
     --data "$DIR/data/train" --val-data "$DIR/data/val" --seeds "$SEEDS" \
     --cache-dir "$DIR/features" --out "$DIR/model" && touch "$DIR/model/.done"
 }

@@ -62,7 +62,7 @@ for model in fc fc-tuned lstm "${VARIANTS[@]}"; do
     RUNS="$OUT/lab/$model" RECIPE=configs/recipes/$model.toml FLAGS=''
     [ -f "$RECIPE" ] || RECIPE=configs/recipes/fc.toml FLAGS=${SETS[$model]:?unknown variant $model}
     # shellcheck disable=SC2086 # the variant's flags are words
-    [ -f "$RUNS/.done" ] || { $BIN/grasp-train train --recipe "$RECIPE" $FLAGS \
+    [ -f "$RUNS/.done" ] || { $BIN/grasp-train train --overwrite --recipe "$RECIPE" $FLAGS \
       --data "$OUT/data/train" --val-data "$OUT/data/val" \
       --seeds "$SEEDS" --cache-dir "$OUT/features" --out "$RUNS" && touch "$RUNS/.done"; }
   fi

@@ -130,7 +130,7 @@ heads() { # data runs flags...
   local data=$1 runs=$2 t
   shift 2
   [ -f "$runs/.done" ] || {
-    run "$BIN/grasp-train" train --data "$data" --val-data "$OUT/fixed/val" --seeds "$SEEDS" \
+    run "$BIN/grasp-train" train --overwrite --data "$data" --val-data "$OUT/fixed/val" --seeds "$SEEDS" \
       --out "$runs" --cache-dir "$OUT/cache" "$@"
     touch "$runs/.done"
   }
@@ -206,7 +206,7 @@ stage_egocentric() {
     local runs="$ego/$camera" crop=("${CROP_SET[@]}")
     [ "${camera%-whole}" = "$camera" ] || crop=()
     [ -f "$runs/.done" ] || {
-      run "$BIN/grasp-train" train --data "$ego/train" --val-data "$ego/val" --set head=fc \
+      run "$BIN/grasp-train" train --overwrite --data "$ego/train" --val-data "$ego/val" --set head=fc \
         --seeds "$SEEDS" --set "reader.camera=${camera%-whole}" "${crop[@]}" --out "$runs" \
         --cache-dir "$OUT/cache"
       touch "$runs/.done"
@@ -230,7 +230,7 @@ frozen_fc() { # runs data train-flags...
   shift 2
   [[ " $* " != *" reader.crop="* ]] || crop=()
   [ -f "$runs/.done" ] || {
-    run "$BIN/grasp-train" train --data "$data/train" --val-data "$data/val" --set head=fc \
+    run "$BIN/grasp-train" train --overwrite --data "$data/train" --val-data "$data/val" --set head=fc \
       --seeds "$SEEDS" --set mode=frozen-pretrained "${crop[@]}" --out "$runs" \
       --cache-dir "$OUT/main/features" "$@"
     touch "$runs/.done"

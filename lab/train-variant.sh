@@ -28,7 +28,7 @@ render() { # name, then arguments
 render train --set dataset.seed=1 --set dataset.sequences_per_pair="$TRAIN_SEQ" "$@"
 render val --set dataset.seed=2 --set dataset.sequences_per_pair=1 "$@"
 [ -f "$DIR/model/.done" ] || {
-  $BIN/grasp-train train --recipe "$RECIPE" --data "$DIR/data/train" --val-data "$DIR/data/val" \
+  $BIN/grasp-train train --overwrite --recipe "$RECIPE" --data "$DIR/data/train" --val-data "$DIR/data/val" \
     --seeds "$SEEDS" --cache-dir "$DIR/features" --out "$DIR/model" && touch "$DIR/model/.done"
 }
 CHECKPOINTS=()

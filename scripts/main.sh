@@ -105,7 +105,7 @@ for model in $MODELS; do
   CHECKPOINTS=()
   for ((s = 0; s < SEEDS; s++)); do CHECKPOINTS+=(-c "$OUT/model-$model/seed-$s"); done
   [ -f "$OUT/model-$model/.done" ] || {
-    $BIN/grasp-train train --recipe "configs/recipes/$model.toml" --data "$OUT/data/train" \
+    $BIN/grasp-train train --overwrite --recipe "configs/recipes/$model.toml" --data "$OUT/data/train" \
       --val-data "$OUT/data/val" --seeds "$SEEDS" --cache-dir "$OUT/features" \
       "${TRAIN_SETS[@]}" --out "$OUT/model-$model"
     touch "$OUT/model-$model/.done"

@@ -127,6 +127,10 @@ pub struct GeneratorConfig {
     pub render: crate::render::RenderConfig,
 }
 
+/// The smallest side, in pixels, of the square `[render] center_region`
+/// renders.
+pub const MIN_CENTER_PX: f64 = 8.0;
+
 impl GeneratorConfig {
     /// Reads a config file; errors name the file and the offending field.
     pub fn load(path: &Path) -> Result<Self> {
@@ -164,6 +168,7 @@ impl GeneratorConfig {
         self.appearance.validate()?;
         self.randomize.validate()?;
         self.render.validate()?;
+        self.check_center_region()?;
         self.check_world()?;
         crate::randomize::check_unseen_disjoint(
             &self.appearance.unseen_look,
@@ -171,6 +176,26 @@ impl GeneratorConfig {
             &self.randomize,
             &self.render.view_transform,
         )
+    }
+
+    /// `[render] center_region` leaves at least [`MIN_CENTER_PX`] pixels of
+    /// the wrist camera's shorter side (Blender refuses a smaller border:
+    /// "Image too small").
+    pub fn check_center_region(&self) -> Result<()> {
+        let [w, h] = self.plan.camera.resolution;
+        let side = self.render.center_region * f64::from(w.min(h));
+        if side < MIN_CENTER_PX {
+            return Err(ConfigError::rule(
+                "[render] center_region",
+                format!(
+                    "= {} renders a square of {side:.3} pixels of the {w}x{h} frames; \
+                     it must span at least {MIN_CENTER_PX} pixels (at least {:.4} here)",
+                    grasp_support::num(self.render.center_region),
+                    MIN_CENTER_PX / f64::from(w.min(h))
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// What `[render] world` needs of the other sections: the foreign

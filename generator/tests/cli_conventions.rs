@@ -3,6 +3,8 @@
 //! and a user error prints its message, not a backtrace, even under
 //! `RUST_BACKTRACE=1`.
 
+mod render_common;
+
 use grasp_test_support::Program;
 
 fn grasp_gen() -> Program {
@@ -29,4 +31,21 @@ fn a_user_error_prints_its_message_without_a_backtrace() {
         plans.as_os_str(),
     ]);
     assert!(line.contains("missing.toml"), "{line}");
+}
+
+#[test]
+fn doctor_ends_a_healthy_check_without_blenders_leak_report() {
+    // Issue 60, case 16: 13 lines of "Freeing memory after the leak
+    // detector has run" and "Error: Not freed memory blocks", exit 0.
+    if !render_common::have_blender() {
+        return;
+    }
+    let done = grasp_gen().ok(["doctor"]);
+    let all = format!("{}{}", done.stdout, done.stderr);
+    assert!(done.stdout.contains("bpy import: ok"), "{all}");
+    assert!(
+        !all.contains("Not freed memory") && !all.contains("leak detector"),
+        "{all}"
+    );
+    assert!(!all.contains("Error"), "{all}");
 }

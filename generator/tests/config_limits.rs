@@ -149,3 +149,26 @@ fn an_unknown_object_or_part_is_refused_with_near_matches() {
         &["no part '025_mug/handel'", "did you mean '025_mug/handle'"],
     );
 }
+
+#[test]
+fn a_center_region_of_less_than_a_few_pixels_is_refused_naming_the_field() {
+    // Issue 60, case 5: 1e-9 passed validation and failed inside Blender.
+    if !have_blender() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for value in ["1e-9", "0.1"] {
+        let case = dir.path().join(value);
+        std::fs::create_dir_all(&case).unwrap();
+        let text = TINY.replace(
+            "[render]\n",
+            &format!("[render]\ncenter_region = {value}\n"),
+        );
+        let cfg = write_config(&case, "small.toml", &text);
+        refused_everywhere(
+            &case,
+            &cfg,
+            &["[render] center_region", "at least 8 pixels"],
+        );
+    }
+}

@@ -1,5 +1,5 @@
 //! A checkpoint trained on centre crops (`grasp-train --center-crop`, or
-//! `--crop-angle-deg`, with or without `--denoise`) is given whole camera
+//! `reader.crop = { angle_deg = D }`, with or without `--denoise`) is given whole camera
 //! frames by `hannes-run`: `Classifier::predict` crops and denoises them as
 //! its input record says, so the runtime sees what the head was trained on.
 //! Checkpoints of format 2, whose crop lived in the trainer's options, load

@@ -75,27 +75,41 @@ impl Default for PolicyConfig {
     }
 }
 
+/// A number as a message shows it: `1e308`, not its 309 digits.
+fn num(x: f64) -> String {
+    let a = x.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e9).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// The longest approach window accepted, in seconds (an hour; a window is
+/// seconds long, and a larger one cannot be a time span).
+pub const MAX_WINDOW_S: f64 = 3600.0;
+
 impl PolicyConfig {
     pub fn validate(&self) -> Result<(), InvalidSetting> {
         ensure(
-            self.window_s.is_finite() && self.window_s > 0.0,
+            self.window_s.is_finite() && self.window_s > 0.0 && self.window_s <= MAX_WINDOW_S,
             "policy.window_s",
             || {
                 format!(
-                    "must be a positive number of seconds, got {}",
-                    self.window_s
+                    "must be a positive number of seconds, at most {MAX_WINDOW_S}, got {}",
+                    num(self.window_s)
                 )
             },
         )?;
         ensure(
             (0.0..=1.0).contains(&self.min_share),
             "policy.min_share",
-            || format!("must be in [0, 1], got {}", self.min_share),
+            || format!("must be in [0, 1], got {}", num(self.min_share)),
         )?;
         ensure(
             (0.0..=1.0).contains(&self.min_confidence),
             "policy.min_confidence",
-            || format!("must be in [0, 1], got {}", self.min_confidence),
+            || format!("must be in [0, 1], got {}", num(self.min_confidence)),
         )?;
         ensure(self.early_margin != Some(0), "policy.early_margin", || {
             "must be at least 1 vote".into()
@@ -572,6 +586,27 @@ mod tests {
             ..PolicyConfig::default()
         };
         assert!(bad.validate().unwrap_err().to_string().contains("window_s"));
+        // Issue 60, case 7: finite but no time span (Duration panicked).
+        for window_s in [1e30, MAX_WINDOW_S * 1.01] {
+            let bad = PolicyConfig {
+                window_s,
+                ..PolicyConfig::default()
+            };
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.contains("window_s") && e.contains("at most"), "{e}");
+        }
+        let huge = PolicyConfig {
+            window_s: 1e308,
+            ..PolicyConfig::default()
+        };
+        let e = huge.validate().unwrap_err().to_string();
+        assert!(e.contains("got 1e308") && e.len() < 120, "{e}");
+        let longest = PolicyConfig {
+            window_s: MAX_WINDOW_S,
+            ..PolicyConfig::default()
+        };
+        assert!(longest.validate().is_ok());
+        let _ = std::time::Duration::from_secs_f64(longest.window_s);
         let bad = PolicyConfig {
             early_margin: Some(0),
             ..PolicyConfig::default()

@@ -61,7 +61,9 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
 
 /// The one line printed for an error.
 pub fn error_line(e: &anyhow::Error) -> String {
-    format!("Error: {e:#}")
+    // Each cause on one line, a backtrace it captured left out (candle's).
+    let chain: Vec<String> = e.chain().map(|c| crate::one_line(&c.to_string())).collect();
+    format!("Error: {}", chain.join(": "))
 }
 
 /// The programs' log subscriber: stderr, `RUST_LOG` (default `info`), ANSI
@@ -90,6 +92,18 @@ pub fn main(body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
         Err(_) if CLOSED_PIPE.load(Ordering::SeqCst) => die_of_sigpipe(),
         Err(payload) => panic::resume_unwind(payload),
     }
+}
+
+/// Ends the process now with `code`, after flushing stdout and stderr,
+/// without running exit handlers or C++ static destructors: a program that
+/// loaded Blender's `bpy` would otherwise end with Blender's leak detector
+/// report of its own statics ("Not freed memory blocks: ...") although
+/// nothing went wrong. Only for a body whose work is done.
+pub fn exit_now(code: u8) -> ! {
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    // SAFETY: _exit only ends the process; nothing runs after it.
+    unsafe { libc::_exit(i32::from(code)) }
 }
 
 /// Set once a print to a closed stdout or stderr panicked.

@@ -21,6 +21,14 @@
 //! [`StoppedFeed`] whose capture thread may still be fetching the frame
 //! after the window, to be joined after [`actuate`].
 //!
+//! Whenever a PRESHAPE or CLOSE may have reached the hand and the approach
+//! does not end as decided (a closure that failed, expired or was never
+//! triggered, a pre-shape whose ACK never came), OPEN is sent: the hand is
+//! never left shaped or closed by an approach that failed. A CLOSE is sent
+//! only while the hand says it is in the pre-shape it executed (after a
+//! reconnect, what its HELLO says; see [`crate::link`]). The report says
+//! what the hand last acknowledged ([`ApproachReport::hand`]).
+//!
 //! A stop (SIGINT, SIGTERM, SIGHUP: the `stop` flag) ends the approach
 //! wherever it is: nothing new is sent after it (no pre-shape, no
 //! retransmission, no closure), and if a PRESHAPE or CLOSE may have reached
@@ -31,7 +39,7 @@ use crate::classifier::{FrameClassifier, Probabilities};
 use crate::feed::{FeedItem, FeedMode, FeedStats, FrameFeed, StoppedFeed};
 use crate::link::{Hand, LinkError};
 use crate::policy::{Decision, Outcome, PolicyConfig, Step, Vote};
-use crate::protocol::{preshape_command, Command, HandState, Status};
+use crate::protocol::{command_name, preshape_command, Ack, Command, HandState, Status};
 use crate::signals::Signal;
 use crate::source::{FrameSource, SourceError};
 use crate::trigger::{Trigger, TriggerError};
@@ -152,6 +160,32 @@ impl StopReport {
     }
 }
 
+/// What the hand said in the last ACK the host received: its state and
+/// configuration then.
+#[derive(Debug, Clone, Serialize)]
+pub struct HandAck {
+    /// The command acknowledged (HELLO after a reconnect).
+    pub command: String,
+    /// `ok`, or why the hand did not execute it (`expired`, ...).
+    pub status: String,
+    pub state: HandState,
+    /// The pre-shape whose configuration the hand was in.
+    pub preshape: Option<Preshape>,
+    pub configuration: grasp_schema::taxonomy::HandConfiguration,
+}
+
+impl HandAck {
+    pub fn of(ack: &Ack) -> Self {
+        HandAck {
+            command: command_name(ack.cmd),
+            status: format!("{:?}", ack.status).to_lowercase(),
+            state: ack.state,
+            preshape: crate::simhand::preshape_of(ack.config),
+            configuration: ack.config,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct ApproachReport {
     pub window: WindowReport,
@@ -166,6 +200,11 @@ pub struct ApproachReport {
     pub link_error: Option<String>,
     /// The approach was stopped (a signal) before it ended.
     pub stopped: Option<StopReport>,
+    /// The closure trigger could never fire (stdin ended): no closure,
+    /// the hand opened.
+    pub closure_missed: Option<String>,
+    /// What the hand last acknowledged when the approach ended.
+    pub hand: Option<HandAck>,
 }
 
 /// Classifies the approach window. `t0` is the trigger time. Returns as
@@ -309,50 +348,85 @@ pub fn actuate(
         reopened: None,
         link_error: None,
         stopped: None,
+        closure_missed: None,
+        hand: None,
     };
-    let act = Actuation { hand, stop, t0 };
-    let Some(preshape) = report.window.decision.outcome.preshape() else {
-        if report.window.decision.outcome == Outcome::Stopped {
-            report.stopped = Some(StopReport::new(StopPhase::Window, false));
-        }
-        tracing::warn!("no pre-shape sent: {}", report.window.decision.outcome);
-        return Ok(report);
+    let act = Actuation {
+        hand,
+        stop,
+        t0,
+        max_age,
     };
-    if act.stop_requested() {
-        // Decided, but the stop came before the first transmission.
-        act.stop_and_open(&mut report, StopPhase::Window, false);
-        return Ok(report);
-    }
-    let order = Order {
-        command: preshape_command(preshape),
-        preshape: Some(preshape),
-        since: report.window.decided_at,
-        max_age: Some(max_age),
-    };
-    if !act.record_preshape(&mut report, order.send(hand, t0, Some(stop))) {
-        return Ok(report);
-    }
-    let Some(closure) = closure else {
-        return Ok(report);
-    };
-    let fired = closure.wait(stop)?;
-    if act.stop_requested() {
-        act.stop_and_open(&mut report, StopPhase::ClosureDelay, true);
-        return Ok(report);
-    }
-    if !fired {
-        // The trigger can never fire (e.g. stdin closed): the hand stays
-        // pre-shaped, as without a closure.
-        return Ok(report);
-    }
-    let order = Order {
-        command: Command::Close,
-        preshape: None,
-        since: Instant::now(),
-        max_age: Some(max_age),
-    };
-    act.record_closure(&mut report, order.send(hand, t0, Some(stop)));
+    act.commands(&mut report, closure)?;
+    report.hand = hand.last_ack().as_ref().map(HandAck::of);
     Ok(report)
+}
+
+impl Actuation<'_> {
+    /// The pre-shape, then the closure (see [`actuate`]).
+    fn commands(
+        &self,
+        report: &mut ApproachReport,
+        closure: Option<&mut dyn Trigger>,
+    ) -> Result<(), TriggerError> {
+        let (act, hand, stop, t0) = (self, self.hand, self.stop, self.t0);
+        let Some(preshape) = report.window.decision.outcome.preshape() else {
+            if report.window.decision.outcome == Outcome::Stopped {
+                report.stopped = Some(StopReport::new(StopPhase::Window, false));
+            }
+            tracing::warn!("no pre-shape sent: {}", report.window.decision.outcome);
+            return Ok(());
+        };
+        if act.stop_requested() {
+            // Decided, but the stop came before the first transmission.
+            act.stop_and_open(report, StopPhase::Window, false);
+            return Ok(());
+        }
+        let order = Order {
+            command: preshape_command(preshape),
+            preshape: Some(preshape),
+            since: report.window.decided_at,
+            max_age: Some(self.max_age),
+        };
+        if !act.record_preshape(report, order.send(hand, t0, Some(stop))) {
+            return Ok(());
+        }
+        let Some(closure) = closure else {
+            return Ok(());
+        };
+        let fired = match closure.wait(stop) {
+            Ok(fired) => fired,
+            Err(e) => {
+                // The hand is pre-shaped and nothing will close it.
+                act.reopen(report, "after the closure trigger failed");
+                return Err(e);
+            }
+        };
+        if act.stop_requested() {
+            act.stop_and_open(report, StopPhase::ClosureDelay, true);
+            return Ok(());
+        }
+        if !fired {
+            // The trigger can never fire (e.g. stdin closed): no closure
+            // will come, so the hand is not left pre-shaped.
+            let why = format!(
+                "the closure trigger ({}) ended before it fired: no closure",
+                closure.describe()
+            );
+            tracing::error!("{why}; opening the hand");
+            report.closure_missed = Some(why);
+            act.reopen(report, "after the closure trigger ended");
+            return Ok(());
+        }
+        let order = Order {
+            command: Command::Close,
+            preshape: None,
+            since: Instant::now(),
+            max_age: Some(self.max_age),
+        };
+        act.record_closure(report, order.send(hand, t0, Some(stop)));
+        Ok(())
+    }
 }
 
 /// What sending the commands of one approach needs.
@@ -360,6 +434,7 @@ struct Actuation<'a> {
     hand: &'a Hand,
     stop: &'a AtomicBool,
     t0: Instant,
+    max_age: Duration,
 }
 
 impl Actuation<'_> {
@@ -399,8 +474,15 @@ impl Actuation<'_> {
                 self.stop_and_open(report, StopPhase::Preshape, transmissions > 0);
                 false
             }
-            Sent::Failed(e) => {
-                report.link_error = Some(e);
+            Sent::Failed {
+                error,
+                transmissions,
+            } => {
+                report.link_error = Some(error);
+                if transmissions > 0 {
+                    // A copy may have been executed, its ACK lost.
+                    self.reopen(report, "after the unacknowledged pre-shape");
+                }
                 false
             }
         }
@@ -415,17 +497,24 @@ impl Actuation<'_> {
                     self.stop_and_open(report, StopPhase::Closure, true);
                 }
             }
+            // The pre-shape reached the hand, and the CLOSE may have: the
+            // hand is opened whenever the closure is not confirmed.
             Sent::Expired(e) => {
                 tracing::error!(
-                    "closure not acknowledged within {:.0} ms of its trigger: not sent again",
-                    e.limit_ms
+                    "closure not acknowledged within {:.0} ms of its trigger \
+                     ({} copies sent): not sent again; opening the hand",
+                    e.limit_ms,
+                    e.transmissions
                 );
                 report.expired = Some(e);
+                self.reopen(report, "after the expired closure");
             }
-            // The pre-shape reached the hand: it is opened whether or not
-            // the CLOSE did.
             Sent::Stopped { .. } => self.stop_and_open(report, StopPhase::Closure, true),
-            Sent::Failed(e) => report.link_error = Some(e),
+            Sent::Failed { error, .. } => {
+                tracing::error!("closure failed: {error}; opening the hand");
+                report.link_error = Some(error);
+                self.reopen(report, "after the failed closure");
+            }
         }
     }
 
@@ -458,9 +547,13 @@ impl Actuation<'_> {
             Sent::Expired(_) | Sent::Stopped { .. } => {
                 unreachable!("OPEN has no age limit and no stop")
             }
-            Sent::Failed(e) => {
-                tracing::error!("cannot open the hand {why}: {e}");
-                report.link_error = Some(e);
+            Sent::Failed { error, .. } => {
+                tracing::error!("cannot open the hand {why}: {error}");
+                // Kept after the error that made the approach open the hand.
+                report.link_error = Some(match report.link_error.take() {
+                    Some(first) => format!("{first}; then cannot open the hand: {error}"),
+                    None => error,
+                });
             }
         }
     }
@@ -481,7 +574,12 @@ enum Sent {
     Stopped {
         transmissions: u32,
     },
-    Failed(String),
+    /// Not acknowledged; `transmissions`: copies sent (a copy may have
+    /// been executed).
+    Failed {
+        error: String,
+        transmissions: u32,
+    },
 }
 
 impl Order {
@@ -497,6 +595,7 @@ impl Order {
                 refused_by_hand,
             })
         };
+        let before = hand.stats().transmissions;
         match hand.send_unless_stopped(self.command, expires, stop) {
             Ok(d) => Sent::Acked(CommandReport {
                 command: self.command.name(),
@@ -514,7 +613,12 @@ impl Order {
                 ..
             }) => expired(1, true),
             Err(LinkError::Stopped { transmissions, .. }) => Sent::Stopped { transmissions },
-            Err(e) => Sent::Failed(e.to_string()),
+            Err(e) => Sent::Failed {
+                error: e.to_string(),
+                // At least those the link counted (a heartbeat in between
+                // only makes it open the hand when in doubt).
+                transmissions: (hand.stats().transmissions - before) as u32,
+            },
         }
     }
 }

@@ -36,7 +36,7 @@ pub enum CheckpointError {
     },
     #[error(
         "checkpoint {} has an {head} head; hannes-run classifies frame by frame and needs an FC \
-         head (train with --head fc)",
+         head (train with --set head=fc)",
         path.display()
     )]
     NotFc { path: PathBuf, head: &'static str },
@@ -119,5 +119,22 @@ impl FrameClassifier for Classifier {
             return Err(ClassifyError::Outputs { got: out.len() });
         }
         Ok(out.remove(0))
+    }
+}
+
+#[cfg(test)]
+mod text_tests {
+    use super::*;
+
+    #[test]
+    fn the_lstm_refusal_hints_a_flag_that_exists() {
+        // Issue 60, case 15: `--head fc` is no flag of grasp-train train.
+        let e = CheckpointError::NotFc {
+            path: PathBuf::from("runs/lstm/seed-0"),
+            head: "lstm",
+        };
+        let text = e.to_string();
+        assert!(text.contains("--set head=fc"), "{text}");
+        assert!(!text.contains("--head fc"), "{text}");
     }
 }

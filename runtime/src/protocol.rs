@@ -199,6 +199,18 @@ impl Command {
     }
 }
 
+/// The name of the command with code `code` ("0x42" if none has it).
+pub fn command_name(code: u8) -> String {
+    match code {
+        cmd::HELLO => "HELLO".into(),
+        cmd::HEARTBEAT => "HEARTBEAT".into(),
+        cmd::PRESHAPE => "PRESHAPE".into(),
+        cmd::CLOSE => "CLOSE".into(),
+        cmd::OPEN => "OPEN".into(),
+        c => format!("0x{c:02X}"),
+    }
+}
+
 /// The pre-shape -> hand configuration table sent on the wire (Table 1).
 pub fn preshape_command(p: Preshape) -> Command {
     Command::Preshape(p.hand_configuration())

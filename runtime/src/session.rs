@@ -9,7 +9,7 @@
 //! | 0 | every approach ended as decided (a pre-shape executed, or no command on a weak vote without fallback) |
 //! | 1 | an error outside the approaches (arguments, config, checkpoint, source, report file) |
 //! | 2 | a command-line usage error |
-//! | 3 ([`EXIT_ABORTED`]) | an approach was aborted: the frame source or the classifier failed, or the model output was invalid |
+//! | 3 ([`EXIT_ABORTED`]) | an approach was aborted: the frame source or the classifier failed, the model output was invalid, or the closure trigger ended before it fired (the hand opened) |
 //! | 4 ([`EXIT_HAND`]) | the hand could not be reached or did not acknowledge a command |
 //! | 5 ([`EXIT_EXPIRED`]) | a decision (or closure) became older than its age limit before the hand acknowledged it: not executed |
 //! | 128 + N ([`Signal::exit_code`]: 130 SIGINT, 143 SIGTERM, 129 SIGHUP) | stopped by signal N: during an approach (nothing sent after it; the hand opened if a command may have reached it) or between approaches |
@@ -88,6 +88,8 @@ impl ApproachResult {
             ApproachResult::Expired
         } else if report.link_error.is_some() {
             ApproachResult::HandFailed
+        } else if report.closure_missed.is_some() {
+            ApproachResult::Aborted
         } else if report.preshape.is_some() {
             ApproachResult::Commanded
         } else {
@@ -110,29 +112,46 @@ impl ApproachResult {
 /// One line saying why approach `n` failed.
 pub fn failure_reason(approach: usize, report: &ApproachReport) -> String {
     match ApproachResult::of(report) {
-        ApproachResult::Aborted => {
-            format!("approach {approach}: {}", report.window.decision.outcome)
-        }
+        ApproachResult::Aborted => match &report.closure_missed {
+            Some(why) => format!("approach {approach}: {why}; {}", hand_after(report)),
+            None => format!("approach {approach}: {}", report.window.decision.outcome),
+        },
         ApproachResult::Expired => {
             let e = report.expired.as_ref().expect("expired");
             let what = match e.preshape {
                 Some(p) => format!("the {p} pre-shape"),
                 None => format!("the {}", e.command),
             };
-            let refused = match e.refused_by_hand {
-                true => ", the hand refused a late copy",
-                false => "",
+            let sent = match (e.refused_by_hand, e.transmissions) {
+                (true, _) => ", the hand refused a late copy".to_string(),
+                (false, 0) => ", never sent".to_string(),
+                (false, n) => format!(", {n} copies sent: it may have reached the hand"),
+            };
+            let end = match (e.command, &report.reopened) {
+                ("CLOSE", _) | (_, Some(_)) => format!("no closure; {}", hand_after(report)),
+                _ => "not executed, no closure".to_string(),
             };
             format!(
                 "approach {approach}: {what} was not acknowledged within its {:.0} ms age limit \
-                 (given up at {:.0} ms{refused}): not executed, no closure",
+                 (given up at {:.0} ms{sent}): {end}",
                 e.limit_ms, e.age_ms
             )
         }
-        ApproachResult::HandFailed => format!(
-            "approach {approach}: the hand was not commanded: {}",
-            report.link_error.as_deref().unwrap_or("link failure")
-        ),
+        ApproachResult::HandFailed => {
+            let error = report.link_error.as_deref().unwrap_or("link failure");
+            match (&report.reopened, report.preshape.is_some()) {
+                (Some(_), _) => format!(
+                    "approach {approach}: the hand was not commanded as decided: {error}; hand opened"
+                ),
+                (None, true) => format!(
+                    "approach {approach}: the closure failed: {error}; \
+                     the hand could not be opened, its watchdog opens it"
+                ),
+                (None, false) => {
+                    format!("approach {approach}: the hand was not commanded: {error}")
+                }
+            }
+        }
         ApproachResult::Stopped => {
             let stop = report.stopped.as_ref().expect("stopped");
             let hand = match (stop.may_have_moved, &report.reopened) {
@@ -150,6 +169,17 @@ pub fn failure_reason(approach: usize, report: &ApproachReport) -> String {
             )
         }
         ApproachResult::Commanded | ApproachResult::NoCommand => format!("approach {approach}: ok"),
+    }
+}
+
+/// What became of the hand after a failed approach that opens it.
+fn hand_after(report: &ApproachReport) -> String {
+    match &report.reopened {
+        Some(_) => "hand opened".to_string(),
+        None => format!(
+            "the hand could not be opened ({}); its watchdog opens it",
+            report.link_error.as_deref().unwrap_or("link failure")
+        ),
     }
 }
 

@@ -252,3 +252,131 @@ fn bench_paces_its_frames_at_a_camera_rate() {
     let out = bench(&[]);
     assert!(text(&out.stdout).contains("(10 frames, back to back)"));
 }
+
+#[test]
+fn run_with_a_stdin_closure_at_end_of_input_opens_the_hand_and_exits_3() {
+    // Issue 60, case 3: stdin ends before the closure key: no "commanded".
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let mut args = run.args(pty.path().to_str().unwrap());
+    let closure = args.iter().position(|a| *a == "--closure").unwrap();
+    args[closure + 1] = "stdin";
+    args.extend(["--report", run.report.to_str().unwrap()]);
+    let out = hannes_run(&args); // stdin is /dev/null
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    let reason = last_line(&out.stderr);
+    assert!(
+        reason.contains("ended before it fired") && reason.ends_with("hand opened"),
+        "{reason}"
+    );
+    assert!(stderr.contains("0 commanded"), "{stderr}");
+    let line: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&run.report).unwrap().trim()).unwrap();
+    assert_eq!(line["result"], "aborted");
+    assert!(!line["reopened"].is_null());
+    assert_eq!(line["hand"]["state"], "open");
+    assert!(matches!(
+        pty.hand.events().last(),
+        Some(HandEvent::Open { .. })
+    ));
+}
+
+#[test]
+fn a_checkpoint_error_under_rust_backtrace_is_one_line() {
+    // Issue 60, case 4: candle captured a 64-line backtrace into the error.
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = dir.path().join("ckpt");
+    std::fs::create_dir_all(&ckpt).unwrap();
+    for entry in std::fs::read_dir(checkpoint()).unwrap() {
+        let entry = entry.unwrap();
+        if entry.file_type().unwrap().is_file() {
+            std::fs::copy(entry.path(), ckpt.join(entry.file_name())).unwrap();
+        }
+    }
+    let best = ckpt.join("best.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&best).unwrap()).unwrap();
+    meta["head"]["feature_dim"] = 1000.into();
+    std::fs::write(&best, meta.to_string()).unwrap();
+    let seq = sequence(dir.path(), 3, None);
+    let finished = program().run([
+        "replay".as_ref(),
+        "--checkpoint".as_ref(),
+        ckpt.as_os_str(),
+        "--source".as_ref(),
+        seq.as_os_str(),
+    ]);
+    let reason = finished.assert_user_error();
+    assert!(reason.contains("shape mismatch"), "{reason}");
+    assert!(
+        !finished.stderr.contains("candle_core::"),
+        "{}",
+        finished.stderr
+    );
+    assert_eq!(finished.stderr.lines().count(), 1, "{}", finished.stderr);
+}
+
+#[test]
+fn a_window_of_1e30_seconds_is_refused_before_the_hand_is_told_anything() {
+    // Issue 60, case 7: it panicked converting the window to a Duration,
+    // after `run` had sent HELLO.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let mut args = run.args(pty.path().to_str().unwrap());
+    args.extend(["--window", "1e30"]);
+    let line = program().user_error(&args);
+    assert!(line.contains("window_s"), "{line}");
+    let seq = run.seq.to_str().unwrap();
+    let ckpt = checkpoint().to_str().unwrap();
+    let line = program().user_error([
+        "replay",
+        "--checkpoint",
+        ckpt,
+        "--source",
+        seq,
+        "--window",
+        "1e30",
+    ]);
+    assert!(line.contains("window_s"), "{line}");
+    assert!(pty.hand.events().is_empty(), "{:?}", pty.hand.events());
+}
+
+#[test]
+fn lens_size_alone_says_what_is_missing() {
+    // Issue 60, case 15: it said what the flag is, not what was missing.
+    let dir = tempfile::tempdir().unwrap();
+    let seq = sequence(dir.path(), 3, None);
+    let ckpt = checkpoint().to_str().unwrap();
+    let line = program().user_error([
+        "replay",
+        "--checkpoint",
+        ckpt,
+        "--source",
+        seq.to_str().unwrap(),
+        "--lens-size",
+        "640x480",
+    ]);
+    assert!(
+        line.contains("without") && line.contains("--focal-px"),
+        "{line}"
+    );
+}
+
+#[test]
+fn a_baud_rate_of_0_is_a_usage_error() {
+    // Issue 60's note: --baud 0 was accepted.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Approach::new(dir.path(), 4, None);
+    let mut args = run.args("/dev/null");
+    args.extend(["--baud", "0"]);
+    let out = hannes_run(&args);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("--baud"),
+        "{}",
+        text(&out.stderr)
+    );
+}

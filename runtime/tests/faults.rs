@@ -27,7 +27,7 @@ use runtime::feed::FeedMode;
 use runtime::link::{Hand, LinkConfig};
 use runtime::policy::{Outcome, PolicyConfig};
 use runtime::protocol::HandState;
-use runtime::session::{SessionSummary, EXIT_EXPIRED};
+use runtime::session::{SessionSummary, EXIT_EXPIRED, EXIT_HAND};
 use runtime::simhand::{FaultKind, FaultSpec, HandEvent, PtyHand};
 use runtime::source::{MemorySource, Pacing};
 use runtime::trigger::{Trigger, TriggerError};
@@ -379,4 +379,353 @@ fn a_decision_taken_while_the_link_is_down_is_never_executed_late() {
         })
         .collect();
     assert_eq!(order, vec!["unplugged", "watchdog_open", "replugged"]);
+}
+
+// ---- Failed, late and lost closures; a reconnect in every phase ----
+//
+// Whenever a PRESHAPE or CLOSE may have reached the hand and the approach
+// does not end as decided, the host opens the hand; a CLOSE goes out only
+// while the hand says (its last ACK, after a reconnect its HELLO) that it is
+// in the decided pre-shape.
+
+/// The hand's state after its last event (open before any).
+fn final_state(events: &[(Instant, HandEvent)]) -> HandState {
+    let mut state = HandState::Open;
+    for (_, e) in events {
+        match e {
+            HandEvent::Preshape { .. } => state = HandState::Preshaped,
+            HandEvent::Close { .. } => state = HandState::Closed,
+            HandEvent::Open { .. } | HandEvent::WatchdogOpen { .. } => state = HandState::Open,
+            _ => {}
+        }
+    }
+    state
+}
+
+/// A closure trigger that runs `before` (unplug the hand, wait...) and
+/// then fires.
+struct ActingTrigger<F: FnMut() + Send> {
+    before: F,
+    fired: Option<Instant>,
+}
+
+impl<F: FnMut() + Send> Trigger for ActingTrigger<F> {
+    fn wait(&mut self, _stop: &AtomicBool) -> Result<bool, TriggerError> {
+        (self.before)();
+        self.fired = Some(Instant::now());
+        Ok(true)
+    }
+
+    fn describe(&self) -> String {
+        "acting trigger".into()
+    }
+}
+
+/// One approach deciding `preshape`, with `closure` as its closure trigger.
+fn approach_with(
+    hand: &Hand,
+    preshape: Preshape,
+    limit: Duration,
+    closure: &mut dyn Trigger,
+) -> ApproachReport {
+    let class = Class::from(preshape);
+    let source =
+        MemorySource::new(frames_of(&[class; 12]), 30.0, Pacing::AsFastAsPossible).unwrap();
+    let t0 = Instant::now();
+    let (_, window) = classify_window(
+        Box::new(source),
+        FeedMode::Lockstep,
+        &mut FakeModel::new(),
+        &PolicyConfig::default(),
+        t0,
+        &mut |_| {},
+    )
+    .unwrap();
+    let stop = AtomicBool::new(false);
+    actuate(hand, window, Some(closure), &stop, t0, limit).unwrap()
+}
+
+/// One approach under `spec` (faults on after a clean HELLO): its report,
+/// the hand's log and the run's exit code for it.
+fn closure_case(spec: &str, limit: Duration) -> (ApproachReport, Vec<(Instant, HandEvent)>, u8) {
+    let dir = tempfile::tempdir().unwrap();
+    let faults: FaultSpec = spec.parse().unwrap();
+    let pty = PtyHand::plug_with_faults(&dir.path().join("hand"), faults, |_| {}).unwrap();
+    pty.hand.set_faults(false);
+    let hand = start_hand(pty.path(), link());
+    pty.hand.set_faults(true);
+    let mut closure = runtime::trigger::Timer(Duration::from_millis(20));
+    let report = approach_with(&hand, Preshape::Pinch3, limit, &mut closure);
+    // Frames a delay still holds arrive before the log is read.
+    std::thread::sleep(Duration::from_millis(600));
+    let mut summary = SessionSummary::default();
+    summary.record(1, &report);
+    (report, pty.hand.timed_events(), summary.exit_code())
+}
+
+/// The hand was opened by the host after the failed closure, and the run
+/// fails with `code`.
+fn assert_opened_after_failed_closure(
+    spec: &str,
+    report: &ApproachReport,
+    events: &[(Instant, HandEvent)],
+    code: u8,
+    expected_code: u8,
+) {
+    assert!(
+        report.preshape.is_some(),
+        "{spec}: pre-shaped first: {report:?}"
+    );
+    assert!(report.closure.is_none(), "{spec}: {report:?}");
+    let open = report.reopened.as_ref().unwrap_or_else(|| {
+        panic!("{spec}: no OPEN after the failed closure: {report:?} {events:?}")
+    });
+    assert_eq!(open.hand_state, HandState::Open, "{spec}");
+    assert_eq!(final_state(events), HandState::Open, "{spec}: {events:?}");
+    let last = report
+        .hand
+        .as_ref()
+        .expect("the hand's last ACK is reported");
+    assert_eq!(
+        (last.command.as_str(), last.state),
+        ("OPEN", HandState::Open)
+    );
+    assert_eq!(code, expected_code, "{spec}: {report:?}");
+}
+
+#[test]
+fn a_late_closure_executed_by_the_hand_is_followed_by_an_open() {
+    // Every CLOSE and its ACK are held 200 ms: the hand closes in time,
+    // its ACK comes after the 300 ms limit. The host cannot know it closed.
+    let spec = "delay=1:200,on=close";
+    let (report, events, code) = closure_case(spec, LIMIT);
+    let expired = report.expired.as_ref().expect("the closure expired");
+    assert_eq!(expired.command, "CLOSE");
+    assert!(expired.transmissions > 0);
+    assert!(events
+        .iter()
+        .any(|(_, e)| matches!(e, HandEvent::Close { .. })));
+    assert_opened_after_failed_closure(spec, &report, &events, code, EXIT_EXPIRED);
+    let mut summary = SessionSummary::default();
+    summary.record(1, &report);
+    let reason = summary.failure_message().unwrap();
+    assert!(
+        reason.contains("may have reached the hand") && reason.ends_with("hand opened"),
+        "{reason}"
+    );
+}
+
+#[test]
+fn a_lost_or_corrupted_closure_is_followed_by_an_open() {
+    for spec in ["drop=1,on=close", "corrupt=1,on=close"] {
+        // The limit lets every retry run out: the link reports no ACK.
+        let (report, events, code) = closure_case(spec, Duration::from_secs(30));
+        assert!(report.link_error.is_some(), "{spec}: {report:?}");
+        assert!(!events
+            .iter()
+            .any(|(_, e)| matches!(e, HandEvent::Close { .. })));
+        assert_opened_after_failed_closure(spec, &report, &events, code, EXIT_HAND);
+    }
+    // With the default limit, the same loss ends in an expired closure.
+    let spec = "drop=1,on=close";
+    let (report, events, code) = closure_case(spec, LIMIT);
+    assert!(report.expired.is_some(), "{report:?}");
+    assert_opened_after_failed_closure(spec, &report, &events, code, EXIT_EXPIRED);
+}
+
+#[test]
+fn a_closure_past_a_one_millisecond_limit_is_followed_by_an_open() {
+    // Whatever got through in 1 ms: never left pre-shaped by a failed
+    // approach.
+    let (report, events, _) = closure_case("delay=1:5,on=preshape+close", Duration::from_millis(1));
+    if report.preshape.is_some() {
+        assert!(report.reopened.is_some(), "{report:?}");
+    }
+    assert_eq!(final_state(&events), HandState::Open, "{events:?}");
+}
+
+#[test]
+fn the_closure_trigger_ending_opens_the_hand_and_fails_the_approach() {
+    let dir = tempfile::tempdir().unwrap();
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let hand = start_hand(pty.path(), link());
+    let (tx, mut closure) = runtime::trigger::ChannelTrigger::new("stdin (press Enter)");
+    drop(tx); // end of input: it can never fire
+    let report = approach_with(&hand, Preshape::Lateral, LIMIT, &mut closure);
+    assert!(report.preshape.is_some() && report.closure.is_none());
+    assert!(report.closure_missed.is_some(), "{report:?}");
+    assert!(report.reopened.is_some(), "{report:?}");
+    assert_eq!(final_state(&pty.hand.timed_events()), HandState::Open);
+    let mut summary = SessionSummary::default();
+    summary.record(1, &report);
+    assert_eq!(summary.commanded, 0);
+    assert_eq!(summary.exit_code(), runtime::session::EXIT_ABORTED);
+    let reason = summary.failure_message().unwrap();
+    assert!(reason.contains("ended before it fired"), "{reason}");
+}
+
+/// The hand unplugged during the closure delay for `outage`; `opens`: the
+/// watchdog opens it meanwhile (the outage is longer than the watchdog).
+fn reconnect_in_closure_delay(outage: Duration, opens: bool) {
+    let dir = tempfile::tempdir().unwrap();
+    let pty = PtyHand::plug(&dir.path().join("hand"), |_| {}).unwrap();
+    let hand = start_hand(pty.path(), link());
+    let mut closure = ActingTrigger {
+        before: || {
+            pty.hand.unplug();
+            assert!(eventually(Duration::from_secs(10), || !hand.is_connected()));
+            std::thread::sleep(outage);
+            if opens {
+                assert!(eventually(Duration::from_secs(10), || pty
+                    .hand
+                    .events()
+                    .iter()
+                    .any(|e| matches!(e, HandEvent::WatchdogOpen { .. }))));
+            }
+            pty.hand.replug();
+            assert!(eventually(Duration::from_secs(10), || hand.is_connected()));
+        },
+        fired: None,
+    };
+    let report = approach_with(
+        &hand,
+        Preshape::Pinch3,
+        Duration::from_secs(30),
+        &mut closure,
+    );
+    let events = pty.hand.timed_events();
+    let hello_after = events
+        .iter()
+        .rposition(|(_, e)| matches!(e, HandEvent::Hello { .. }))
+        .unwrap();
+    let closed_after = events[hello_after..]
+        .iter()
+        .any(|(_, e)| matches!(e, HandEvent::Close { .. }));
+    if opens {
+        assert!(!closed_after, "closed a hand that was open: {events:?}");
+        assert!(
+            report.closure.is_none() && report.reopened.is_some(),
+            "{report:?}"
+        );
+        let error = report.link_error.as_deref().unwrap();
+        assert!(error.contains("not pre-shaped"), "{error}");
+        let mut summary = SessionSummary::default();
+        summary.record(1, &report);
+        assert_eq!(summary.exit_code(), runtime::session::EXIT_HAND);
+        assert!(summary.failure_message().unwrap().ends_with("hand opened"));
+    } else {
+        // Still in the decided pre-shape, as its HELLO said: closed.
+        assert!(
+            closed_after && report.closure.is_some(),
+            "{report:?} {events:?}"
+        );
+        assert_eq!(report.hand.as_ref().unwrap().state, HandState::Closed);
+    }
+}
+
+#[test]
+fn after_a_reconnect_in_the_closure_delay_an_opened_hand_is_not_closed() {
+    reconnect_in_closure_delay(Duration::from_millis(900), true);
+}
+
+#[test]
+fn after_a_short_reconnect_in_the_closure_delay_a_shaped_hand_is_closed() {
+    reconnect_in_closure_delay(Duration::ZERO, false);
+}
+
+#[test]
+fn a_fresh_hand_on_the_same_path_is_never_closed() {
+    // The hand is replaced during the closure delay: the new one is open in
+    // its Power configuration, not in the decided pinch3.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("hand");
+    let first = PtyHand::plug(&path, |_| {}).unwrap();
+    let hand = start_hand(first.path(), link());
+    let mut first = Some(first);
+    let second = std::sync::Mutex::new(None);
+    let mut closure = ActingTrigger {
+        before: || {
+            drop(first.take());
+            assert!(eventually(Duration::from_secs(10), || !hand.is_connected()));
+            *second.lock().unwrap() = Some(PtyHand::plug(&path, |_| {}).unwrap());
+            assert!(eventually(Duration::from_secs(10), || hand.is_connected()));
+        },
+        fired: None,
+    };
+    let report = approach_with(
+        &hand,
+        Preshape::Pinch3,
+        Duration::from_secs(30),
+        &mut closure,
+    );
+    let second = second.lock().unwrap().take().unwrap();
+    let events = second.hand.events();
+    assert!(
+        !events.iter().any(|e| matches!(e, HandEvent::Close { .. })),
+        "{events:?}"
+    );
+    assert!(
+        report.closure.is_none() && report.link_error.is_some(),
+        "{report:?}"
+    );
+    let last = report.hand.as_ref().unwrap();
+    assert_eq!(last.state, HandState::Open);
+}
+
+#[test]
+fn a_reconnect_while_the_closure_is_in_flight_never_closes_an_opened_hand() {
+    // The hand unplugs itself on the CLOSE for longer than its watchdog:
+    // whether or not it executed the CLOSE, the watchdog opens it, its
+    // HELLO says open, and the CLOSE is not sent again.
+    let spec = "disconnect=1:900,on=close";
+    let (report, events, code) = closure_case(spec, Duration::from_secs(30));
+    let hello = events
+        .iter()
+        .rposition(|(_, e)| matches!(e, HandEvent::Hello { .. }))
+        .unwrap();
+    assert!(
+        !events[hello..]
+            .iter()
+            .any(|(_, e)| matches!(e, HandEvent::Close { .. })),
+        "{events:?}"
+    );
+    assert_opened_after_failed_closure(spec, &report, &events, code, EXIT_HAND);
+}
+
+#[test]
+fn a_reconnect_while_the_preshape_is_in_flight_executes_it_once_shaped() {
+    // The hand unplugs itself on the PRESHAPE: the host re-opens, says HELLO
+    // and sends the pre-shape again; the closure follows only on the shaped
+    // hand.
+    let (report, events, code) = closure_case(
+        "disconnect=1:200,on=preshape,until=3000",
+        Duration::from_secs(30),
+    );
+    let _ = code;
+    check_safety_single(&report, &events);
+}
+
+/// One approach's report against the hand's log: a CLOSE only after a
+/// PRESHAPE of the decided pinch3, and the hand open unless the closure
+/// was confirmed.
+fn check_safety_single(report: &ApproachReport, events: &[(Instant, HandEvent)]) {
+    let mut shaped = false;
+    for (_, e) in events {
+        match e {
+            HandEvent::Preshape { preshape, .. } => {
+                assert_eq!(*preshape, Some(Preshape::Pinch3));
+                shaped = true;
+            }
+            HandEvent::WatchdogOpen { .. } | HandEvent::Open { .. } => shaped = false,
+            HandEvent::Close { .. } => assert!(shaped, "closed unshaped: {events:?}"),
+            _ => {}
+        }
+    }
+    if report.closure.is_none() {
+        assert_eq!(
+            final_state(events),
+            HandState::Open,
+            "{report:?} {events:?}"
+        );
+    }
 }

@@ -9,6 +9,7 @@ use crate::error::ConfigError;
 use crate::optim::AdamConfig;
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
+use grasp_support::num;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -230,6 +231,8 @@ impl TrainConfig {
         self.validate_backbone()?;
         self.validate_fine_tune()?;
         self.validate_sequences()?;
+        self.validate_numbers()?;
+        self.reader.validate_numbers()?;
         if self.width_mult.is_nan() || self.width_mult <= 0.0 || self.input_size < 32 {
             return refuse(
                 "width_mult",
@@ -240,6 +243,78 @@ impl TrainConfig {
             );
         }
         Ok(())
+    }
+
+    /// The numeric settings of the optimisation, each finite and in its
+    /// range (a negative rate is gradient ascent, 0 epochs writes no
+    /// checkpoint), checked before any data is read.
+    fn validate_numbers(&self) -> Result<(), ConfigError> {
+        let o = &self.optimizer;
+        let positive = [("optimizer.lr", o.lr), ("optimizer.eps", o.eps)];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return refuse(
+                    field,
+                    format!("{field} must be a positive number, got {}", num(v)),
+                );
+            }
+        }
+        let fractions = [("optimizer.beta1", o.beta1), ("optimizer.beta2", o.beta2)];
+        for (field, v) in fractions {
+            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
+                return refuse(field, format!("{field} must be in [0, 1), got {}", num(v)));
+            }
+        }
+        if !(o.weight_decay.is_finite() && o.weight_decay >= 0.0) {
+            return refuse(
+                "optimizer.weight_decay",
+                format!(
+                    "optimizer.weight_decay must be 0 or positive, got {}",
+                    num(o.weight_decay)
+                ),
+            );
+        }
+        if self.batch_size == Some(0) {
+            return refuse("batch_size", "batch_size must be at least 1, got 0".into());
+        }
+        if self.max_epochs == 0 {
+            return refuse(
+                "max_epochs",
+                "max_epochs must be at least 1, got 0 (no epoch, no checkpoint)".into(),
+            );
+        }
+        if !(self.plateau_factor.is_finite()
+            && self.plateau_factor > 0.0
+            && self.plateau_factor <= 1.0)
+        {
+            return refuse(
+                "plateau_factor",
+                format!(
+                    "plateau_factor must be in (0, 1], got {}",
+                    num(self.plateau_factor)
+                ),
+            );
+        }
+        if self.feature_batch == 0 || self.lstm_hidden == 0 {
+            return refuse(
+                "feature_batch",
+                format!(
+                    "feature_batch and lstm_hidden must be at least 1, got {} and {}",
+                    self.feature_batch, self.lstm_hidden
+                ),
+            );
+        }
+        if self.input_size > MAX_INPUT_SIZE {
+            return refuse(
+                "input_size",
+                format!(
+                    "input_size must be at most {MAX_INPUT_SIZE} pixels, got {} \
+                     (the paper's is 224)",
+                    self.input_size
+                ),
+            );
+        }
+        self.split.validate()
     }
 
     fn validate_views(&self) -> Result<(), ConfigError> {
@@ -386,6 +461,10 @@ impl TrainConfig {
         Ok(())
     }
 }
+
+/// The largest backbone input side accepted (a 100000-pixel side would ask
+/// for terabytes).
+pub const MAX_INPUT_SIZE: u32 = 1024;
 
 fn refuse(field: &'static str, reason: String) -> Result<(), ConfigError> {
     Err(ConfigError::invalid(field, reason))

@@ -191,6 +191,14 @@ pub struct NonFinite {
 pub enum TrainError {
     #[error(transparent)]
     Config(#[from] ConfigError),
+    /// A seed's folder that already holds a checkpoint, and no
+    /// `--overwrite`.
+    #[error(
+        "{} already holds a checkpoint (best.json): pass --overwrite to train over it, or \
+         choose another --out",
+        dir.display()
+    )]
+    CheckpointExists { dir: PathBuf },
     #[error(transparent)]
     Data(#[from] DataError),
     #[error(transparent)]
@@ -279,6 +287,36 @@ pub enum EvalError {
     },
     #[error("no video has a frame in the window ({window}): nothing to score")]
     EmptyWindow { window: String },
+    /// The same checkpoint given twice (by the same or another path).
+    #[error(
+        "checkpoint {} is given twice (also as {}): it would count as two seeds",
+        checkpoint.display(),
+        first.display()
+    )]
+    DuplicateCheckpoint { first: PathBuf, checkpoint: PathBuf },
+    /// A checkpoint whose class list is not the five classes in index
+    /// order: its outputs would be scored as other classes.
+    #[error(
+        "checkpoint {}: classes {classes:?} are not power, lateral, pinch, pinch3, no_grasp in \
+         index order; its outputs cannot be scored",
+        checkpoint.display()
+    )]
+    Classes {
+        checkpoint: PathBuf,
+        classes: Vec<String>,
+    },
+    /// A model output that is not a probability distribution (NaN, inf).
+    #[error(
+        "checkpoint {}: invalid model output on video {video} at {time_s:.3} s ({reason}): \
+         the model is broken, nothing is scored",
+        checkpoint.display()
+    )]
+    InvalidOutput {
+        checkpoint: PathBuf,
+        video: String,
+        time_s: f64,
+        reason: String,
+    },
     #[error("the checkpoint's train_config is not readable ({})", checkpoint.display())]
     TrainConfig {
         checkpoint: PathBuf,

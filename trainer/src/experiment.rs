@@ -23,6 +23,23 @@ pub struct ExperimentOutcome {
     pub report: Option<Report>,
 }
 
+/// The folder seed `k` of a run trains into.
+pub fn seed_dir(cfg: &TrainConfig, k: usize) -> PathBuf {
+    cfg.out.join(format!("seed-{}", cfg.seed + k as u64))
+}
+
+/// Refuses a run whose seed folders already hold a checkpoint, so that a
+/// finished run is never trained over by mistake (`--overwrite` skips it).
+pub fn check_no_checkpoint(cfg: &TrainConfig, seeds: usize) -> Result<(), TrainError> {
+    for k in 0..seeds.max(1) {
+        let dir = seed_dir(cfg, k);
+        if dir.join("best.json").exists() {
+            return Err(TrainError::CheckpointExists { dir });
+        }
+    }
+    Ok(())
+}
+
 /// Trains `seeds` models (seeds `cfg.seed`, `cfg.seed + 1`, ...) into
 /// `cfg.out/seed-N/`, then evaluates them on the test split into
 /// `cfg.out/report/` when there is one.
@@ -54,7 +71,7 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
     let mut runs = Vec::new();
     for k in 0..seeds.max(1) as u64 {
         let seed = cfg.seed + k;
-        let out = cfg.out.join(format!("seed-{seed}"));
+        let out = seed_dir(cfg, k as usize);
         tracing::info!("training seed {seed} into {}", out.display());
         runs.push(train::train(cfg, &prep, seed, &out)?);
     }
@@ -119,15 +136,40 @@ pub fn evaluate(
     let mut frames = crate::eval::html::FrameRecord::new(data);
     let (mut mode, mut backbone, mut cap) = (None, None, None);
     let (mut head, mut train_sequences) = (String::new(), None);
+    let mut head_kind = None;
+    let mut seen: Vec<(PathBuf, PathBuf)> = Vec::new();
     for ckpt in checkpoints {
+        // One checkpoint given twice would count as two seeds.
+        let real = ckpt.canonicalize().unwrap_or_else(|_| ckpt.clone());
+        if let Some((first, _)) = seen.iter().find(|(_, r)| *r == real) {
+            return Err(EvalError::DuplicateCheckpoint {
+                first: first.clone(),
+                checkpoint: ckpt.clone(),
+            });
+        }
+        seen.push((ckpt.clone(), real));
         let clf = Classifier::load(ckpt, &dev)?;
         let m = &clf.meta;
+        // The report scores class indices as the runtime's classes.
+        if clf.classes() != grasp_schema::taxonomy::Class::ALL {
+            return Err(EvalError::Classes {
+                checkpoint: ckpt.clone(),
+                classes: clf.classes().iter().map(|c| c.to_string()).collect(),
+            });
+        }
+        same(
+            "heads",
+            &mut head_kind,
+            m.head.kind.name().to_string(),
+            ckpt,
+        )?;
         same("modes", &mut mode, m.mode.name().to_string(), ckpt)?;
         same("backbones", &mut backbone, m.backbone.describe(), ckpt)?;
         same("sequences_per_pair", &mut cap, m.sequences_per_pair(), ckpt)?;
         head = m.head.kind.name().to_string();
         train_sequences = train_sequences.or(m.train_sequences);
         let all = crate::eval::predict::predict_dataset(&clf, data, &cache, bad)?;
+        check_outputs(ckpt, &all)?;
         let preds: Vec<_> = all.iter().filter_map(|v| window.apply(v)).collect();
         outside = all.len() - preds.len();
         if preds.is_empty() {
@@ -154,6 +196,28 @@ pub fn evaluate(
     report.videos_outside_window = outside;
     report.frames = Some(std::sync::Arc::new(frames));
     Ok(report)
+}
+
+/// Every output a probability distribution, as the runtime requires of
+/// each frame ([`grasp_policy::Probabilities::new`]): a NaN or infinite
+/// output is a broken model, not a prediction to score.
+fn check_outputs(
+    ckpt: &Path,
+    videos: &[crate::eval::metrics::VideoPrediction],
+) -> Result<(), EvalError> {
+    for v in videos {
+        for (k, p) in v.probs.iter().enumerate() {
+            if let Err(e) = grasp_policy::Probabilities::new(*p) {
+                return Err(EvalError::InvalidOutput {
+                    checkpoint: ckpt.to_path_buf(),
+                    video: v.id.clone(),
+                    time_s: v.times_s.get(k).copied().unwrap_or(f64::NAN),
+                    reason: e.to_string(),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Records the first checkpoint's `value` in `seen`; a later one differing

@@ -94,3 +94,78 @@ fn stand_in_logs_without_colour_codes_into_a_pipe_and_prints_its_checkpoint() {
         done.stdout
     );
 }
+
+/// `grasp-train train` with `--set KEY=VALUE` on data that does not exist:
+/// the setting must be refused first, naming its field, as a user error.
+fn refused_setting(set: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("no-data-here");
+    let out = dir.path().join("run");
+    let line = grasp_train().user_error([
+        "train".as_ref(),
+        "--recipe".as_ref(),
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../configs/recipes/fc.toml")
+            .as_os_str(),
+        "--data".as_ref(),
+        missing.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--set".as_ref(),
+        set.as_ref(),
+    ]);
+    assert!(
+        !line.contains("no-data-here"),
+        "{set}: data read first: {line}"
+    );
+    assert!(!out.exists(), "{set}: {} written", out.display());
+    line
+}
+
+#[test]
+fn numeric_training_settings_are_refused_naming_the_field_before_any_data() {
+    // Issue 60, cases 6, 10 and 11.
+    for (set, field) in [
+        ("input_size=100000", "input_size"),
+        ("optimizer.lr=-1", "optimizer.lr"),
+        ("optimizer.lr=0", "optimizer.lr"),
+        ("optimizer.lr=nan", "optimizer.lr"),
+        ("batch_size=0", "batch_size"),
+        ("max_epochs=0", "max_epochs"),
+        ("split.val_fraction=1.5", "split.val_fraction"),
+        ("split.test_fraction=nan", "split.test_fraction"),
+        ("reader.real_fps=nan", "reader.real_fps"),
+        ("reader.real_fps=0", "reader.real_fps"),
+    ] {
+        let line = refused_setting(set);
+        assert!(line.contains(field), "{set}: {line}");
+    }
+}
+
+#[test]
+fn the_help_names_the_default_backbone() {
+    // Issue 60, case 15: it opened with "MobileNetV2 in candle".
+    let done = grasp_train().run(["--help"]);
+    assert!(done.status.success(), "{}", done.stderr);
+    let first = done.stdout.lines().next().unwrap_or_default();
+    assert!(first.contains("EfficientNet-Lite0"), "{first}");
+    assert!(
+        !done.stdout.contains("MobileNetV2 in candle"),
+        "{}",
+        done.stdout
+    );
+}
+
+#[test]
+fn the_docs_name_no_crop_flag_that_no_program_accepts() {
+    // Issue 60, case 15: the fixed-angle crop is `reader.crop`, not a flag.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut files = vec![root.join("README.md")];
+    for e in std::fs::read_dir(root.join("docs")).unwrap().flatten() {
+        files.extend((e.path().extension() == Some("md".as_ref())).then(|| e.path()));
+    }
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        assert!(!text.contains("--crop-angle-deg"), "{}", f.display());
+    }
+}

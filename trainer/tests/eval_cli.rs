@@ -587,3 +587,193 @@ fn eval_writes_a_report_page_that_renders_in_a_browser() {
         "the screenshot looks blank (luma variance {var:.1})"
     );
 }
+
+/// A stand-in FC checkpoint (random MobileNetV2 backbone, 32 px) and an
+/// LSTM head trained on the same data and backbone: (data, fc, lstm).
+fn fc_and_lstm(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    use grasp_model::backbone::Architecture;
+    let fc = trainer::stand_in::stand_in_checkpoint(dir, 32, Architecture::MobileNetV2).unwrap();
+    let mut cfg = trainer::config::TrainConfig {
+        data: dir.join("data"),
+        out: dir.join("run-lstm"),
+        mode: grasp_model::checkpoint::TrainMode::FrozenPretrained,
+        head: grasp_model::heads::HeadKind::Lstm,
+        backbone: Some(Architecture::MobileNetV2),
+        weights: Some(dir.join("backbone.safetensors")),
+        width_mult: 1.0,
+        input_size: 32,
+        max_epochs: 1,
+        lstm_hidden: 8,
+        cache_dir: dir.join("cache"),
+        ..Default::default()
+    };
+    cfg.split.val_fraction = 0.34;
+    cfg.split.test_fraction = 0.0;
+    let lstm = trainer::experiment::run(&cfg, 1).unwrap().runs[0]
+        .checkpoint
+        .clone();
+    (dir.join("data"), fc, lstm)
+}
+
+fn program() -> grasp_test_support::Program {
+    grasp_test_support::Program::new(env!("CARGO_BIN_EXE_grasp-train"))
+}
+
+/// `eval -c C1 -c C2 ... --data DATA --out OUT`.
+fn eval_args(checkpoints: &[&Path], data: &Path, out: &Path) -> Vec<std::ffi::OsString> {
+    let mut args: Vec<std::ffi::OsString> = vec!["eval".into()];
+    for c in checkpoints {
+        args.push("-c".into());
+        args.push(c.into());
+    }
+    args.extend(["--data".into(), data.into(), "--out".into(), out.into()]);
+    args
+}
+
+/// A copy of checkpoint folder `ckpt` at `to`, its best.json changed by
+/// `edit`.
+fn edited_copy(ckpt: &Path, to: &Path, edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(ckpt).unwrap().flatten() {
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+    let best = to.join("best.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&best).unwrap()).unwrap();
+    edit(&mut meta);
+    std::fs::write(&best, meta.to_string()).unwrap();
+    to.to_path_buf()
+}
+
+#[test]
+fn eval_refuses_mixed_heads_duplicates_other_class_lists_and_broken_outputs() {
+    // Issue 60, cases 9, 12 and 13: each gave a normal report, exit 0.
+    let dir = tempfile::tempdir().unwrap();
+    let (data, fc, lstm) = fc_and_lstm(dir.path());
+    let out = dir.path().join("report");
+    let done = program().run(eval_args(&[&fc, &lstm], &data, &out));
+    let line = done.assert_user_error();
+    assert!(
+        line.contains("different heads") && line.contains("lstm"),
+        "{line}"
+    );
+    let line = program().user_error(eval_args(&[&fc, &fc], &data, &out));
+    assert!(line.contains("given twice"), "{line}");
+    // The same checkpoint by another path is the same checkpoint.
+    let other_path = fc.parent().unwrap().join("../run/seed-0");
+    let line = program().user_error(eval_args(&[&fc, &other_path], &data, &out));
+    assert!(line.contains("given twice"), "{line}");
+    for (name, classes) in [
+        (
+            "swapped",
+            serde_json::json!(["lateral", "power", "pinch", "pinch3", "no_grasp"]),
+        ),
+        (
+            "twice",
+            serde_json::json!(["power", "power", "pinch", "pinch3", "no_grasp"]),
+        ),
+    ] {
+        let copy = edited_copy(&fc, &dir.path().join(name), |m| m["classes"] = classes);
+        let line = program().user_error(eval_args(&[&copy], &data, &out));
+        assert!(line.contains("classes"), "{name}: {line}");
+    }
+    // Finite weights whose outputs are NaN.
+    let broken = edited_copy(&fc, &dir.path().join("broken"), |_| {});
+    let weights = broken.join("best.safetensors");
+    let tensors = candle_core::safetensors::load(&weights, &candle_core::Device::Cpu).unwrap();
+    let huge: std::collections::HashMap<String, candle_core::Tensor> = tensors
+        .into_iter()
+        .map(|(k, t)| {
+            let t = match k.starts_with("head.") {
+                true => (t.ones_like().unwrap() * 3e38).unwrap(),
+                false => t,
+            };
+            (k, t)
+        })
+        .collect();
+    candle_core::safetensors::save(&huge, &weights).unwrap();
+    let line = program().user_error(eval_args(&[&broken], &data, &out));
+    assert!(line.contains("invalid model output"), "{line}");
+    assert!(!out.join("report.json").exists(), "a report was written");
+    // Case 8: a frame rate of 0 (or NaN) for data without sequence.json
+    // panicked; refused before any data is read.
+    for fps in ["0", "nan"] {
+        let missing = dir.path().join("no-data-here");
+        let mut args = eval_args(&[&fc], &missing, &out);
+        args.extend([
+            "--hfov-deg".into(),
+            "45".into(),
+            "--real-fps".into(),
+            fps.into(),
+        ]);
+        let line = program().user_error(args);
+        assert!(
+            line.contains("real_fps") && !line.contains("no-data-here"),
+            "{line}"
+        );
+    }
+    // The checkpoint itself is fine.
+    let done = program().run(eval_args(&[&fc], &data, &out));
+    assert!(done.status.success(), "{}", done.stderr);
+}
+
+#[test]
+fn eval_says_which_folder_the_manifest_lists_but_is_missing() {
+    // Issue 60, case 14: 7 of 8 sequences were scored without a word.
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = trainer::stand_in::stand_in_checkpoint(
+        dir.path(),
+        32,
+        grasp_model::backbone::Architecture::MobileNetV2,
+    )
+    .unwrap();
+    let data = dir.path().join("data");
+    let manifest = std::fs::read_to_string(data.join("manifest.jsonl")).unwrap();
+    let first: serde_json::Value = serde_json::from_str(manifest.lines().next().unwrap()).unwrap();
+    let gone = first["path"].as_str().unwrap().to_string();
+    std::fs::remove_dir_all(data.join(&gone)).unwrap();
+    let out = dir.path().join("report");
+    // Skipping bad data (eval's default), it says so, scores the rest and
+    // lists the folder beside the report.
+    let done = program().run(eval_args(&[&ckpt], &data, &out));
+    assert!(done.status.success(), "{}", done.stderr);
+    assert!(
+        done.stderr.contains(&gone) && done.stderr.contains("listed in manifest.jsonl but missing"),
+        "{}",
+        done.stderr
+    );
+    let problems = std::fs::read_to_string(out.join("problems.json")).unwrap();
+    assert!(problems.contains(&gone), "{problems}");
+    // Told to fail on bad data, it refuses, naming the folder.
+    let mut args = eval_args(&[&ckpt], &data, &dir.path().join("strict"));
+    args.extend(["--on-bad-data".into(), "fail".into()]);
+    let line = program().user_error(args);
+    assert!(line.contains(&gone) && line.contains("missing"), "{line}");
+}
+
+#[test]
+fn train_into_a_folder_holding_a_checkpoint_is_refused_unless_overwritten() {
+    // Issue 60, case 14: the checkpoint was overwritten without a word.
+    let dir = tempfile::tempdir().unwrap();
+    let work = dir.path();
+    let ckpt = train_tiny(work);
+    let before = std::fs::read(ckpt.join("best.safetensors")).unwrap();
+    let mut args: Vec<&str> = vec!["--threads", "2", "train", "--data", "data", "--out", "run"];
+    args.extend(TINY_RECIPE);
+    args.extend(["--set", "seed=0"]);
+    let (ok, text) = grasp_train(work, &args);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("already holds a checkpoint") && text.contains("--overwrite"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read(ckpt.join("best.safetensors")).unwrap(),
+        before
+    );
+    args.push("--overwrite");
+    let (ok, text) = grasp_train(work, &args);
+    assert!(ok, "{text}");
+}

@@ -371,7 +371,17 @@ pub fn visit_sequences(
 pub fn sequence_dirs(root: &Path, head: bool) -> Result<Vec<String>> {
     let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
+    // Each folder once, by its real path: a symlink to a folder above it
+    // (a loop) is not followed round and round.
+    let mut seen = std::collections::HashSet::new();
     while let Some(dir) = stack.pop() {
+        if !seen.insert(dir.canonicalize().unwrap_or_else(|_| dir.clone())) {
+            tracing::warn!(
+                "{}: a folder already listed (a symlink loop?): not read again",
+                dir.display()
+            );
+            continue;
+        }
         let cannot_read = |e| DatasetError::io("cannot read", &dir, e);
         let entries = std::fs::read_dir(&dir).map_err(cannot_read)?;
         for entry in entries {
@@ -416,6 +426,18 @@ pub fn read_record(path: &Path) -> Result<SequenceRecord> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_symlink_loop_is_listed_once() {
+        // Issue 60's note: `dataset verify` followed a loop 40 levels deep.
+        let dir = tempfile::tempdir().unwrap();
+        let seq = dir.path().join("can/010_can/power_no3/Wrist_d435/rgb00000");
+        std::fs::create_dir_all(&seq).unwrap();
+        std::fs::write(seq.join(SEQUENCE_FILE), "{}").unwrap();
+        std::os::unix::fs::symlink(dir.path(), dir.path().join("can/loop")).unwrap();
+        let found = sequence_dirs(dir.path(), false).unwrap();
+        assert_eq!(found.len(), 1, "{found:?}");
+    }
+
     use super::*;
     use grasp_schema::taxonomy::Preshape;
     use grasp_schema::{Condition, SequenceKey};

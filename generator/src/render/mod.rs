@@ -251,7 +251,10 @@ impl RenderConfig {
         if !(self.center_region > 0.0 && self.center_region <= 1.0) {
             return Err(ConfigError::invalid(
                 "[render] center_region",
-                format!("must be in (0, 1], got {}", self.center_region),
+                format!(
+                    "must be in (0, 1], got {}",
+                    grasp_support::num(self.center_region)
+                ),
             ));
         }
         if self.center_region < 1.0 && self.passes != [Pass::Rgb] {

@@ -148,7 +148,9 @@ impl Lens {
             }),
             (None, Some(_), _, _) => Err(InputError::Field {
                 field: "lens.size",
-                reason: "is the resolution a focal length (--focal-px) was measured at".into(),
+                reason: "(--lens-size) is given without the focal length measured at it: add \
+                         --focal-px PIXELS, or give the lens as --hfov-deg or --lens-file alone"
+                    .into(),
             }),
             (None, _, Some(a), _) => Lens::horizontal_fov(a).map(Some),
             (None, _, None, Some(path)) => Lens::from_file(path).map(Some),

@@ -89,7 +89,7 @@ pub enum Crop {
 
 impl Crop {
     /// A crop from the two ways of asking for one (`--center-crop`,
-    /// `--crop-angle-deg`); both at once is an error.
+    /// `reader.crop = { angle_deg = D }`); both at once is an error.
     pub fn from_options(fraction: Option<f64>, angle_deg: Option<f64>) -> Result<Crop, InputError> {
         let crop = match (fraction, angle_deg) {
             (None, None) => Crop::Whole,

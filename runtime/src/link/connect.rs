@@ -81,6 +81,9 @@ impl HandLink {
         }
         self.reset_decoder();
         self.clock.reset();
+        // Another hand, or the same one after its watchdog: only its HELLO
+        // says what state it is in.
+        self.last_ack = None;
         match self.hello() {
             Ok(()) => {
                 self.session += 1;

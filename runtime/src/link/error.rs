@@ -1,7 +1,8 @@
 //! Why a command was not delivered, or the link not started.
 
 use crate::config::InvalidSetting;
-use crate::protocol::Status;
+use crate::protocol::{HandState, Status};
+use grasp_schema::taxonomy::HandConfiguration;
 
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
@@ -38,6 +39,21 @@ pub enum LinkError {
         transmissions: u32,
         device: String,
     },
+    /// A CLOSE not sent because the hand is not in the pre-shape it
+    /// executed (a reconnect: its HELLO says it is open, closed or in
+    /// another configuration, e.g. after its watchdog opened it, or it is
+    /// another hand). `transmissions` > 0: an earlier copy may have
+    /// reached it.
+    #[error("{command} (seq {seq}) not sent to the hand on {device}: it reports {} in the {} configuration, not pre-shaped in the {} one it executed ({transmissions} transmissions)", state_name(state), describe(config), describe(expected))]
+    NotShaped {
+        command: &'static str,
+        seq: u8,
+        state: Option<HandState>,
+        config: Option<HandConfiguration>,
+        expected: Option<HandConfiguration>,
+        transmissions: u32,
+        device: String,
+    },
     /// A stop was requested (a signal) before the ACK: the command is not
     /// transmitted again. If `transmissions` > 0 a copy may have reached
     /// the hand.
@@ -48,6 +64,24 @@ pub enum LinkError {
         transmissions: u32,
         device: String,
     },
+}
+
+/// Which pre-shape a configuration is (Table 1), for messages.
+fn describe(config: &Option<HandConfiguration>) -> String {
+    match config {
+        Some(c) => match crate::simhand::preshape_of(*c) {
+            Some(p) => p.to_string(),
+            None => format!("{c:?}"),
+        },
+        None => "none".into(),
+    }
+}
+
+fn state_name(state: &Option<HandState>) -> String {
+    match state {
+        Some(s) => format!("{s:?}").to_lowercase(),
+        None => "unknown".into(),
+    }
 }
 
 /// Why [`super::Hand::start`] gave no hand.

@@ -2,7 +2,7 @@
 //! hand's watchdog fed.
 
 use super::{Delivery, HandLink, LinkError, LinkStats, StartError};
-use crate::protocol::Command;
+use crate::protocol::{Ack, Command};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -83,6 +83,11 @@ impl Hand {
 
     pub fn is_connected(&self) -> bool {
         lock(&self.link).is_connected()
+    }
+
+    /// What the hand last acknowledged ([`HandLink::last_ack`]).
+    pub fn last_ack(&self) -> Option<Ack> {
+        lock(&self.link).last_ack()
     }
 }
 

@@ -4,7 +4,9 @@
 
 use super::{HandClock, LinkConfig, LinkStats};
 use crate::decoder::{Decoder, DecoderStats};
+use crate::protocol::Ack;
 use crate::transport::{Connector, Duplex};
+use grasp_schema::taxonomy::HandConfiguration;
 use std::time::{Duration, Instant};
 
 /// Single-threaded link. Wrap it in [`super::Hand`] for the heartbeat.
@@ -23,6 +25,12 @@ pub struct HandLink {
     pub(super) session: u64,
     /// The loss of the device was logged (once per outage).
     pub(super) down_reported: bool,
+    /// The last ACK of a command the hand answered (its state and
+    /// configuration then); a new connection starts with its HELLO's.
+    pub(super) last_ack: Option<Ack>,
+    /// The configuration of the last PRESHAPE the hand executed (status
+    /// OK); a CLOSE is sent only while the hand says it is in it.
+    pub(super) shaped: Option<HandConfiguration>,
 }
 
 impl HandLink {
@@ -39,6 +47,8 @@ impl HandLink {
             clock: HandClock::new(),
             session: 0,
             down_reported: false,
+            last_ack: None,
+            shaped: None,
         }
     }
 
@@ -52,6 +62,18 @@ impl HandLink {
 
     pub fn is_connected(&self) -> bool {
         self.conn.is_some()
+    }
+
+    /// What the hand last acknowledged (HELLO included): its state and
+    /// configuration as of that ACK. After a reconnect, the new session's
+    /// HELLO, read before any further command.
+    pub fn last_ack(&self) -> Option<Ack> {
+        self.last_ack
+    }
+
+    /// Sessions started (HELLOs acknowledged) since the link was made.
+    pub fn session(&self) -> u64 {
+        self.session
     }
 
     pub fn stats(&self) -> LinkStats {

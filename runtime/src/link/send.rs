@@ -5,7 +5,7 @@
 use super::connect::Reconnect;
 use super::exchange::Wait;
 use super::{is_set, Delivery, HandLink, LinkError};
-use crate::protocol::{Ack, Command, HandTime, Status};
+use crate::protocol::{Ack, Command, HandState, HandTime, Status};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
@@ -100,6 +100,11 @@ impl HandLink {
                     .map_err(|why| flight.unreachable(self, why))?;
                 continue; // the expiry is checked again after the wait
             }
+            if command == Command::Close {
+                // Never close a hand that is not in the pre-shape it
+                // acknowledged (after a reconnect: what its HELLO says).
+                self.check_shaped(&flight)?;
+            }
             let Some(bytes) = self.frame(&flight, expires, &mut packet) else {
                 continue;
             };
@@ -185,6 +190,26 @@ impl HandLink {
         }
     }
 
+    /// A CLOSE may go out only while the hand's last ACK says it is
+    /// pre-shaped in the configuration of the last executed PRESHAPE.
+    fn check_shaped(&self, flight: &InFlight) -> Result<(), LinkError> {
+        let ack = self.last_ack;
+        let ok =
+            ack.is_some_and(|a| a.state == HandState::Preshaped && Some(a.config) == self.shaped);
+        if ok {
+            return Ok(());
+        }
+        Err(LinkError::NotShaped {
+            command: flight.command.name(),
+            seq: flight.seq,
+            state: ack.map(|a| a.state),
+            config: ack.map(|a| a.config),
+            expected: self.shaped,
+            transmissions: flight.transmissions(self),
+            device: self.device(),
+        })
+    }
+
     /// A delivery, if the ACK says OK.
     pub(super) fn accept(
         &mut self,
@@ -193,6 +218,12 @@ impl HandLink {
         attempts: u32,
         started: Instant,
     ) -> Result<Delivery, LinkError> {
+        self.last_ack = Some(ack);
+        match command {
+            Command::Preshape(c) if ack.status == Status::Ok => self.shaped = Some(c),
+            Command::Open if ack.status == Status::Ok => self.shaped = None,
+            _ => {}
+        }
         if ack.status != Status::Ok {
             return Err(LinkError::Rejected {
                 command: command.name(),

@@ -51,6 +51,59 @@ impl Default for ReaderOptions {
     }
 }
 
+/// Each sequence folder `manifest.jsonl` lists for `camera` exists: one
+/// that is gone is a problem (`bad`), not a silently smaller dataset.
+fn check_manifest_folders(root: &Path, camera: &str, bad: &BadData) -> Result<(), DataError> {
+    let manifest = root.join(MANIFEST_FILE);
+    let Ok(text) = fs::read_to_string(&manifest) else {
+        return bad.report(&manifest, "cannot be read");
+    };
+    for line in text.lines().filter(|l| !l.trim().is_empty()) {
+        let entry: Option<serde_json::Value> = serde_json::from_str(line).ok();
+        let Some(path) = entry.as_ref().and_then(|e| e["path"].as_str()) else {
+            bad.report(&manifest, format!("a line without a sequence path: {line}"))?;
+            continue;
+        };
+        if !path.split('/').any(|c| c == camera) {
+            continue;
+        }
+        let dir = root.join(path);
+        if !dir.is_dir() {
+            bad.report(
+                &dir,
+                format!("listed in {MANIFEST_FILE} but missing: the sequence is not read"),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+impl ReaderOptions {
+    /// `real_fps` finite and positive (at most 10000), `no_grasp_tail_s`
+    /// finite and not negative: checked before any data is read.
+    pub fn validate_numbers(&self) -> Result<(), crate::error::ConfigError> {
+        let fps = self.real_fps;
+        if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+            return Err(crate::error::ConfigError::invalid(
+                "reader.real_fps",
+                format!(
+                    "reader.real_fps (--real-fps) must be a frame rate in (0, 10000], got {fps}"
+                ),
+            ));
+        }
+        let tail = self.no_grasp_tail_s;
+        if !(tail.is_finite() && tail >= 0.0) {
+            return Err(crate::error::ConfigError::invalid(
+                "reader.no_grasp_tail_s",
+                format!(
+                    "reader.no_grasp_tail_s must be 0 or a positive number of seconds, got {tail}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Reads every sequence under `root`. Problems (unparseable or missing labels,
 /// missing frames) go through `bad`; a root that cannot be listed is an error.
 pub fn read_dataset(
@@ -98,6 +151,9 @@ pub fn read_dataset(
                 }
             }
         }
+    }
+    if generated {
+        check_manifest_folders(root, &opts.camera, bad)?;
     }
     if narrow_lens.get() > 0 {
         tracing::warn!(

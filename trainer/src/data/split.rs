@@ -20,6 +20,35 @@ pub struct SplitConfig {
     pub seed: u64,
 }
 
+impl SplitConfig {
+    /// Both fractions finite in [0, 1), together under 1 (some sequences
+    /// must be left to train on).
+    pub fn validate(&self) -> Result<(), crate::error::ConfigError> {
+        let invalid = |field, reason| Err(crate::error::ConfigError::invalid(field, reason));
+        for (field, v) in [
+            ("split.val_fraction", self.val_fraction),
+            ("split.test_fraction", self.test_fraction),
+        ] {
+            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
+                return invalid(
+                    field,
+                    format!("{field} must be in [0, 1), got {}", grasp_support::num(v)),
+                );
+            }
+        }
+        if self.val_fraction + self.test_fraction >= 1.0 {
+            return invalid(
+                "split.val_fraction",
+                format!(
+                    "split.val_fraction + split.test_fraction must be under 1, got {} + {}",
+                    self.val_fraction, self.test_fraction
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
 impl Default for SplitConfig {
     fn default() -> Self {
         SplitConfig {

@@ -11,10 +11,13 @@ Exit codes:
   0  every approach ended as decided (pre-shape executed, or no command on a weak vote)
   1  error outside the approaches (arguments, config, checkpoint, source, report file)
   2  command-line usage error
-  3  an approach was aborted (frame source or classifier failed, invalid model output)
-  4  the hand could not be reached or did not acknowledge a command
-  5  a decision was older than --max-decision-age-ms before the hand acknowledged it
-     (not executed, no closure; the hand is opened if a copy may have reached it)
+  3  an approach was aborted (frame source or classifier failed, invalid model output,
+     the closure trigger ended before it fired: the hand is opened)
+  4  the hand could not be reached or did not acknowledge a command (the hand is
+     opened if a command may have reached it; never closed unless it says it is
+     in the decided pre-shape)
+  5  a decision or closure was older than --max-decision-age-ms before the hand
+     acknowledged it (the hand is opened if a copy may have reached it)
   128+N  stopped by signal N: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; nothing
      is sent after it, and the hand is opened if a command may have reached it
 With several approaches, the code of the first failed one (a stop counts where it
@@ -66,7 +69,8 @@ pub(crate) struct RunArgs {
     /// Serial device of the hand (USB adapter, /dev/rfcomm0, pty link).
     #[arg(long)]
     pub(crate) port: PathBuf,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Starts an approach: `stdin` (Enter), `now`, or `timer:SECONDS`.
     #[arg(long, default_value = "stdin")]
@@ -113,7 +117,8 @@ pub(crate) struct SimArgs {
     /// PATH.owner naming this process; both are removed when it stops).
     #[arg(long)]
     pub(crate) pty: Option<PathBuf>,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Inject link faults, e.g. `drop=0.1,corrupt=0.05,duplicate=0.1,
     /// delay=0.2:400,disconnect=0.05:1500,outage=1500:7500,after=1000,
@@ -161,7 +166,8 @@ pub(crate) struct BenchArgs {
     /// Whole approaches (2 s window at 30 fps each) to time (0: none).
     #[arg(long, default_value_t = 5)]
     pub(crate) approaches: usize,
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial speed (both sides must agree; at least 1).
+    #[arg(long, default_value_t = 115_200, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) baud: u32,
     /// Input size of the synthetic frames.
     #[arg(long, default_value_t = 224, conflicts_with = "recording")]

@@ -163,6 +163,17 @@ impl SessionObserver for RunPrinter<'_> {
         if let Some(e) = &report.link_error {
             eprintln!("approach {n}: link error: {e}");
         }
+        if let (Some(hand), Some(_)) = (&report.hand, ApproachResult::of(report).exit_code(report))
+        {
+            eprintln!(
+                "approach {n}: the hand last acknowledged {} ({}): {}{}",
+                hand.command,
+                hand.status,
+                format!("{:?}", hand.state).to_lowercase(),
+                hand.preshape
+                    .map_or(String::new(), |p| format!(", {p} configuration"))
+            );
+        }
         if let Some(stop) = &report.stopped {
             let by = stop.signal.map_or("request".into(), |s| s.name());
             println!("approach {n}: STOPPED by {by} {}", stop.phase);

@@ -51,7 +51,7 @@ enum Command {
     Train(Box<TrainArgs>),
     /// Evaluate checkpoints and write report.md, report.json, PNG plots and
     /// report.html (every video's frames with each run's answers).
-    Eval(EvalArgs),
+    Eval(Box<EvalArgs>),
     /// Tabulate several evaluation reports; plot per-video error against x.
     ///
     /// Each --report is LABEL[=X]:PATH, PATH being a report.json written by
@@ -179,6 +179,9 @@ struct TrainArgs {
     /// report gives mean ± std over them).
     #[arg(long, default_value_t = 1)]
     seeds: usize,
+    /// Train over the checkpoints already in `--out` (refused without it).
+    #[arg(long)]
+    overwrite: bool,
     /// Feature cache directory (frozen-pretrained and fine-tuned modes).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
@@ -304,7 +307,7 @@ fn main() -> std::process::ExitCode {
         }
         match cli.command {
             Command::Train(a) => train(*a),
-            Command::Eval(a) => eval(a),
+            Command::Eval(a) => eval(*a),
             Command::Summarize(a) => summarize(a),
             Command::BenchHeads(a) => bench(a),
             Command::BenchBackbone(a) => bench_backbone(a),
@@ -328,6 +331,10 @@ fn train(args: TrainArgs) -> Result<()> {
         cfg.cache_dir = dir;
     }
     cfg.reader.lens = args.lens.lens()?.or(cfg.reader.lens);
+    cfg.validate()?;
+    if !args.overwrite {
+        trainer::experiment::check_no_checkpoint(&cfg, args.seeds)?;
+    }
     let outcome = trainer::experiment::run(&cfg, args.seeds)?;
     for r in &outcome.runs {
         println!(
@@ -368,6 +375,7 @@ fn eval(args: EvalArgs) -> Result<()> {
             camera: input.camera_folder.clone(),
             ..Default::default()
         };
+        opts.validate_numbers()?;
         let mut draws = Vec::new();
         for root in &args.data {
             let draw = trainer::data::read_dataset(root, &opts, &bad)?;
