@@ -8,6 +8,7 @@
 # for the shipped model, never one test set's best.
 #
 #   lab/policy-sweep.sh MAIN_OUT            # writes MAIN_OUT/lab/policy/
+#   MODELS="fc" lab/policy-sweep.sh MAIN_OUT  # only the models named (default: all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:?usage: lab/policy-sweep.sh MAIN_OUT}
@@ -19,21 +20,23 @@ CANDIDATES=(
   "default:"
   "window-1.2:--window 1.2"
   "window-1.6:--window 1.6"
-  "window-3:--window 3"
   "window-all:--window 60"
-  "votes-2:--min-votes 2"
   "votes-1:--min-votes 1"
   "confidence-0:--min-confidence 0"
   "checks-off:--min-votes 1 --min-share 0 --min-confidence 0"
   "checks-off-window-1.6:--min-votes 1 --min-share 0 --min-confidence 0 --window 1.6"
   "early-2:--early-margin 2"
-  "early-3:--early-margin 3"
   "fallback-none:--fallback none"
 )
 SETS=()
 for d in "$OUT"/report/fc/*/; do SETS+=("$(basename "$d")"); done
+NAMED=${MODELS:-}
 MODELS=()
-for d in "$OUT"/model-*/; do MODELS+=("${d%/}"); done
+if [ -n "$NAMED" ]; then
+  for m in $NAMED; do MODELS+=("$OUT/model-$m"); done
+else
+  for d in "$OUT"/model-*/; do MODELS+=("${d%/}"); done
+fi
 for candidate in "${CANDIDATES[@]}"; do
   name=${candidate%%:*} flags=${candidate#*:}
   ENTRIES=()
