@@ -816,7 +816,7 @@ fn the_camera_world_has_a_wide_4_by_3_lens_and_shakes_only_the_camera() {
                 .sum::<f64>()
                 .sqrt();
             assert!(moved < 0.02, "a shake of millimetres, not {moved} m");
-            a.camera = b.camera.clone();
+            a.camera = b.camera;
         }
         assert!(
             turned > 0.2 && turned < 8.0,
