@@ -500,8 +500,9 @@ impl Summary {
         }
     }
 
-    /// Every (object, part) of the multi-grasp objects in any row, sorted.
-    fn parts(&self) -> Vec<(String, String, String)> {
+    /// Every (object, part, pre-shape) of the multi-grasp objects in any
+    /// row, sorted.
+    pub fn parts(&self) -> Vec<(String, String, String)> {
         let mut parts: Vec<(String, String, String)> = self
             .rows
             .iter()

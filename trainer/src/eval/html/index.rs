@@ -183,17 +183,16 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
             let xv = r.x.map(|v| v.to_string()).unwrap_or_else(|| "–".into());
             let _ = write!(s, "<td>{xv}</td>");
         }
-        let extra = |key| pct_ms(aggregate(r, key).as_ref());
         let _ = writeln!(
             s,
             "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td class=\"l\">{}</td><td class=\"l\"><code>{}</code></td><td class=\"l\">{}</td></tr>",
             r.runs,
             pct_ms(Some(&r.video_accuracy)),
-            extra("hand_accuracy"),
+            pct_ms(r.hand_accuracy.as_ref()),
             pct_ms(r.frame_accuracy.as_ref()),
             pct_ms(r.frame_accuracy_without_no_grasp.as_ref()),
-            extra("last_second_accuracy"),
+            pct_ms(r.last_second_accuracy.as_ref()),
             pct_ms(r.baseline_video_accuracy.as_ref()),
             pct_ms(r.video_accuracy_single.as_ref()),
             pct_ms(r.video_accuracy_multi.as_ref()),
@@ -205,25 +204,10 @@ fn every_report(s: &mut String, summary: &Summary, dir: &Path) {
     s.push_str("</tbody></table>\n</section>\n");
 }
 
-/// A headline scalar of a row's report.json that the summary's rows do not
-/// carry (the hand's decision, the last second).
-fn aggregate(row: &Row, key: &str) -> Option<crate::eval::metrics::MeanStd> {
-    let text = std::fs::read_to_string(&row.source).ok()?;
-    let json: serde_json::Value = serde_json::from_str(&text).ok()?;
-    serde_json::from_value(json.get("aggregate")?.get(key)?.clone()).ok()
-}
-
 /// Per-video accuracy of each part of the multi-grasp objects: one row per
 /// part (and model, by condition), the reports or conditions as columns.
 fn parts(s: &mut String, summary: &Summary) {
-    let mut parts: Vec<(String, String, String)> = summary
-        .rows
-        .iter()
-        .flat_map(|r| &r.per_part)
-        .map(|p| (p.object.clone(), p.part.clone(), p.preshape.to_string()))
-        .collect();
-    parts.sort();
-    parts.dedup();
+    let parts = summary.parts();
     if parts.is_empty() {
         return;
     }
