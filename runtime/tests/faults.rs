@@ -22,7 +22,7 @@ mod common;
 
 use common::{eventually, frames_of, start_hand, FakeModel};
 use grasp_schema::taxonomy::{Class, Preshape};
-use runtime::approach::{actuate, classify_window, ApproachReport};
+use runtime::approach::{actuate, classify_window, ApproachReport, WindowReport};
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, LinkConfig};
 use runtime::policy::{Outcome, PolicyConfig};
@@ -83,7 +83,9 @@ struct Approach {
     report: ApproachReport,
 }
 
-fn approach(hand: &Hand, preshape: Preshape, limit: Duration) -> Approach {
+/// The window of an approach whose 12 frames all show `preshape`, decided
+/// by the default policy; with its trigger time.
+fn decided_window(preshape: Preshape) -> (Instant, WindowReport) {
     let class = Class::from(preshape);
     let source =
         MemorySource::new(frames_of(&[class; 12]), 30.0, Pacing::AsFastAsPossible).unwrap();
@@ -97,6 +99,11 @@ fn approach(hand: &Hand, preshape: Preshape, limit: Duration) -> Approach {
         &mut |_| {},
     )
     .unwrap();
+    (t0, window)
+}
+
+fn approach(hand: &Hand, preshape: Preshape, limit: Duration) -> Approach {
+    let (t0, window) = decided_window(preshape);
     assert_eq!(window.decision.outcome, Outcome::Majority { preshape });
     let decided = window.decided_at;
     let mut closure = RecordingTimer {
@@ -428,19 +435,7 @@ fn approach_with(
     limit: Duration,
     closure: &mut dyn Trigger,
 ) -> ApproachReport {
-    let class = Class::from(preshape);
-    let source =
-        MemorySource::new(frames_of(&[class; 12]), 30.0, Pacing::AsFastAsPossible).unwrap();
-    let t0 = Instant::now();
-    let (_, window) = classify_window(
-        Box::new(source),
-        FeedMode::Lockstep,
-        &mut FakeModel::new(),
-        &PolicyConfig::default(),
-        t0,
-        &mut |_| {},
-    )
-    .unwrap();
+    let (t0, window) = decided_window(preshape);
     let stop = AtomicBool::new(false);
     actuate(hand, window, Some(closure), &stop, t0, limit).unwrap()
 }
