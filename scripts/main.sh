@@ -5,7 +5,7 @@
 # replay a test sequence with it against the simulated hand.
 #
 #   scripts/main.sh [--config FILE] [--train-seq N] [--test-seq N] [--seeds N]
-#                   [--models "fc lstm"] [--ycb DIR] [--weights FILE] [OUT]
+#                   [--models "fc lstm trace"] [--ycb DIR] [--weights FILE] [OUT]
 #
 # --config: the render config (configs/main.toml); --train-seq/--test-seq:
 # sequences per pair (24, 2); --models: recipes of configs/recipes/ (fc-tuned
@@ -21,7 +21,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-CONFIG=configs/main.toml TRAIN_SEQ=24 TEST_SEQ=2 SEEDS=3 MODELS="fc lstm"
+CONFIG=configs/main.toml TRAIN_SEQ=24 TEST_SEQ=2 SEEDS=3 MODELS="fc lstm trace"
 YCB='' OUT=runs/main TRAIN_SETS=()
 while [ $# -gt 0 ]; do
   case $1 in
@@ -33,7 +33,7 @@ while [ $# -gt 0 ]; do
     --ycb) YCB=${2:?} && shift ;;
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
-        --set views.style=0 --set view_damping=0) MODELS="fc lstm" && shift ;;
+        --set views.style=0 --set view_damping=0) MODELS="fc lstm trace" && shift ;;
     -h | --help) head -20 "$0" | tail -19 && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;

@@ -56,6 +56,7 @@ impl From<Architecture> for ArchitectureArg {
 pub enum HeadKindArg {
     Fc,
     Lstm,
+    Trace,
 }
 
 impl From<HeadKindArg> for HeadKind {
@@ -63,6 +64,7 @@ impl From<HeadKindArg> for HeadKind {
         match h {
             HeadKindArg::Fc => HeadKind::Fc,
             HeadKindArg::Lstm => HeadKind::Lstm,
+            HeadKindArg::Trace => HeadKind::Trace,
         }
     }
 }
@@ -72,6 +74,7 @@ impl From<HeadKind> for HeadKindArg {
         match h {
             HeadKind::Fc => HeadKindArg::Fc,
             HeadKind::Lstm => HeadKindArg::Lstm,
+            HeadKind::Trace => HeadKindArg::Trace,
         }
     }
 }

@@ -1,7 +1,10 @@
 //! Classifier heads on per-frame features (the paper's Sec. III):
 //! - FC: one linear layer, feature_dim -> classes, applied to each frame;
 //! - LSTM: a one-layer LSTM (256 hidden units) over the frames of a sequence,
-//!   then a linear layer, hidden -> classes, at every step.
+//!   then a linear layer, hidden -> classes, at every step;
+//! - trace: one linear layer on the frame and the approach's decaying mean
+//!   of features (`crate::trace`), 2 feature_dim -> classes: a head with
+//!   the approach's history that runs frame by frame at any frame rate.
 //!
 //! Parameter names follow PyTorch (`fc.weight`, `lstm.weight_ih_l0`, ...,
 //! gate order i, f, g, o), so heads can be exchanged with the authors' code.
@@ -19,15 +22,17 @@ use serde::{Deserialize, Serialize};
 pub enum HeadKind {
     Fc,
     Lstm,
+    Trace,
 }
 
 impl HeadKind {
-    pub const ALL: [HeadKind; 2] = [HeadKind::Fc, HeadKind::Lstm];
+    pub const ALL: [HeadKind; 3] = [HeadKind::Fc, HeadKind::Lstm, HeadKind::Trace];
 
     pub fn name(self) -> &'static str {
         match self {
             HeadKind::Fc => "fc",
             HeadKind::Lstm => "lstm",
+            HeadKind::Trace => "trace",
         }
     }
 
@@ -36,13 +41,13 @@ impl HeadKind {
         HeadKind::ALL.into_iter().find(|k| k.name() == name)
     }
 
-    /// Whether the head classifies each frame on its own, as the hand's
+    /// Whether the head classifies each frame as it comes, as the hand's
     /// streaming loop (`hannes-run`) needs: an LSTM head reads a sequence
     /// at the frame rate it was trained on, which a live camera's dropped
-    /// frames do not keep.
+    /// frames do not keep; the trace head keeps its history in seconds.
     pub fn classifies_frames(self) -> bool {
         match self {
-            HeadKind::Fc => true,
+            HeadKind::Fc | HeadKind::Trace => true,
             HeadKind::Lstm => false,
         }
     }
@@ -60,9 +65,34 @@ pub struct HeadConfig {
     /// neither do checkpoints written before it was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub step_hz: Option<f64>,
+    /// A trace head's time constant (s, [`crate::trace`]); none for the
+    /// others.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trace_s: Option<f64>,
 }
 
 impl HeadConfig {
+    /// The width of the final linear layer's input.
+    pub fn fc_inputs(&self) -> usize {
+        match self.kind {
+            HeadKind::Fc => self.feature_dim,
+            HeadKind::Lstm => self.lstm_hidden,
+            HeadKind::Trace => 2 * self.feature_dim,
+        }
+    }
+
+    /// A fresh trace for a trace head, none for the others; a trace head
+    /// without a usable time constant is refused.
+    pub fn new_trace(&self) -> Result<Option<crate::trace::FeatureTrace>> {
+        if self.kind != HeadKind::Trace {
+            return Ok(None);
+        }
+        let tau = self.trace_s.unwrap_or(f64::NAN);
+        crate::trace::FeatureTrace::new(tau)
+            .map(Some)
+            .map_err(|e| candle_core::Error::Msg(format!("head.trace_s: {e}")))
+    }
+
     /// The frames of a sequence, at times `times_s` (seconds, ascending),
     /// that this head reads: all of them for a head that classifies frames
     /// or has no step rate; otherwise the frame nearest each tick of its
@@ -167,16 +197,13 @@ impl Head {
     /// Builds the head from `vb` (a VarMap while training, a checkpoint when
     /// loading).
     pub fn new(cfg: HeadConfig, vb: VarBuilder) -> Result<Head> {
-        let fc_in = match cfg.kind {
-            HeadKind::Fc => cfg.feature_dim,
-            HeadKind::Lstm => cfg.lstm_hidden,
-        };
+        let fc_in = cfg.fc_inputs();
         let fc = Fc {
             weight: vb.get((cfg.classes, fc_in), "fc.weight")?,
             bias: vb.get(cfg.classes, "fc.bias")?,
         };
         let lstm = match cfg.kind {
-            HeadKind::Fc => None,
+            HeadKind::Fc | HeadKind::Trace => None,
             HeadKind::Lstm => {
                 let h = cfg.lstm_hidden;
                 let vb = vb.pp("lstm");
@@ -199,17 +226,13 @@ impl Head {
     pub fn parameter_shapes(cfg: &HeadConfig) -> Vec<(String, Vec<usize>)> {
         let h = cfg.lstm_hidden;
         let mut out = Vec::new();
-        let fc_in = match cfg.kind {
-            HeadKind::Fc => cfg.feature_dim,
-            HeadKind::Lstm => {
-                out.push(("lstm.weight_ih_l0".into(), vec![4 * h, cfg.feature_dim]));
-                out.push(("lstm.weight_hh_l0".into(), vec![4 * h, h]));
-                out.push(("lstm.bias_ih_l0".into(), vec![4 * h]));
-                out.push(("lstm.bias_hh_l0".into(), vec![4 * h]));
-                h
-            }
-        };
-        out.push(("fc.weight".into(), vec![cfg.classes, fc_in]));
+        if cfg.kind == HeadKind::Lstm {
+            out.push(("lstm.weight_ih_l0".into(), vec![4 * h, cfg.feature_dim]));
+            out.push(("lstm.weight_hh_l0".into(), vec![4 * h, h]));
+            out.push(("lstm.bias_ih_l0".into(), vec![4 * h]));
+            out.push(("lstm.bias_hh_l0".into(), vec![4 * h]));
+        }
+        out.push(("fc.weight".into(), vec![cfg.classes, cfg.fc_inputs()]));
         out.push(("fc.bias".into(), vec![cfg.classes]));
         out
     }
@@ -220,15 +243,13 @@ impl Head {
         if name.starts_with("lstm.") {
             1.0 / (cfg.lstm_hidden as f64).sqrt()
         } else {
-            let fan_in = match cfg.kind {
-                HeadKind::Fc => cfg.feature_dim,
-                HeadKind::Lstm => cfg.lstm_hidden,
-            };
-            1.0 / (fan_in as f64).sqrt()
+            1.0 / (cfg.fc_inputs() as f64).sqrt()
         }
     }
 
-    /// Per-frame logits of independent frames `(N, D) -> (N, C)` (FC head).
+    /// Per-frame logits of independent rows `(N, I) -> (N, C)`, `I` =
+    /// [`HeadConfig::fc_inputs`]: frames for the FC head, traced frames
+    /// (`[f, m]`, [`crate::trace`]) for the trace head.
     pub fn forward_frames(&self, x: &Tensor) -> Result<Tensor> {
         self.fc.forward(x)
     }
@@ -375,6 +396,7 @@ mod tests {
             classes: 5,
             lstm_hidden: 8,
             step_hz,
+            trace_s: None,
         };
         let t = times(5, 5.0);
         assert_eq!(cfg(HeadKind::Lstm, Some(2.5)).steps(&t), vec![0, 2, 4]);

@@ -1,8 +1,8 @@
 //! The pre-shape classifier for inference, shared by the trainer
 //! (`grasp-train`) and the prosthesis runtime (`hannes-run`): the backbones
 //! (MobileNetV2, EfficientNet-Lite0/1/2) with their CPU kernels, weight
-//! loading (safetensors, zip and legacy `.pth`) and preprocessing, the FC
-//! and LSTM heads, softmax, and the checkpoint format. Training lives in the
+//! loading (safetensors, zip and legacy `.pth`) and preprocessing, the FC,
+//! LSTM and trace heads (with the trace of an approach, `trace`), softmax, and the checkpoint format. Training lives in the
 //! trainer; nothing here depends on it.
 //!
 //! Errors are typed ([`ModelError`]): a caller can tell a missing file from
@@ -20,6 +20,7 @@ pub mod networks;
 pub mod ops;
 pub mod softmax;
 pub mod style;
+pub mod trace;
 pub mod weights;
 
 pub use error::{ModelError, Result};

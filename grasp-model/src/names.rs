@@ -116,7 +116,7 @@ mod tests {
             ],
         );
         agrees_with_serde(&LiteVariant::ALL, &["lite0", "lite1", "lite2"]);
-        agrees_with_serde(&HeadKind::ALL, &["fc", "lstm"]);
+        agrees_with_serde(&HeadKind::ALL, &["fc", "lstm", "trace"]);
         agrees_with_serde(
             &TrainMode::ALL,
             &["frozen-pretrained", "from-scratch", "fine-tuned"],

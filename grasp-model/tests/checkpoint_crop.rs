@@ -44,6 +44,7 @@ fn checkpoint(dir: &Path, name: &str, input: InputSpec) -> PathBuf {
             classes: Class::COUNT,
             lstm_hidden: 256,
             step_hz: None,
+            trace_s: None,
         },
         input,
         backbone: info,

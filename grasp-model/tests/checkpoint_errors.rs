@@ -31,6 +31,7 @@ fn checkpoint(dir: &Path) -> PathBuf {
         classes: Class::COUNT,
         lstm_hidden: 256,
         step_hz: None,
+        trace_s: None,
     };
     let meta = CheckpointMeta {
         format_version: FORMAT_VERSION,

@@ -241,6 +241,7 @@ pub fn classify_window_until(
     };
     let mut vote = Vote::new(policy.clone());
     let mut predictions = Vec::new();
+    classifier.begin_approach();
     let decision = loop {
         let frame = match next_unless_stopped(&feed, deadline, stop) {
             None => break vote.stop(),
@@ -252,7 +253,7 @@ pub fn classify_window_until(
             break vote.finish();
         }
         let started = Instant::now();
-        let raw = match classifier.classify(&frame.image) {
+        let raw = match classifier.classify(&frame.image, frame.time_s) {
             Ok(raw) => raw,
             Err(e) => {
                 let e = grasp_support::error_chain(&e);

@@ -9,9 +9,19 @@ use image::RgbImage;
 pub use grasp_policy::{InvalidOutput, Probabilities};
 
 /// Anything that turns one camera frame into class probabilities, indexed by
-/// [`Class`] (power 0, lateral 1, pinch 2, pinch3 3, no_grasp 4).
+/// [`Class`] (power 0, lateral 1, pinch 2, pinch3 3, no_grasp 4). A
+/// classifier with the approach's history (a trace head) keeps it from
+/// [`FrameClassifier::begin_approach`] on, each frame at its `time_s`
+/// (seconds, ascending within an approach).
 pub trait FrameClassifier {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError>;
+    fn classify(
+        &mut self,
+        frame: &RgbImage,
+        time_s: f64,
+    ) -> Result<[f32; Class::COUNT], ClassifyError>;
+
+    /// A new approach begins: forget the frames of the last one.
+    fn begin_approach(&mut self) {}
 }
 
 /// Why a frame got no output at all (an output that is not a distribution
@@ -26,8 +36,16 @@ pub enum ClassifyError {
 }
 
 impl<T: FrameClassifier + ?Sized> FrameClassifier for Box<T> {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError> {
-        (**self).classify(frame)
+    fn classify(
+        &mut self,
+        frame: &RgbImage,
+        time_s: f64,
+    ) -> Result<[f32; Class::COUNT], ClassifyError> {
+        (**self).classify(frame, time_s)
+    }
+
+    fn begin_approach(&mut self) {
+        (**self).begin_approach()
     }
 }
 

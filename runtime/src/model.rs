@@ -36,7 +36,7 @@ pub enum CheckpointError {
     },
     #[error(
         "checkpoint {} has an {head} head; hannes-run classifies frame by frame and needs an FC \
-         head (train with --set head=fc)",
+         or trace head (train with --set head=fc)",
         path.display()
     )]
     NotFc { path: PathBuf, head: &'static str },
@@ -77,9 +77,9 @@ impl ModelRecord {
 
 /// Loads a checkpoint directory (or its `best.json`) for per-frame use.
 ///
-/// Only FC heads classify frames independently, as the streaming loop
-/// needs; an LSTM head would have to re-read the whole window for every new
-/// frame, so it is refused with an explanation.
+/// Only FC and trace heads classify frames as they come, as the streaming
+/// loop needs; an LSTM head would have to re-read the whole window for
+/// every new frame, so it is refused with an explanation.
 pub fn load(path: &Path) -> Result<Classifier, CheckpointError> {
     let classifier = Classifier::load(path, &candle_core::Device::Cpu).map_err(|e| {
         let path = path.to_path_buf();
@@ -113,12 +113,16 @@ fn check(c: &Classifier, path: &Path) -> Result<(), CheckpointError> {
 }
 
 impl FrameClassifier for Classifier {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; Class::COUNT], ClassifyError> {
-        let mut out = self.predict(std::slice::from_ref(frame))?;
-        if out.len() != 1 {
-            return Err(ClassifyError::Outputs { got: out.len() });
-        }
-        Ok(out.remove(0))
+    fn classify(
+        &mut self,
+        frame: &RgbImage,
+        time_s: f64,
+    ) -> Result<[f32; Class::COUNT], ClassifyError> {
+        Ok(self.predict_at(frame, time_s)?)
+    }
+
+    fn begin_approach(&mut self) {
+        Classifier::begin_approach(self)
     }
 }
 

@@ -97,14 +97,14 @@ struct WaitsForTheHold {
 }
 
 impl FrameClassifier for WaitsForTheHold {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; 5], ClassifyError> {
+    fn classify(&mut self, frame: &RgbImage, time_s: f64) -> Result<[f32; 5], ClassifyError> {
         self.calls += 1;
         if self.calls == WINDOW_FRAMES - 1 {
             self.holding
                 .recv_timeout(HELD_AT_MOST)
                 .expect("the source fetches the frame after the window");
         }
-        self.model.classify(frame)
+        self.model.classify(frame, time_s)
     }
 }
 

@@ -39,7 +39,7 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
     assert_eq!(clf.meta.input.preprocess.size, 40);
     // frames of another size are resized as recorded
     let frame = image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8, y as u8, 90]));
-    let p = clf.classify(&frame).unwrap();
+    let p = clf.classify(&frame, 0.0).unwrap();
     let sum: f32 = p.iter().sum();
     assert!(
         (sum - 1.0).abs() < 1e-4 && p.iter().all(|v| v.is_finite()),
@@ -63,4 +63,82 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
         "{err}"
     );
     assert!(!err.contains("backtrace") && !err.contains("\n"), "{err}");
+}
+
+/// The trace head (the approach's history, `grasp_model::trace`): what
+/// `hannes-run` computes frame by frame equals what evaluation computes over
+/// the whole video from the trainer's feature cache, a new approach forgets
+/// the last, and the history changes the answer.
+#[test]
+fn a_trace_head_runs_frame_by_frame_as_evaluation_reads_the_video() {
+    use trainer::data::{BadData, OnBadData};
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let mut spec = SyntheticSpec::small(Layout::Generated);
+    spec.sequences_per_part = 2;
+    spec.frames = 6;
+    spec.no_grasp_frames = 1;
+    write_synthetic(&root.join("data"), &spec).unwrap();
+    let weights = root.join("lite0.safetensors");
+    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
+        .unwrap();
+    let mut cfg = trainer::config::TrainConfig {
+        data: root.join("data"),
+        out: root.join("run"),
+        head: grasp_model::heads::HeadKind::Trace,
+        trace_s: 0.3,
+        weights: Some(weights),
+        input_size: 40,
+        max_epochs: 2,
+        cache_dir: root.join("cache"),
+        ..Default::default()
+    };
+    cfg.split.val_fraction = 0.34;
+    cfg.split.test_fraction = 0.0;
+    let outcome = trainer::experiment::run(&cfg, 1).unwrap();
+    let ckpt = &outcome.runs[0].checkpoint;
+    let mut clf = runtime::model::load(ckpt).expect("hannes-run loads a trace head");
+    assert_eq!(clf.meta.head.trace_s, Some(0.3));
+
+    let bad = BadData::new(OnBadData::Fail);
+    let data = trainer::data::reader::read_dataset(&root.join("data"), &cfg.reader, &bad).unwrap();
+    let cache = trainer::features::FeatureCache::new(&cfg.cache_dir, 8);
+    let videos = trainer::eval::predict::predict_dataset(&clf, &data, &cache, &bad).unwrap();
+    let (seq, video) = (&data.sequences[0], &videos[0]);
+    assert_eq!(video.probs.len(), seq.frames.len());
+
+    let frames: Vec<image::RgbImage> = (0..seq.frames.len())
+        .map(|i| seq.load_frame(i, &bad).unwrap().unwrap())
+        .collect();
+    let stream = |clf: &mut grasp_model::checkpoint::Classifier| -> Vec<[f32; 5]> {
+        clf.begin_approach();
+        frames
+            .iter()
+            .zip(&video.times_s)
+            .map(|(f, t)| clf.classify(f, *t).unwrap())
+            .collect()
+    };
+    let streamed = stream(&mut clf);
+    for (i, (a, b)) in streamed.iter().zip(&video.probs).enumerate() {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() < 1e-5, "frame {i}: {a:?} against {b:?}");
+        }
+    }
+    // A second approach starts afresh: the same answers again.
+    assert_eq!(stream(&mut clf), streamed);
+    // The first frame read after the whole video carries its history,
+    // unlike the same frame as an approach's first.
+    let t_last = video.times_s[frames.len() - 1];
+    let after_history = {
+        clf.begin_approach();
+        for (f, t) in frames.iter().zip(&video.times_s) {
+            clf.classify(f, *t).unwrap();
+        }
+        clf.classify(&frames[0], t_last + 0.05).unwrap()
+    };
+    let first_alone = {
+        clf.begin_approach();
+        clf.classify(&frames[0], 0.0).unwrap()
+    };
+    assert_ne!(after_history, first_alone, "the history changes the answer");
 }

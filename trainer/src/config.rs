@@ -68,6 +68,9 @@ pub struct TrainConfig {
     /// another start (`from_ground`, `seated`) does not show. 0: whole
     /// sequences, the paper's. Validation and evaluation see whole sequences.
     pub lstm_start_crop: f64,
+    /// The trace head's time constant (s): how long the approach's
+    /// features are remembered (`grasp_model::trace`).
+    pub trace_s: f64,
     pub split: SplitConfig,
     /// Keep at most this many training sequences per object-part pair
     /// (chosen by `split.seed`, nested as it grows; validation and test
@@ -121,6 +124,7 @@ impl Default for TrainConfig {
             lstm_hidden: 256,
             tbptt: 0,
             lstm_start_crop: 0.0,
+            trace_s: 1.0,
             split: SplitConfig::default(),
             sequences_per_pair: None,
             reader: ReaderOptions::default(),
@@ -208,11 +212,11 @@ impl TrainConfig {
     pub fn batch_size_for(&self, real_data: bool) -> usize {
         let default = match (self.mode, self.head, real_data) {
             (TrainMode::FromScratch, HeadKind::Lstm, _) => 4,
-            (TrainMode::FromScratch, HeadKind::Fc, _) => 32,
+            (TrainMode::FromScratch, _, _) => 32,
             (TrainMode::FrozenPretrained, _, true) => 32,
             (TrainMode::FrozenPretrained, _, false) => 256,
-            (TrainMode::FineTuned, HeadKind::Fc, _) => 32,
             (TrainMode::FineTuned, HeadKind::Lstm, _) => 4,
+            (TrainMode::FineTuned, _, _) => 32,
         };
         self.batch_size.unwrap_or(default)
     }
@@ -449,6 +453,18 @@ impl TrainConfig {
                      head; the {} head reads single frames",
                     self.lstm_start_crop,
                     self.head.name()
+                ),
+            );
+        }
+        if let Err(e) = grasp_model::trace::check_time_constant(self.trace_s) {
+            return refuse("trace_s", e.to_string());
+        }
+        if self.head == HeadKind::Trace && self.mode != TrainMode::FrozenPretrained {
+            return refuse(
+                "head",
+                format!(
+                    "the trace head trains on cached features: mode frozen-pretrained, not {}",
+                    self.mode.name()
                 ),
             );
         }

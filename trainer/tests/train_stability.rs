@@ -15,6 +15,7 @@ fn lstm(feature_dim: usize) -> (Head, candle_nn::VarMap) {
         classes: 5,
         lstm_hidden: 256,
         step_hz: None,
+        trace_s: None,
     };
     let vm = trainer::init::head_varmap(&cfg, 0, &Device::Cpu).unwrap();
     let head = Head::new(cfg, VarBuilder::from_varmap(&vm, DType::F32, &Device::Cpu)).unwrap();

@@ -13,6 +13,7 @@ use crate::extractor::FeatureExtractor;
 use crate::hashing::file_sha256;
 use crate::heads::{Head, HeadConfig, HeadKind};
 use crate::input::{InputSpec, Lens};
+use crate::trace::FeatureTrace;
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
 use grasp_schema::taxonomy::Class;
@@ -257,6 +258,9 @@ pub struct Classifier {
     /// The lens of the camera whose frames `predict` is given
     /// ([`Classifier::set_lens`]); a fixed-angle crop needs it.
     lens: Option<Lens>,
+    /// A trace head's history of the current approach
+    /// ([`Classifier::predict_at`]).
+    trace: Option<FeatureTrace>,
 }
 
 impl Classifier {
@@ -312,11 +316,16 @@ impl Classifier {
         };
         check_head_width(&meta, backbone.net.feature_dim(), &dir)?;
         check_finite(&weights)?;
+        let trace = meta.head.new_trace().map_err(|e| ModelError::Corrupt {
+            path: dir.join(META_FILE),
+            reason: e.to_string(),
+        })?;
         Ok(Classifier {
             meta,
             backbone,
             head: head.detached(),
             lens: None,
+            trace,
         })
     }
 
@@ -366,10 +375,16 @@ impl Classifier {
     /// log-sum-exp), prepared first as the checkpoint was trained
     /// ([`Classifier::prepare`]). The FC head treats frames independently;
     /// an LSTM head reads them as one sequence in the given order, from a
-    /// zero state.
+    /// zero state. A trace head needs the frames' times:
+    /// [`Classifier::predict_at`] or [`Classifier::predict_video`].
     pub fn predict(&self, frames: &[RgbImage]) -> Result<Vec<[f32; Class::COUNT]>> {
         if frames.is_empty() {
             return Ok(Vec::new());
+        }
+        if self.head.cfg.kind == HeadKind::Trace {
+            return Err(ModelError::Invalid(
+                "a trace head reads frames with their times (predict_at)".into(),
+            ));
         }
         // On a worker of the tensor kernels' pool: every parallel kernel of
         // the frame then splits its work there, instead of waking the pool
@@ -384,16 +399,75 @@ impl Classifier {
         })
     }
 
-    /// Per-frame probabilities from precomputed features `(T, D)`.
+    /// Starts a new approach: a trace head forgets the last one's frames.
+    pub fn begin_approach(&mut self) {
+        if let Some(t) = &mut self.trace {
+            t.reset();
+        }
+    }
+
+    /// The probabilities of one camera frame seen at `time_s` (s) in the
+    /// current approach ([`Classifier::begin_approach`]), as the hand's
+    /// loop classifies: a trace head adds the frame to its history first.
+    pub fn predict_at(&mut self, frame: &RgbImage, time_s: f64) -> Result<[f32; Class::COUNT]> {
+        let probs = rayon::scope(|_| -> Result<Vec<[f32; Class::COUNT]>> {
+            let prepared = self.prepare(frame)?;
+            let feats = self.backbone.extract(std::slice::from_ref(&prepared))?;
+            let input = match &mut self.trace {
+                None => feats,
+                Some(trace) => {
+                    let row: Vec<f32> = feats.flatten_all()?.to_vec1()?;
+                    let traced = trace.push(time_s, &row);
+                    Tensor::from_slice(traced, (1, traced.len()), feats.device())?
+                }
+            };
+            self.predict_rows(&input)
+        })?;
+        probs
+            .into_iter()
+            .next()
+            .ok_or_else(|| ModelError::Invalid("no output for one frame".into()))
+    }
+
+    /// Per-frame probabilities of one video from its precomputed features
+    /// `(T, D)` at times `times_s`: a trace head traces them first.
+    pub fn predict_video(
+        &self,
+        feats: &Tensor,
+        times_s: &[f64],
+    ) -> Result<Vec<[f32; Class::COUNT]>> {
+        match self.head.cfg.kind {
+            HeadKind::Trace => {
+                let (t, dim) = feats.dims2()?;
+                let tau = self.head.cfg.trace_s.unwrap_or(f64::NAN);
+                let rows: Vec<f32> = feats.flatten_all()?.to_vec1()?;
+                let traced = crate::trace::traced_rows(times_s, &rows, dim, tau);
+                self.predict_rows(&Tensor::from_vec(traced, (t, 2 * dim), feats.device())?)
+            }
+            _ => self.predict_features(feats),
+        }
+    }
+
+    /// Per-frame probabilities from precomputed features `(T, D)` (an FC or
+    /// LSTM head; a trace head's need times, [`Classifier::predict_video`]).
     pub fn predict_features(&self, feats: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
-        let logits = match self.head.cfg.kind {
-            HeadKind::Fc => self.head.forward_frames(feats)?,
-            HeadKind::Lstm => self
-                .head
-                .forward_sequences(&feats.unsqueeze(0)?)?
-                .squeeze(0)?,
-        };
-        probabilities(&logits)
+        match self.head.cfg.kind {
+            HeadKind::Lstm => probabilities(
+                &self
+                    .head
+                    .forward_sequences(&feats.unsqueeze(0)?)?
+                    .squeeze(0)?,
+            ),
+            HeadKind::Fc => self.predict_rows(feats),
+            HeadKind::Trace => Err(ModelError::Invalid(
+                "a trace head reads features with their times (predict_video)".into(),
+            )),
+        }
+    }
+
+    /// Probabilities of the head's input rows, frame by frame.
+    fn predict_rows(&self, rows: &Tensor) -> Result<Vec<[f32; Class::COUNT]>> {
+        probabilities(&self.head.forward_frames(rows)?)
     }
 }
 

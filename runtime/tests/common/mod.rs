@@ -70,7 +70,7 @@ impl FakeModel {
 }
 
 impl FrameClassifier for FakeModel {
-    fn classify(&mut self, frame: &RgbImage) -> Result<[f32; 5], ClassifyError> {
+    fn classify(&mut self, frame: &RgbImage, _time_s: f64) -> Result<[f32; 5], ClassifyError> {
         std::thread::sleep(self.delay);
         let class = (frame.get_pixel(0, 0)[0] / 40) as usize;
         let mut p = [0.05; 5];

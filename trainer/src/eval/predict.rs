@@ -51,7 +51,8 @@ pub fn predict_dataset(
         let probs = if idx.is_empty() {
             Vec::new()
         } else {
-            clf.predict_features(&rows)?
+            let times: Vec<f64> = idx.iter().map(|i| seq.time_s(*i)).collect();
+            clf.predict_video(&rows, &times)?
         };
         out.push(VideoPrediction {
             id: seq.id.clone(),

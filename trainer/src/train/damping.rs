@@ -95,6 +95,21 @@ impl ViewDamping {
         m - along.matmul(&self.basis.t()?)?
     }
 
+    /// `m`'s rows damped block by block, for weights that read several
+    /// copies of the features side by side (the trace head's `[f, m]`: the
+    /// trace of damped features is the damped trace, the map being linear).
+    fn apply_blocks(&self, m: &Tensor) -> candle_core::Result<Tensor> {
+        let dim = self.basis.dim(0)?;
+        let width = m.dim(1)?;
+        if width == dim || width % dim != 0 {
+            return self.apply(m);
+        }
+        let blocks = (0..width / dim)
+            .map(|b| self.apply(&m.narrow(1, b * dim, dim)?))
+            .collect::<candle_core::Result<Vec<_>>>()?;
+        Tensor::cat(&blocks, 1)
+    }
+
     /// `frames`' cached features, damped.
     pub fn apply_to_frames(&self, frames: &mut SplitFrames) -> Result<()> {
         if let FrameSource::Cached(x) = &frames.source {
@@ -119,7 +134,11 @@ impl ViewDamping {
         tensors
             .into_iter()
             .map(|(name, t)| {
-                let t = if name == input { self.apply(&t)? } else { t };
+                let t = if name == input {
+                    self.apply_blocks(&t)?
+                } else {
+                    t
+                };
                 Ok((name, t))
             })
             .collect()

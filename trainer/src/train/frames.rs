@@ -87,6 +87,30 @@ impl SplitFrames {
         s
     }
 
+    /// Replaces each cached row by its trace head's input `[f, m]`, traced
+    /// over its sequence's rows in time order (`grasp_model::trace`).
+    pub fn trace(&mut self, time_constant_s: f64) -> Result<()> {
+        let FrameSource::Cached(x) = &self.source else {
+            let why = "the trace head trains on cached features (frozen mode)";
+            return Err(crate::error::TrainError::Inconsistent(why));
+        };
+        let (n, dim) = x.dims2()?;
+        let rows: Vec<f32> = x.flatten_all()?.to_vec1()?;
+        let mut traced = vec![0f32; n * 2 * dim];
+        for (seq, times) in self.seq_rows.iter().zip(&self.seq_times) {
+            let mut flat = Vec::with_capacity(seq.len() * dim);
+            for &r in seq {
+                flat.extend_from_slice(&rows[r * dim..(r + 1) * dim]);
+            }
+            let out = grasp_model::trace::traced_rows(times, &flat, dim, time_constant_s);
+            for (&r, row) in seq.iter().zip(out.chunks_exact(2 * dim)) {
+                traced[r * 2 * dim..(r + 1) * 2 * dim].copy_from_slice(row);
+            }
+        }
+        self.source = FrameSource::Cached(Tensor::from_vec(traced, (n, 2 * dim), x.device())?);
+        Ok(())
+    }
+
     pub fn frames(&self) -> usize {
         self.labels.len()
     }

@@ -186,11 +186,11 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
     Ok(outcome)
 }
 
-/// The class of each unit an epoch draws: frames for the FC head,
-/// sequences for the LSTM head.
+/// The class of each unit an epoch draws: frames for the FC and trace
+/// heads, sequences for the LSTM head.
 fn unit_classes<'a>(cfg: &TrainConfig, frames: &'a SplitFrames) -> &'a [u32] {
     match cfg.head {
-        HeadKind::Fc => &frames.labels,
+        HeadKind::Fc | HeadKind::Trace => &frames.labels,
         HeadKind::Lstm => &frames.seq_class,
     }
 }
@@ -307,7 +307,7 @@ fn batch_name(
 ) -> String {
     let first = chunk.first().map(|u| match kind {
         HeadKind::Lstm => frames.seq_ids[*u].clone(),
-        HeadKind::Fc => {
+        HeadKind::Fc | HeadKind::Trace => {
             let seq = frames
                 .seq_rows
                 .iter()
@@ -337,7 +337,7 @@ fn non_finite(what: &'static str, value: f64, at: String) -> crate::error::Train
 /// Mean per-frame loss and accuracy over a whole split (no downsampling).
 pub fn evaluate_split(net: &Net, frames: &SplitFrames, batch: usize) -> Result<(f64, f64)> {
     let units: Vec<usize> = match net.head.cfg.kind {
-        HeadKind::Fc => (0..frames.frames()).collect(),
+        HeadKind::Fc | HeadKind::Trace => (0..frames.frames()).collect(),
         HeadKind::Lstm => (0..frames.seq_rows.len()).collect(),
     };
     let mut rng = crate::rng::stream(0, "eval");

@@ -115,7 +115,8 @@ impl Net {
     ) -> Result<Batch> {
         let dev = Device::Cpu;
         match self.head.cfg.kind {
-            HeadKind::Fc => {
+            // A trace head's cached rows are traced already (`prepare`).
+            HeadKind::Fc | HeadKind::Trace => {
                 let rows: Vec<Option<usize>> = units.iter().map(|r| Some(*r)).collect();
                 let x = self.features(frames, &rows, train, rng)?;
                 let targets: Vec<u32> = units.iter().map(|r| frames.labels[*r]).collect();
@@ -190,11 +191,11 @@ impl Net {
         Ok(Tensor::cat(&outs, 1)?)
     }
 
-    /// The checkpoint tensor that reads the features: the FC head's
-    /// weights, or the LSTM's input weights.
+    /// The checkpoint tensor that reads the features: the FC (or trace)
+    /// head's weights, or the LSTM's input weights.
     pub(super) fn feature_weight_name(&self) -> &'static str {
         match self.head.cfg.kind {
-            HeadKind::Fc => "head.fc.weight",
+            HeadKind::Fc | HeadKind::Trace => "head.fc.weight",
             HeadKind::Lstm => "head.lstm.weight_ih_l0",
         }
     }

@@ -16,7 +16,7 @@ use grasp_model::backbone::{
 };
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::heads::{Head, HeadConfig};
+use grasp_model::heads::{Head, HeadConfig, HeadKind};
 use grasp_schema::taxonomy::Class;
 use std::path::Path;
 
@@ -168,6 +168,10 @@ fn prepare_frames(
             let bb = Backbone::load_pretrained(&info, pre, dev)?;
             let (mut train, mut val) = cached_frames(cfg, splits, &bb, bad, dev)?;
             let damping = damp_views(cfg, &mut train, &mut val, splits.train.sequences.len())?;
+            if cfg.head == HeadKind::Trace {
+                train.trace(cfg.trace_s)?;
+                val.trace(cfg.trace_s)?;
+            }
             Ok(Prepared {
                 train,
                 val,
@@ -326,6 +330,7 @@ pub(super) fn build_net(
         classes: Class::COUNT,
         lstm_hidden: cfg.lstm_hidden,
         step_hz: prep.step_hz,
+        trace_s: (cfg.head == HeadKind::Trace).then_some(cfg.trace_s),
     };
     let head_vars = crate::init::head_varmap(&head_cfg, seed, dev)?;
     let head = Head::new(

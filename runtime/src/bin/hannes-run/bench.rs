@@ -171,17 +171,21 @@ pub fn inference(
     warmup: usize,
     period: Option<Duration>,
 ) -> Result<Summary> {
-    for f in frames.iter().cycle().take(warmup) {
-        classifier.classify(f)?;
+    // A frame time for a classifier with history: the camera's period,
+    // or 30 frames/s without one.
+    let step_s = period.map_or(1.0 / 30.0, |p| p.as_secs_f64());
+    classifier.begin_approach();
+    for (i, f) in frames.iter().cycle().take(warmup).enumerate() {
+        classifier.classify(f, i as f64 * step_s)?;
     }
     let mut samples = Vec::with_capacity(count);
     let mut next = Instant::now();
-    for f in frames.iter().cycle().take(count) {
+    for (i, f) in frames.iter().cycle().take(count).enumerate() {
         if period.is_some() {
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
         let t = Instant::now();
-        classifier.classify(f)?;
+        classifier.classify(f, (warmup + i) as f64 * step_s)?;
         samples.push(t.elapsed());
         next = period.map_or(next, |p| t + p);
     }
