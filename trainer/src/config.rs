@@ -457,7 +457,7 @@ impl TrainConfig {
             );
         }
         if let Err(e) = grasp_model::trace::check_time_constant(self.trace_s) {
-            return refuse("trace_s", e.to_string());
+            return refuse("trace_s", format!("trace_s: {e}"));
         }
         if self.head == HeadKind::Trace && self.mode != TrainMode::FrozenPretrained {
             return refuse(
@@ -690,5 +690,35 @@ mod tests {
             err.contains("lstm_start_crop") && err.contains("fc head"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn the_trace_head_needs_a_time_constant_and_cached_features() {
+        let trace = TrainConfig {
+            data: "d".into(),
+            head: HeadKind::Trace,
+            trace_s: 0.3,
+            ..Default::default()
+        };
+        trace.validate().unwrap();
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let cfg = TrainConfig {
+                trace_s: bad,
+                ..trace.clone()
+            };
+            let err = format!("{:#}", cfg.validate().unwrap_err());
+            assert!(err.contains("trace_s"), "{err}");
+        }
+        for mode in [TrainMode::FromScratch, TrainMode::FineTuned] {
+            let cfg = TrainConfig {
+                mode,
+                ..trace.clone()
+            };
+            let err = format!("{:#}", cfg.validate().unwrap_err());
+            assert!(
+                err.contains("trace head") && err.contains(mode.name()),
+                "{err}"
+            );
+        }
     }
 }

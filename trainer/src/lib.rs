@@ -3,6 +3,7 @@
 //! (a MobileNetV2 or EfficientNet-Lite backbone with an FC or LSTM head),
 //! and the evaluation report.
 
+pub mod adapt;
 pub mod config;
 pub mod data;
 pub mod error;

@@ -201,3 +201,80 @@ fn feature_views_are_cached_extra_sequences_that_do_not_count_as_data() {
     let err = format!("{:#}", trainer::experiment::run(&bad, 1).err().unwrap());
     assert!(err.contains("views.count"), "{err}");
 }
+
+/// `grasp-train adapt`: a frozen checkpoint refitted with a user's
+/// recordings, one pseudo-label per approach from the policy's decision;
+/// the recordings' own labels are never read (scrambling them changes
+/// nothing), and what each approach was labelled is written down.
+#[test]
+fn adaptation_pseudo_labels_each_approach_and_never_reads_the_recordings_labels() {
+    use grasp_schema::taxonomy::{Class, Preshape};
+    use trainer::adapt::{adapt, AdaptConfig};
+    use trainer::data::{BadData, OnBadData};
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
+    let mut user = SyntheticSpec::small(Layout::Generated);
+    user.seed = 77;
+    user.sequences_per_part = 1;
+    write_synthetic(&root.join("user"), &user).unwrap();
+    let scratch = trainer::experiment::run(&scratch_cfg(root), 1).unwrap();
+    let backbone = &scratch.runs[0].checkpoint;
+    let mut cfg = frozen_cfg(root, backbone, HeadKind::Trace, "trace");
+    cfg.split.test_fraction = 0.0;
+    let shipped = trainer::experiment::run(&cfg, 1).unwrap();
+    let checkpoint = &shipped.runs[0].checkpoint;
+
+    let bad = BadData::new(OnBadData::Fail);
+    let reader = trainer::data::ReaderOptions::default();
+    let recordings = trainer::data::read_dataset(&root.join("user"), &reader, &bad).unwrap();
+    let mut scrambled = recordings.clone();
+    for s in &mut scrambled.sequences {
+        s.preshape = Preshape::Lateral;
+        s.part = Some("not the part".into());
+        s.labels.iter_mut().for_each(|c| *c = Class::Pinch3);
+    }
+    // The plain majority: a checkpoint trained 3 epochs is rarely sure.
+    let policy = grasp_policy::PolicyConfig {
+        min_confidence: 0.0,
+        min_share: 0.0,
+        ..Default::default()
+    };
+    let run = |data: &trainer::data::Dataset, out: &str| {
+        let cfg = AdaptConfig {
+            checkpoint: checkpoint.clone(),
+            out: root.join(out),
+            policy: policy.clone(),
+            copies: 2,
+        };
+        adapt(&cfg, data, &bad).unwrap()
+    };
+    let a = run(&recordings, "adapted");
+    let b = run(&scrambled, "scrambled");
+    assert_eq!(a.record.approaches, recordings.sequences.len());
+    assert!(a.record.used > 0, "{:?}", a.record.pseudo_labels);
+    let written: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(root.join("adapted").join(trainer::adapt::RECORD_FILE)).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(written["used"], a.record.used);
+    let weights = |out: &str| std::fs::read(root.join(out).join("best.safetensors")).unwrap();
+    assert_eq!(weights("adapted"), weights("scrambled"), "labels were read");
+    assert_eq!(
+        serde_json::to_value(&a.record.pseudo_labels).unwrap(),
+        serde_json::to_value(&b.record.pseudo_labels).unwrap()
+    );
+    // The refit adds the user's approaches, each twice, to the recipe's data.
+    let clf = Classifier::load(&root.join("adapted"), &candle_core::Device::Cpu).unwrap();
+    assert_eq!(clf.meta.head.kind, HeadKind::Trace);
+    let trained = shipped_train_sequences(checkpoint);
+    assert_eq!(clf.meta.train_sequences, Some(trained + 2 * a.record.used));
+}
+
+fn shipped_train_sequences(checkpoint: &Path) -> usize {
+    Classifier::load(checkpoint, &candle_core::Device::Cpu)
+        .unwrap()
+        .meta
+        .train_sequences
+        .unwrap()
+}
