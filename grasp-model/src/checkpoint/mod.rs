@@ -159,6 +159,7 @@ impl BackboneInfo {
                     source_checkpoint: Some(dir),
                     tuned: None,
                     pooled_blocks: Vec::new(),
+                    center_pooled: false,
                 }
             }
             TrainMode::FrozenPretrained => {
