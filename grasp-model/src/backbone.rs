@@ -184,10 +184,6 @@ pub struct BackboneInfo {
     /// the feature vector (multi-level features); none before they existed.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub pooled_blocks: Vec<usize>,
-    /// EfficientNet-Lite's head output also pooled over the centre of the
-    /// view, last in the feature vector.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub center_pooled: bool,
 }
 
 /// Where the fine-tuned last blocks of a backbone are.
@@ -231,7 +227,6 @@ impl BackboneInfo {
             source_checkpoint: None,
             tuned: None,
             pooled_blocks: Vec::new(),
-            center_pooled: false,
         })
     }
 
@@ -249,19 +244,14 @@ impl BackboneInfo {
             source_checkpoint: None,
             tuned: None,
             pooled_blocks: Vec::new(),
-            center_pooled: false,
         }
     }
 
     /// How a report names this backbone.
     pub fn describe(&self) -> String {
-        let pooled = match self.pooled_blocks.as_slice() {
+        match self.pooled_blocks.as_slice() {
             [] => self.describe_weights(),
             blocks => format!("{}, blocks {blocks:?} pooled too", self.describe_weights()),
-        };
-        match self.center_pooled {
-            true => format!("{pooled}, the centre pooled too"),
-            false => pooled,
         }
     }
 
@@ -432,7 +422,7 @@ impl Backbone {
         vb: VarBuilder,
         device: &Device,
     ) -> Result<Self> {
-        if (!info.pooled_blocks.is_empty() || info.center_pooled) && info.arch.lite().is_none() {
+        if !info.pooled_blocks.is_empty() && info.arch.lite().is_none() {
             return Err(ModelError::Invalid(format!(
                 "pooled blocks {:?}: only EfficientNet-Lite backbones pool their blocks, not {}",
                 info.pooled_blocks,
@@ -451,7 +441,6 @@ impl Backbone {
                 })?;
                 net.set_pooled_blocks(&info.pooled_blocks)
                     .map_err(|e| ModelError::Invalid(format!("{}: {e}", variant.name())))?;
-                net.set_center_pooled(info.center_pooled);
                 Network::EfficientNetLite(net)
             }
         };
@@ -505,9 +494,6 @@ impl FeatureExtractor for Backbone {
         let mut id = self.network_id();
         if !self.info.pooled_blocks.is_empty() {
             id["pooled_blocks"] = self.info.pooled_blocks.clone().into();
-        }
-        if self.info.center_pooled {
-            id["center_pooled"] = true.into();
         }
         id.to_string()
     }

@@ -41,9 +41,6 @@ pub struct TrainConfig {
     /// be the last frozen block or a tuned one). Lite0's stages end at
     /// blocks 7, 10, 14 and 15. Default: none, the paper's features.
     pub pooled_blocks: Vec<usize>,
-    /// Frozen mode: the head's output also pooled over the centre of the
-    /// view (what the aim point shows), last in the features.
-    pub center_pool: bool,
     /// Frames per batch for the FC head, sequences per batch for the LSTM
     /// head. Default: the paper's 256 on synthetic data and 32 on real data
     /// for a frozen backbone; from scratch, 32 frames or 4 sequences.
@@ -74,10 +71,6 @@ pub struct TrainConfig {
     /// The trace head's time constant (s): how long the approach's
     /// features are remembered (`grasp_model::trace`).
     pub trace_s: f64,
-    /// Trace head training: each training sequence's trace starts again at
-    /// a frame drawn among its first `trace_restart` fraction (seeded), as
-    /// if the approach were triggered late. 0: off.
-    pub trace_restart: f64,
     pub split: SplitConfig,
     /// Keep at most this many training sequences per object-part pair
     /// (chosen by `split.seed`, nested as it grows; validation and test
@@ -119,7 +112,6 @@ impl Default for TrainConfig {
             width_mult: 1.0,
             input_size: 224,
             pooled_blocks: Vec::new(),
-            center_pool: false,
             batch_size: None,
             max_epochs: 100,
             optimizer: AdamConfig::default(),
@@ -133,7 +125,6 @@ impl Default for TrainConfig {
             tbptt: 0,
             lstm_start_crop: 0.0,
             trace_s: 1.0,
-            trace_restart: 0.0,
             split: SplitConfig::default(),
             sequences_per_pair: None,
             reader: ReaderOptions::default(),
@@ -467,21 +458,6 @@ impl TrainConfig {
         }
         if let Err(e) = grasp_model::trace::check_time_constant(self.trace_s) {
             return refuse("trace_s", format!("trace_s: {e}"));
-        }
-        if !(0.0..=1.0).contains(&self.trace_restart) {
-            return refuse(
-                "trace_restart",
-                format!("trace_restart must be a fraction in [0, 1], got {}", self.trace_restart),
-            );
-        }
-        if self.center_pool && self.mode != TrainMode::FrozenPretrained {
-            return refuse(
-                "center_pool",
-                format!(
-                    "center_pool pools a frozen backbone's output: mode frozen-pretrained, not {}",
-                    self.mode.name()
-                ),
-            );
         }
         if self.head == HeadKind::Trace && self.mode != TrainMode::FrozenPretrained {
             return refuse(

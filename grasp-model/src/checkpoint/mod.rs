@@ -159,7 +159,6 @@ impl BackboneInfo {
                     source_checkpoint: Some(dir),
                     tuned: None,
                     pooled_blocks: Vec::new(),
-                    center_pooled: false,
                 }
             }
             TrainMode::FrozenPretrained => {

@@ -314,10 +314,6 @@ pub struct EfficientNetLite {
     /// Blocks whose globally pooled outputs follow the head's in the
     /// feature vector (multi-level features; none by default).
     pooled_blocks: Vec<usize>,
-    /// The head's output also pooled over the centre of the view (the
-    /// middle half of each side), after everything else: what the aim
-    /// point shows, apart from its surround.
-    center_pooled: bool,
 }
 
 impl EfficientNetLite {
@@ -358,7 +354,6 @@ impl EfficientNetLite {
             head,
             fc,
             pooled_blocks: Vec::new(),
-            center_pooled: false,
         })
     }
 
@@ -369,13 +364,7 @@ impl EfficientNetLite {
     /// Length of the pooled feature vector.
     pub fn feature_dim(&self) -> usize {
         let pooled = self.pooled_blocks.iter().map(|&i| self.blocks[i].spec.cout);
-        let centre = if self.center_pooled { self.cfg.head_channels } else { 0 };
-        self.cfg.head_channels + pooled.sum::<usize>() + centre
-    }
-
-    /// Appends the head's output pooled over the centre of the view.
-    pub fn set_center_pooled(&mut self, on: bool) {
-        self.center_pooled = on;
+        self.cfg.head_channels + pooled.sum::<usize>()
     }
 
     /// Appends the globally pooled outputs of `blocks` (strictly
@@ -463,9 +452,6 @@ impl EfficientNetLite {
             }
         }
         let map = self.head.pointwise(&y, None, true)?;
-        if self.center_pooled {
-            parts.push(center_pool(&map)?);
-        }
         head_then_blocks(pool(&map)?, parts)
     }
 
@@ -582,15 +568,6 @@ pub(super) fn head_then_blocks(head: Tensor, mut blocks: Vec<Tensor>) -> Result<
 /// Global average pooling: (N, C, H, W) -> (N, C).
 fn pool(x: &Tensor) -> Result<Tensor> {
     x.flatten_from(2)?.mean(D::Minus1)
-}
-
-/// Average pooling over the middle half of each side (at least one cell):
-/// (N, C, H, W) -> (N, C).
-fn center_pool(x: &Tensor) -> Result<Tensor> {
-    let (_, _, h, w) = x.dims4()?;
-    let middle = |n: usize| (n / 4, (n - 2 * (n / 4)).max(1));
-    let ((top, rows), (left, cols)) = (middle(h), middle(w));
-    pool(&x.narrow(2, top, rows)?.narrow(3, left, cols)?)
 }
 
 /// One style list for each of `n` images, every style for one of the

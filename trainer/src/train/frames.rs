@@ -88,11 +88,8 @@ impl SplitFrames {
     }
 
     /// Replaces each cached row by its trace head's input `[f, m]`, traced
-    /// over its sequence's rows in time order (`grasp_model::trace`). With
-    /// `restart` (a fraction and a seed), each sequence's trace starts
-    /// again at a frame drawn among its first fraction, as an approach
-    /// triggered late would: the head then cannot count on the far frames.
-    pub fn trace(&mut self, time_constant_s: f64, restart: Option<(f64, u64)>) -> Result<()> {
+    /// over its sequence's rows in time order (`grasp_model::trace`).
+    pub fn trace(&mut self, time_constant_s: f64) -> Result<()> {
         let FrameSource::Cached(x) = &self.source else {
             let why = "the trace head trains on cached features (frozen mode)";
             return Err(crate::error::TrainError::Inconsistent(why));
@@ -100,18 +97,12 @@ impl SplitFrames {
         let (n, dim) = x.dims2()?;
         let rows: Vec<f32> = x.flatten_all()?.to_vec1()?;
         let mut traced = vec![0f32; n * 2 * dim];
-        for (si, (seq, times)) in self.seq_rows.iter().zip(&self.seq_times).enumerate() {
+        for (seq, times) in self.seq_rows.iter().zip(&self.seq_times) {
             let mut flat = Vec::with_capacity(seq.len() * dim);
             for &r in seq {
                 flat.extend_from_slice(&rows[r * dim..(r + 1) * dim]);
             }
-            let start = match restart {
-                Some((fraction, seed)) => restart_row(seq.len(), fraction, seed, &self.seq_ids[si]),
-                None => 0,
-            };
-            let (head, tail) = (start * dim, times.len().min(start));
-            let mut out = grasp_model::trace::traced_rows(&times[..tail], &flat[..head], dim, time_constant_s);
-            out.extend(grasp_model::trace::traced_rows(&times[tail..], &flat[head..], dim, time_constant_s));
+            let out = grasp_model::trace::traced_rows(times, &flat, dim, time_constant_s);
             for (&r, row) in seq.iter().zip(out.chunks_exact(2 * dim)) {
                 traced[r * 2 * dim..(r + 1) * 2 * dim].copy_from_slice(row);
             }
@@ -135,15 +126,4 @@ impl SplitFrames {
             *times = steps.iter().map(|&i| times[i]).collect();
         }
     }
-}
-
-/// The row a sequence of `rows` rows restarts its trace at: drawn
-/// uniformly among the first `fraction` of them (seeded by the sequence).
-fn restart_row(rows: usize, fraction: f64, seed: u64, id: &str) -> usize {
-    use rand::Rng;
-    let span = (fraction.clamp(0.0, 1.0) * rows as f64).floor() as usize;
-    if span == 0 {
-        return 0;
-    }
-    crate::rng::stream(seed, &format!("trace-restart/{id}")).gen_range(0..=span.min(rows - 1))
 }

@@ -51,7 +51,6 @@ pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> 
     if !cfg.pooled_blocks.is_empty() {
         info.pooled_blocks = cfg.pooled_blocks.clone();
     }
-    info.center_pooled |= cfg.center_pool;
     Ok((info, pre))
 }
 
@@ -170,9 +169,8 @@ fn prepare_frames(
             let (mut train, mut val) = cached_frames(cfg, splits, &bb, bad, dev)?;
             let damping = damp_views(cfg, &mut train, &mut val, splits.train.sequences.len())?;
             if cfg.head == HeadKind::Trace {
-                let restart = (cfg.trace_restart > 0.0).then_some((cfg.trace_restart, cfg.split.seed));
-                train.trace(cfg.trace_s, restart)?;
-                val.trace(cfg.trace_s, None)?;
+                train.trace(cfg.trace_s)?;
+                val.trace(cfg.trace_s)?;
             }
             Ok(Prepared {
                 train,
@@ -317,7 +315,6 @@ pub(super) fn build_net(
                 source_checkpoint: None,
                 tuned: None,
                 pooled_blocks: Vec::new(),
-                center_pooled: false,
             };
             let vm = VarMap::new();
             let vb = VarBuilder::from_varmap(&vm, DType::F32, dev);
