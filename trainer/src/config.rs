@@ -178,7 +178,7 @@ pub struct FineTuneConfig {
 }
 
 impl Default for FineTuneConfig {
-    /// Measured in EXPERIMENTS.md sections 10 and 11: the last eight blocks,
+    /// Measured in EXPERIMENTS-archive.md sections 10 and 11: the last eight blocks,
     /// a fifth of the head's rate, no decay, after a 30-epoch linear probe.
     fn default() -> Self {
         FineTuneConfig {
@@ -391,21 +391,21 @@ impl TrainConfig {
         }
         let reason = match (self.mode, self.backbone, &self.weights) {
             (TrainMode::FrozenPretrained, Some(Architecture::MobileNetV2), None) => {
-                "a frozen MobileNetV2 needs its weights (--weights mobilenet_v2-b0353104.pth); \
-                 EfficientNet-Lite0's come with the venv (--backbone efficientnet-lite0, the \
-                 default), or train MobileNetV2 with --mode from-scratch"
+                "a frozen MobileNetV2 needs its weights (--set weights=mobilenet_v2-b0353104.pth); \
+                 EfficientNet-Lite0's come with the venv (--set backbone=efficientnet-lite0, the \
+                 default), or train MobileNetV2 with --set mode=from-scratch"
                     .to_string()
             }
             (TrainMode::FromScratch, Some(arch), _) if arch != Architecture::MobileNetV2 => {
                 format!(
                     "{} is used frozen only; from scratch trains MobileNetV2 \
-                     (--backbone mobilenet-v2, or leave --backbone out)",
+                     (--set backbone=mobilenet-v2, or leave backbone out)",
                     arch.name()
                 )
             }
             (TrainMode::FineTuned, Some(Architecture::MobileNetV2), _) => {
                 "fine-tuned mode tunes the last blocks of an EfficientNet-Lite \
-                 (--backbone efficientnet-lite0, the default)"
+                 (--set backbone=efficientnet-lite0, the default)"
                     .to_string()
             }
             _ => return Ok(()),

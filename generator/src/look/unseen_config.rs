@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 /// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`):
 /// its defaults, `mosaic` and `rings`, kept for a second held-out look
-/// (`configs/test-look-b.toml`, EXPERIMENTS.md section 15), and `chevron`
+/// (`configs/test-look-b.toml`, EXPERIMENTS-archive.md section 15), and `chevron`
 /// and `triangles` for a third (`configs/test-look-c.toml`, section 16).
 pub const UNSEEN_FAMILIES: [&str; 7] = [
     "dots",

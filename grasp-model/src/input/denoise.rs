@@ -3,7 +3,7 @@
 //! estimator), then removed by non-local means with a filtering strength
 //! proportional to it. A camera noisier than training's then reaches the
 //! frozen backbone about as clean as training's frames, and a clean frame
-//! passes nearly unchanged (EXPERIMENTS.md, section 21).
+//! passes nearly unchanged (EXPERIMENTS-archive.md, section 21).
 //!
 //! Non-local means (Buades, Coll and Morel 2005; the fast per-offset form of
 //! Darbon et al. 2008): every pixel becomes a weighted mean of the pixels in

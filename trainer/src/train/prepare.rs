@@ -80,7 +80,7 @@ fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
     let arch = detect_architecture(path)?;
     if let Some(asked) = cfg.backbone.filter(|a| *a != arch) {
         let reason = format!(
-            "--backbone {} does not match the weights file {}, which is {}",
+            "backbone {} does not match the weights file {}, which is {}",
             asked.name(),
             path.display(),
             arch.name()

@@ -674,8 +674,8 @@ fn doctor() -> Result<()> {
     for arch in Architecture::ALL {
         let Some(variant) = arch.lite() else {
             println!(
-                "{:20} no pip package: pass --weights mobilenet_v2-b0353104.pth (torchvision), \
-                 or train it with --mode from-scratch",
+                "{:20} no pip package: train with --set weights=mobilenet_v2-b0353104.pth \
+                 (torchvision), or with --set mode=from-scratch",
                 arch.name()
             );
             continue;
