@@ -3,7 +3,7 @@
 //! object and the part; the error a failure comes from is its `source`.
 
 use crate::catalog::CatalogError;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 use crate::geometry::GeometryError;
 use std::path::PathBuf;
 

@@ -18,7 +18,7 @@ pub mod scene;
 pub mod source;
 pub mod worker;
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::dataset::{CENTER_REGION_KEY, WORLD_KEY};
 use serde::{Deserialize, Serialize};
 
