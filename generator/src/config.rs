@@ -1,6 +1,7 @@
 //! The generator's config file (TOML), shared by `grasp-gen plan` and
 //! `grasp-gen render`. Every section has defaults, so an empty file is a
-//! valid config; `grasp-gen config --print-default` (planned) shows them all.
+//! valid config; `configs/default.toml` shows them all (a test checks it
+//! against the built-in defaults).
 //!
 //! The sections' error, [`ConfigError`], lives in [`error`]: the sections
 //! this file gathers import it from there, not from here.
