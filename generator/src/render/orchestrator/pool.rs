@@ -4,7 +4,7 @@
 
 use super::outputs::record_settings;
 use super::slot::worker_slot;
-use super::{Event, RenderSummary, Rendered, Shared};
+use super::shared::{Event, RenderSummary, Rendered, Shared};
 use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;

@@ -3,7 +3,7 @@
 //! demand, recycled every `recycle_every` sequences) and reports back.
 
 use super::worker_proc::WorkerProc;
-use super::{Event, Job, Rendered, Shared};
+use super::shared::{Event, Job, Rendered, Shared};
 use crate::dataset::error::chain;
 use crate::dataset::storage;
 use crate::dataset::writer::frame_files;
