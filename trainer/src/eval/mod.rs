@@ -2,6 +2,7 @@
 //! baseline, accuracy against time, and the Markdown/JSON/PNG report.
 
 pub mod choice;
+pub mod files;
 pub mod html;
 pub mod metrics;
 pub mod plots;
@@ -10,4 +11,5 @@ pub mod report;
 pub mod summary;
 
 pub use metrics::{compute_metrics, Metrics, VideoPrediction};
-pub use report::{write_report, Report};
+pub use files::write_report;
+pub use report::Report;
