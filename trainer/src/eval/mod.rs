@@ -8,6 +8,7 @@ pub mod metrics;
 pub mod plots;
 pub mod predict;
 pub mod report;
+pub mod row;
 pub mod summary;
 
 pub use metrics::{compute_metrics, Metrics, VideoPrediction};
