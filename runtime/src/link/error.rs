@@ -1,6 +1,6 @@
 //! Why a command was not delivered, or the link not started.
 
-use crate::config::InvalidSetting;
+use grasp_policy::setting::InvalidSetting;
 use crate::protocol::{HandState, Status};
 use grasp_schema::taxonomy::HandConfiguration;
 
