@@ -4,7 +4,7 @@
 
 use crate::catalog::CatalogError;
 use crate::config::error::ConfigError;
-use crate::geometry::GeometryError;
+use crate::geometry::error::GeometryError;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
