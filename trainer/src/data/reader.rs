@@ -453,9 +453,9 @@ fn relative_id(root: &Path, dir: &Path) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
     use crate::data::bad::OnBadData;
     use crate::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
-    use super::*;
 
     #[test]
     fn a_root_that_cannot_be_listed_is_named() {

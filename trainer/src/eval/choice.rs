@@ -58,8 +58,7 @@ impl Choice {
             let mut vote = Vec::new();
             let mut head = String::new();
             for set in &sets {
-                let Some(row) = rows.iter().find(|r| r.group_name() == (&model, set))
-                else {
+                let Some(row) = rows.iter().find(|r| r.group_name() == (&model, set)) else {
                     let set = set.clone();
                     return Err(SummaryError::MissingSet { model, set });
                 };

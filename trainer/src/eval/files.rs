@@ -27,8 +27,7 @@ pub fn write_report(report: &Report, dir: &Path) -> Result<(), EvalError> {
         multi_no_grasp: &report.time_multi.no_grasp_share(),
     })?;
     grasp_support::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
-    let confusion =
-        plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
+    let confusion = plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
     grasp_support::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
     grasp_support::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
     html::write_report_html(report, dir)?;

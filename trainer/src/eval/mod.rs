@@ -11,6 +11,6 @@ pub mod report;
 pub mod row;
 pub mod summary;
 
-pub use metrics::{compute_metrics, Metrics, VideoPrediction};
 pub use files::write_report;
+pub use metrics::{compute_metrics, Metrics, VideoPrediction};
 pub use report::Report;

@@ -3,8 +3,8 @@
 //! folders and the run's summary, and the progress shown meanwhile.
 
 use super::outputs::record_settings;
-use super::slot::worker_slot;
 use super::shared::{Event, RenderSummary, Rendered, Shared};
+use super::slot::worker_slot;
 use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;
