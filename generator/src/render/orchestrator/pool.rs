@@ -194,7 +194,7 @@ impl Progress {
             let done = summary.rendered + summary.failed.len();
             tracing::info!(
                 "{}",
-                grasp_support::cli::progress_line(
+                grasp_support::progress::progress_line(
                     "render",
                     done as u64,
                     self.total as u64,
