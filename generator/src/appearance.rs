@@ -10,7 +10,7 @@
 //! ([`crate::unseen_look`]); training's further levers are in
 //! [`crate::randomize`].
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::appearance::{Appearance, Light, ObjectMaterial, SurfaceMaterial};
 use grasp_schema::Condition;
 use rand::{Rng, SeedableRng};

@@ -1,89 +1,17 @@
 //! The generator's config file (TOML), shared by `grasp-gen plan` and
 //! `grasp-gen render`. Every section has defaults, so an empty file is a
-//! valid config; `grasp-gen config --print-default` (planned) shows them all.
+//! valid config; `configs/default.toml` shows them all (a test checks it
+//! against the built-in defaults).
+//!
+//! The sections' error, [`ConfigError`], lives in [`error`]: the sections
+//! this file gathers import it from there, not from here.
+
+pub mod error;
+
+pub use error::{ConfigError, Result};
 
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-
-/// Why a config is refused. Every message names the field (`[section] key`
-/// or `plan.section.key`) and, once the whole config is checked, the files.
-#[derive(Debug, thiserror::Error)]
-pub enum ConfigError {
-    /// The files (or `--set` values) do not load: a file that cannot be
-    /// read, is not TOML, or a `--set` that does not parse. `config` names
-    /// the files; the layer loader's error (which names the file or the
-    /// `--set`) is the source.
-    #[error("invalid config {config}")]
-    Layers {
-        config: String,
-        #[source]
-        source: Box<grasp_support::layers::LayersError>,
-    },
-    /// The merged table is not a config: an unknown key, a value of the
-    /// wrong type.
-    #[error("invalid config {config}")]
-    Shape {
-        config: String,
-        #[source]
-        source: Box<toml::de::Error>,
-    },
-    /// The config parses but one of its values is refused.
-    #[error("invalid config {config}")]
-    Check {
-        config: String,
-        #[source]
-        source: Box<ConfigError>,
-    },
-    /// A field's value: "FIELD: REASON".
-    #[error("{field}: {reason}")]
-    Invalid { field: String, reason: String },
-    /// A rule a field (with the others it names) must follow: "FIELD RULE",
-    /// e.g. "plan.trajectory.fps must be positive, got 0".
-    #[error("{field} {rule}")]
-    Rule { field: String, rule: String },
-    /// A folder a field names that cannot be read.
-    #[error("{field}: cannot read {}", path.display())]
-    Read {
-        field: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    /// A sequence length that gives too few or too many frames.
-    #[error("a sequence of {duration_s} s at {fps} fps has {frames} frames; it needs 1 to 10^7")]
-    FrameCount {
-        duration_s: f64,
-        fps: f64,
-        frames: f64,
-    },
-}
-
-pub type Result<T, E = ConfigError> = std::result::Result<T, E>;
-
-impl ConfigError {
-    pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        ConfigError::Invalid {
-            field: field.into(),
-            reason: reason.into(),
-        }
-    }
-
-    pub(crate) fn rule(field: impl Into<String>, rule: impl Into<String>) -> Self {
-        ConfigError::Rule {
-            field: field.into(),
-            rule: rule.into(),
-        }
-    }
-
-    /// The field the error is about, when it is about one.
-    pub fn field(&self) -> Option<&str> {
-        match self {
-            ConfigError::Invalid { field, .. } | ConfigError::Rule { field, .. } => Some(field),
-            ConfigError::Check { source, .. } => source.field(),
-            _ => None,
-        }
-    }
-}
 
 /// The config flags of `plan`, `render` and `dataset verify`: files laid
 /// over each other, then single values.

@@ -1,4 +1,4 @@
-//! Conventions shared by every program (grasp_support::cli,
+//! Conventions shared by every program (grasp_main,
 //! grasp_test_support::program): a closed stdout ends `grasp-gen` quietly,
 //! and a user error prints its message, not a backtrace, even under
 //! `RUST_BACKTRACE=1`.

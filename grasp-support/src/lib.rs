@@ -1,14 +1,16 @@
-//! What the programs share besides data types: the binaries' `main`
-//! wrapper and logging ([`cli`]), atomic file writes ([`atomic`]), the io
-//! error that names its path ([`IoAt`]), config
-//! files in layers ([`layers`]) and where the project's Python environment
-//! is ([`venv`]). The data types live in `grasp-schema`, which depends on
-//! none of this; the tests' set-up lives in `grasp-test-support`.
+//! What the programs and libraries share besides data types: atomic file
+//! writes ([`atomic`]), the io error that names its path ([`IoAt`]), config
+//! files in layers ([`layers`]), a long step's progress as a log line
+//! ([`progress`]), an error's chain on one line ([`error_chain`]) and where
+//! the project's Python environment is ([`venv`]). Its API is typed: the
+//! binaries' `main`, logging and anyhow live in `grasp-main`, which only
+//! the binaries use. The data types live in `grasp-schema`, which depends
+//! on none of this; the tests' set-up lives in `grasp-test-support`.
 
 pub mod atomic;
-pub mod cli;
 mod io_at;
 pub mod layers;
+pub mod progress;
 pub mod venv;
 
 pub use io_at::IoAt;

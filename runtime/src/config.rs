@@ -46,6 +46,8 @@ pub enum ConfigError {
     },
 }
 
+/// The settings' error and check, from `grasp-policy` (the runtime's own
+/// sections, such as `[link]`, import them from there).
 pub use grasp_policy::setting::{ensure, InvalidSetting};
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]

@@ -1,6 +1,6 @@
 //! The runtime's errors. Each concept has its own enum beside the code
-//! that fails: [`crate::config::ConfigError`] (and
-//! [`crate::config::InvalidSetting`]), [`crate::model::CheckpointError`],
+//! that fails: [`crate::config::ConfigError`] (and the settings'
+//! [`grasp_policy::setting::InvalidSetting`]), [`crate::model::CheckpointError`],
 //! [`crate::source::SourceError`], [`crate::classifier::ClassifyError`],
 //! [`crate::trigger::TriggerError`], [`crate::link::LinkError`] and
 //! [`crate::link::StartError`], [`crate::ptylink::PtyError`],
@@ -15,7 +15,7 @@ pub enum RuntimeError {
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
     #[error(transparent)]
-    Setting(#[from] crate::config::InvalidSetting),
+    Setting(#[from] grasp_policy::setting::InvalidSetting),
     #[error(transparent)]
     Checkpoint(#[from] crate::model::CheckpointError),
     #[error(transparent)]

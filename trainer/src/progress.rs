@@ -80,7 +80,7 @@ impl Progress {
 
 impl LogLines {
     fn line(&self, now: Instant) -> String {
-        grasp_support::cli::progress_line(
+        grasp_support::progress::progress_line(
             &self.prefix,
             self.pos.get(),
             self.len,

@@ -1,4 +1,4 @@
-//! Conventions shared by every program (grasp_support::cli,
+//! Conventions shared by every program (grasp_main,
 //! grasp_test_support::program): a closed stdout ends `grasp-train` quietly,
 //! a user error prints its message, not a backtrace, even under
 //! `RUST_BACKTRACE=1`, and logs into a pipe carry no colour codes.

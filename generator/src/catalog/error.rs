@@ -2,7 +2,7 @@
 //! message names the file, the object and the field it is about; the error
 //! a failure comes from is its `source`, not repeated in the message.
 
-use crate::geometry::GeometryError;
+use crate::geometry::error::GeometryError;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]

@@ -1,7 +1,7 @@
 //! Checks shared by the look's config sections: value ranges and the names
 //! of the bundled world HDRIs.
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 
 /// The world HDRIs shipped in the bpy wheel
 /// (`bpy/5.0/datafiles/studiolights/world/*.exr`, CC0, Poly Haven).

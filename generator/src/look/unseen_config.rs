@@ -5,7 +5,7 @@
 //! [`crate::randomize`].
 
 use super::{check_hdris, check_range};
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use serde::{Deserialize, Serialize};
 
 /// Texture families only `unseen_look` may draw (`blender_scripts/materials.py`):

@@ -14,7 +14,7 @@
 //! square and a square image sees 42 x 42 degrees; `stretch` squeezes the
 //! whole sensor field into the image (fx != fy).
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::plan::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
 

@@ -108,14 +108,14 @@ impl ConditionsConfig {
         }
     }
 
-    pub fn validate(&self) -> crate::config::Result<()> {
+    pub fn validate(&self) -> crate::config::error::Result<()> {
         for (name, d) in [
             ("fast", self.fast.duration_s),
             ("seated", self.seated.duration_s),
             ("from_ground", self.from_ground.duration_s),
         ] {
             if !(d.is_finite() && d > 0.0) {
-                return Err(crate::config::ConfigError::rule(
+                return Err(crate::config::error::ConfigError::rule(
                     format!("plan.conditions.{name}.duration_s"),
                     format!("must be positive, got {d}"),
                 ));
@@ -123,14 +123,14 @@ impl ConditionsConfig {
         }
         let s = &self.seated;
         if !(s.distance_scale > 0.0 && s.height_scale > 0.0) {
-            return Err(crate::config::ConfigError::rule(
+            return Err(crate::config::error::ConfigError::rule(
                 "plan.conditions.seated.distance_scale",
                 "and height_scale must be positive",
             ));
         }
         let g = &self.from_ground;
         if !(g.via_time[0] > 0.0 && g.via_time[1] < 1.0 && g.via_time[0] <= g.via_time[1]) {
-            return Err(crate::config::ConfigError::rule(
+            return Err(crate::config::error::ConfigError::rule(
                 "plan.conditions.from_ground.via_time",
                 format!("must be a range inside (0, 1), got {:?}", g.via_time),
             ));

@@ -3,8 +3,8 @@
 //! object and the part; the error a failure comes from is its `source`.
 
 use crate::catalog::CatalogError;
-use crate::config::ConfigError;
-use crate::geometry::GeometryError;
+use crate::config::error::ConfigError;
+use crate::geometry::error::GeometryError;
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]

@@ -22,7 +22,7 @@
 
 use super::scene::{uniform, SceneConfig};
 use super::wrist::{look_at, roll, to_wxyz};
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::plan::Pose;
 use grasp_schema::Condition;
 use nalgebra::{Unit, UnitQuaternion, Vector3};

@@ -38,7 +38,7 @@ pub mod cli {
     pub use super::jsonl::read_jsonl;
 }
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::Condition;
 use serde::{Deserialize, Serialize};
 

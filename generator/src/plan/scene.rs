@@ -6,7 +6,7 @@
 //! table edge is at `table_center.x - table_size.x / 2`.
 
 use crate::catalog::{GraspPart, UpsideDown};
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::Rng;
 use serde::{Deserialize, Serialize};

@@ -7,7 +7,7 @@
 //! the sequence's own `shake` sub-stream: turning it on changes no other
 //! value of the plan. Off by default; the camera test world turns it on.
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::plan::{substream_seed, FramePlan};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rand::Rng;

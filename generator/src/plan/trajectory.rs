@@ -4,7 +4,7 @@
 //! `tau` in [0, 1]; nothing is accumulated frame by frame, so the endpoint is
 //! exact for any frame count.
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 

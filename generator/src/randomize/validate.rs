@@ -3,7 +3,7 @@
 
 use super::{RandomizeConfig, DISTRACTOR_SHAPES, MAX_DISTRACTORS};
 use crate::appearance::AppearanceConfig;
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use crate::look::unseen_config::{UnseenLookConfig, UNSEEN_FAMILIES, UNSEEN_LIGHT_KINDS};
 use crate::look::{check_hdris, check_range};
 

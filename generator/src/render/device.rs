@@ -8,7 +8,7 @@
 //! it enters no random stream and no plan, so a seed gives the same labels
 //! and camera paths on every device.
 
-use super::Engine;
+use super::engine::Engine;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 

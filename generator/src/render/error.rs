@@ -4,7 +4,7 @@
 //! sequence and the object; the error a failure comes from is its `source`.
 
 use crate::catalog::CatalogError;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 use crate::dataset::DatasetError;
 use crate::plan::PlanError;
 use std::path::PathBuf;

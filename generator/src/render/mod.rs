@@ -9,6 +9,7 @@
 pub mod consistency;
 pub mod device;
 pub mod effects;
+pub mod engine;
 pub mod error;
 pub mod orchestrator;
 pub mod parts;
@@ -18,28 +19,17 @@ pub mod scene;
 pub mod source;
 pub mod worker;
 
-use crate::config::{ConfigError, Result};
+use crate::config::error::{ConfigError, Result};
 use grasp_schema::dataset::{CENTER_REGION_KEY, WORLD_KEY};
 use serde::{Deserialize, Serialize};
 
 pub use crate::dataset::shard::Shard;
 pub use device::Device;
+pub use engine::Engine;
 pub use error::RenderError;
 pub use orchestrator::{render, RenderOptions, RenderSummary};
 pub use scene::SceneGeometry;
 pub use source::RenderSource;
-
-/// Render engine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Engine {
-    /// Path tracing; the default, realistic with the denoiser at few samples.
-    Cycles,
-    /// Rasterised flat studio lighting: fast previews and tests.
-    Workbench,
-    /// Blender's real-time engine; meant for machines with a GPU.
-    Eevee,
-}
 
 /// Which scene builder and render path draws the frames (`[render] world`).
 /// Only pixels depend on it: plans, labels and every random draw of the

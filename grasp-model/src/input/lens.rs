@@ -4,7 +4,7 @@
 //! streaming at half resolution) scale the focal length with them, so a
 //! calibration made at one resolution stays right at another.
 
-use super::InputError;
+use super::error::InputError;
 use grasp_schema::plan::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -177,7 +177,7 @@ impl Lens {
                     || (aspect(width, height) / aspect(w0, h0) - 1.0).abs() > ASPECT_TOLERANCE
                 {
                     return Err(InputError::LensShape {
-                        lens: *self,
+                        lens: self.describe(),
                         width,
                         height,
                     });
@@ -214,6 +214,7 @@ impl Lens {
                         field,
                         value: hfov_deg,
                         fov_deg: hfov_deg,
+                        range_deg: FOV_RANGE_DEG,
                     })
                 }
             }
@@ -252,6 +253,7 @@ fn check_fov(focal_px: f64, width: u32, field: &'static str) -> Result<(), Input
             field,
             value: focal_px,
             fov_deg,
+            range_deg: FOV_RANGE_DEG,
         })
     }
 }

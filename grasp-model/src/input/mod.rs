@@ -12,66 +12,22 @@
 //! follows from the focal length at the frame's own size.
 
 pub mod denoise;
+mod error;
 mod lens;
 pub mod preprocess;
 mod resize;
 
+pub use error::InputError;
 pub use lens::{parse_size, Lens, FOV_RANGE_DEG};
 
 use image::RgbImage;
 use preprocess::{center_crop, Preprocess};
 use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
 
 /// The smallest square, in pixels, that the backbone may be fed: below it
 /// the resize to the input size shows it nothing but blur (a focal length
 /// given in millimetres crops under a pixel).
 pub const MIN_INPUT_PX: u32 = 16;
-
-/// Why a frame cannot become the backbone's input, or an input record is
-/// unusable. Each names the field at fault.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum InputError {
-    #[error("input.{field} {reason}")]
-    Field { field: &'static str, reason: String },
-    #[error(
-        "the model crops a fixed angle of {angle_deg} degrees, so it needs the camera's focal \
-         length: a sequence.json with plan.intrinsics, or a lens given as --focal-px with \
-         --lens-size, --hfov-deg or --lens-file"
-    )]
-    NoLens { angle_deg: f64 },
-    #[error(
-        "{field} {value} is not a plausible camera: it gives a field of view of {fov_deg:.1} \
-         degrees across the frame (a camera spans {} to {} degrees; a focal length is in pixels)",
-        FOV_RANGE_DEG.0,
-        FOV_RANGE_DEG.1
-    )]
-    Implausible {
-        field: &'static str,
-        value: f64,
-        fov_deg: f64,
-    },
-    #[error(
-        "the frames are {width}x{height}, another shape than the lens ({}) was measured at: \
-         cropped frames have an unknown focal length",
-        lens.describe()
-    )]
-    LensShape { lens: Lens, width: u32, height: u32 },
-    #[error("lens file {}: {reason}", path.display())]
-    LensFile { path: PathBuf, reason: String },
-    #[error("an empty frame ({width}x{height})")]
-    EmptyFrame { width: u32, height: u32 },
-    #[error(
-        "the backbone would see a square of {side} px of the {width}x{height} frame, under the \
-         {MIN_INPUT_PX} px minimum (input.crop {crop})"
-    )]
-    TooSmall {
-        side: u32,
-        width: u32,
-        height: u32,
-        crop: String,
-    },
-}
 
 /// The centre crop a model sees of each frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -153,6 +109,7 @@ impl Crop {
                 width,
                 height,
                 crop: self.describe(),
+                min_px: MIN_INPUT_PX,
             });
         }
         Ok(fraction)

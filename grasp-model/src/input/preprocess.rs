@@ -11,28 +11,13 @@ use candle_core::{Device, Result, Tensor};
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
+pub use super::resize::ResizeFilter;
+
 pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
 pub const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
 /// EfficientNet-Lite's (x - 127) / 128 in [0, 1] units.
 pub const LITE_MEAN: [f32; 3] = [127.0 / 255.0; 3];
 pub const LITE_STD: [f32; 3] = [128.0 / 255.0; 3];
-
-/// The filter that squashes frames to the input size.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ResizeFilter {
-    /// Triangle (bilinear) filter, torchvision's default.
-    #[default]
-    Bilinear,
-    /// Catmull-Rom (bicubic, a = -0.5, as PIL's BICUBIC).
-    Bicubic,
-}
-
-impl ResizeFilter {
-    fn is_bilinear(&self) -> bool {
-        *self == ResizeFilter::Bilinear
-    }
-}
 
 /// Input preprocessing: squash to `size` x `size` with `resize`, scale to
 /// [0, 1], then normalize per channel: (x / 255 - mean) / std.

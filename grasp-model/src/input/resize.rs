@@ -6,9 +6,26 @@
 //! generic passes read every pixel through bounds-checked accessors and call
 //! the C library's `roundf` for every value: 5 % of a frame on one thread.
 
-use super::preprocess::ResizeFilter;
 use crate::ops::cpu::simd_dispatch;
 use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+/// The filter that squashes frames to the input size.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ResizeFilter {
+    /// Triangle (bilinear) filter, torchvision's default.
+    #[default]
+    Bilinear,
+    /// Catmull-Rom (bicubic, a = -0.5, as PIL's BICUBIC).
+    Bicubic,
+}
+
+impl ResizeFilter {
+    pub(super) fn is_bilinear(&self) -> bool {
+        *self == ResizeFilter::Bilinear
+    }
+}
 
 /// `img` resized to `width` x `height` with `filter`.
 pub fn resize(img: &RgbImage, width: u32, height: u32, filter: ResizeFilter) -> RgbImage {

@@ -1,7 +1,7 @@
 //! Plumbing shared by the CPU custom-op kernels (depthwise, pointwise,
 //! im2col, linear, LSTM): the run-time choice of the vector unit, candle's
 //! storage read as f32 slices, uninitialised output buffers, the parallel
-//! loop over output planes, and `gemm` calls.
+//! loop over output planes, a pointer the threads share, and `gemm` calls.
 
 use candle_core::{CpuStorage, Layout, Result};
 
@@ -99,6 +99,21 @@ where
     out.par_chunks_mut(chunk)
         .enumerate()
         .for_each_init(|| vec![0f32; scratch], |buf, (i, dst)| f(buf, i, dst));
+}
+
+/// Raw pointer that may cross threads: every task writes a disjoint tile
+/// (the pointwise convolution's `gemm` tiles and its narrow kernel).
+#[derive(Clone, Copy)]
+pub(crate) struct SendPtr(pub(crate) *mut f32);
+unsafe impl Send for SendPtr {}
+unsafe impl Sync for SendPtr {}
+
+impl SendPtr {
+    /// # Safety
+    /// `offset` must stay inside the buffer.
+    pub(crate) unsafe fn at(self, offset: usize) -> *mut f32 {
+        self.0.add(offset)
+    }
 }
 
 /// Runs `f` on the f32 data of `t` (copied to a contiguous layout first when

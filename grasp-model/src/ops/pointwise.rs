@@ -20,7 +20,7 @@ pub fn narrow_kernel_available() -> bool {
     narrow::available()
 }
 
-use super::cpu::{alloc_uninit, par_chunks, simd_dispatch};
+use super::cpu::{alloc_uninit, par_chunks, simd_dispatch, SendPtr};
 use super::depthwise::Padding;
 use candle_core::{CpuStorage, CustomOp3, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
@@ -154,20 +154,6 @@ struct PointwiseBiasAct<'a> {
 
 fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
     super::cpu::f32_slice("pointwise conv", s, l, what)
-}
-
-/// Raw pointer that may cross threads: every task writes a disjoint tile.
-#[derive(Clone, Copy)]
-struct SendPtr(*mut f32);
-unsafe impl Send for SendPtr {}
-unsafe impl Sync for SendPtr {}
-
-impl SendPtr {
-    /// # Safety
-    /// `offset` must stay inside the buffer.
-    unsafe fn at(self, offset: usize) -> *mut f32 {
-        self.0.add(offset)
-    }
 }
 
 impl CustomOp3 for PointwiseBiasAct<'_> {

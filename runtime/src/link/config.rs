@@ -1,6 +1,6 @@
 //! The link's timing settings (`[link]` in the config file).
 
-use crate::config::{ensure, InvalidSetting};
+use grasp_policy::setting::{ensure, InvalidSetting};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 

@@ -1,7 +1,7 @@
 //! Why a command was not delivered, or the link not started.
 
-use crate::config::InvalidSetting;
 use crate::protocol::{HandState, Status};
+use grasp_policy::setting::InvalidSetting;
 use grasp_schema::taxonomy::HandConfiguration;
 
 #[derive(Debug, thiserror::Error)]

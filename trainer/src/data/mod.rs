@@ -243,37 +243,3 @@ impl Dataset {
             .collect()
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::synthetic::{write_synthetic, Layout, SyntheticSpec};
-    use super::*;
-
-    #[test]
-    fn pooled_draws_keep_every_sequence_under_its_own_id() {
-        let dir = tempfile::tempdir().unwrap();
-        let spec = SyntheticSpec::small(Layout::Generated);
-        let bad = BadData::new(OnBadData::Fail);
-        let read = |name: &str| {
-            let root = dir.path().join(name);
-            write_synthetic(&root, &spec).unwrap();
-            read_dataset(&root, &ReaderOptions::default(), &bad).unwrap()
-        };
-        let (a, b) = (read("draw-a"), read("draw-b"));
-        let n = a.sequences.len();
-        assert!(n > 0);
-        // Two draws of one spec share their relative ids.
-        assert_eq!(a.sequences[0].id, b.sequences[0].id);
-
-        let pooled = Dataset::pool(vec![a.clone(), b]);
-        assert_eq!(pooled.sequences.len(), 2 * n);
-        assert_eq!(pooled.root, a.root);
-        let ids: std::collections::BTreeSet<&str> =
-            pooled.sequences.iter().map(|s| s.id.as_str()).collect();
-        assert_eq!(ids.len(), 2 * n, "ids collide");
-        assert!(pooled.sequences[n].id.contains("draw-b"));
-
-        // One draw is returned as it is.
-        assert_eq!(Dataset::pool(vec![a.clone()]).sequences, a.sequences);
-    }
-}

@@ -454,6 +454,8 @@ fn relative_id(root: &Path, dir: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::bad::OnBadData;
+    use crate::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 
     #[test]
     fn a_root_that_cannot_be_listed_is_named() {
@@ -477,5 +479,33 @@ mod tests {
             folder_labels(3, Preshape::Power, &opts),
             vec![Class::NoGrasp; 3]
         );
+    }
+
+    #[test]
+    fn pooled_draws_keep_every_sequence_under_its_own_id() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = SyntheticSpec::small(Layout::Generated);
+        let bad = BadData::new(OnBadData::Fail);
+        let read = |name: &str| {
+            let root = dir.path().join(name);
+            write_synthetic(&root, &spec).unwrap();
+            read_dataset(&root, &ReaderOptions::default(), &bad).unwrap()
+        };
+        let (a, b) = (read("draw-a"), read("draw-b"));
+        let n = a.sequences.len();
+        assert!(n > 0);
+        // Two draws of one spec share their relative ids.
+        assert_eq!(a.sequences[0].id, b.sequences[0].id);
+
+        let pooled = Dataset::pool(vec![a.clone(), b]);
+        assert_eq!(pooled.sequences.len(), 2 * n);
+        assert_eq!(pooled.root, a.root);
+        let ids: std::collections::BTreeSet<&str> =
+            pooled.sequences.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(ids.len(), 2 * n, "ids collide");
+        assert!(pooled.sequences[n].id.contains("draw-b"));
+
+        // One draw is returned as it is.
+        assert_eq!(Dataset::pool(vec![a.clone()]).sequences, a.sequences);
     }
 }

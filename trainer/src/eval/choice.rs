@@ -9,7 +9,7 @@
 //! whose head classifies frame by frame can ship, because the hand's loop
 //! (`hannes-run`) runs nothing else; the others are ranked and marked.
 
-use super::summary::Summary;
+use super::row::{conditions, models, Row};
 use crate::error::SummaryError;
 use grasp_model::heads::HeadKind;
 use serde::Serialize;
@@ -47,21 +47,18 @@ pub struct Choice {
 }
 
 impl Choice {
-    /// Ranks the summary's models; every model must have a report on every
-    /// test set that any model has, so that all are judged on the same worlds.
-    pub fn by_worst_set(summary: &Summary) -> Result<Choice, SummaryError> {
-        let sets = summary.conditions();
+    /// Ranks the models of a by-condition summary's rows; every model must
+    /// have a report on every test set that any model has, so that all are
+    /// judged on the same worlds.
+    pub fn by_worst_set(rows: &[Row]) -> Result<Choice, SummaryError> {
+        let sets = conditions(rows);
         let mut standings = Vec::new();
-        for model in summary.models() {
+        for model in models(rows) {
             let mut hand = Vec::new();
             let mut vote = Vec::new();
             let mut head = String::new();
             for set in &sets {
-                let Some(row) = summary
-                    .rows
-                    .iter()
-                    .find(|r| r.group_name() == (&model, set))
-                else {
+                let Some(row) = rows.iter().find(|r| r.group_name() == (&model, set)) else {
                     let set = set.clone();
                     return Err(SummaryError::MissingSet { model, set });
                 };

@@ -2,7 +2,6 @@
 //! `time_accuracy.png` (the paper's Fig. 5) and `confusion.png`.
 
 use super::metrics::{mean_std, scalars, Curve, FrameWindow, MeanStd, Metrics};
-use crate::error::EvalError;
 use grasp_schema::taxonomy::{Class, Preshape};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -231,36 +230,6 @@ fn add_matrix(acc: &mut [Vec<u64>], m: &[Vec<u64>]) {
             *x += y;
         }
     }
-}
-
-/// Writes the report's files into `dir`.
-pub fn write_report(report: &Report, dir: &Path) -> Result<(), EvalError> {
-    std::fs::create_dir_all(dir).map_err(|source| EvalError::Create {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    grasp_support::atomic::write_atomic(
-        &dir.join("report.json"),
-        serde_json::to_string_pretty(report)?.as_bytes(),
-    )?;
-    let time_accuracy = super::plots::time_accuracy(&super::plots::TimeAccuracy {
-        title: format!("Accuracy against time ({}, {})", report.mode, report.head),
-        bin_s: report.time_bin_s,
-        single: &report.time_single.accuracy(),
-        multi: &report.time_multi.accuracy(),
-        single_no_grasp: &report.time_single.no_grasp_share(),
-        multi_no_grasp: &report.time_multi.no_grasp_share(),
-    })?;
-    grasp_support::atomic::write_atomic(&dir.join("time_accuracy.png"), &time_accuracy)?;
-    let confusion =
-        super::plots::confusion(&report.frame_confusion, &grasp_schema::Class::names())?;
-    grasp_support::atomic::write_atomic(&dir.join("confusion.png"), &confusion)?;
-    grasp_support::atomic::write_atomic(&dir.join("videos.csv"), videos_csv(report).as_bytes())?;
-    super::html::write_report_html(report, dir)?;
-    Ok(grasp_support::atomic::write_atomic(
-        &dir.join("report.md"),
-        markdown(report).as_bytes(),
-    )?)
 }
 
 /// One row per video: what it shows and each run's vote, to find the

@@ -52,8 +52,8 @@ enum ObjectsCli {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_support::cli::main(|| {
-        grasp_support::cli::init_logging();
+    grasp_main::main(|| {
+        grasp_main::init_logging();
         let cli = Cli::parse();
         match cli.command {
             Command::Doctor => doctor(),
@@ -75,5 +75,5 @@ fn doctor() -> Result<()> {
     generator::python::init(&["numpy", "trimesh", "rtree", "bpy"])?;
     println!("numpy, trimesh, rtree and bpy import: ok");
     // bpy's leak detector would report Blender's own statics at exit.
-    grasp_support::cli::exit_now(0)
+    grasp_main::exit_now(0)
 }

@@ -7,29 +7,29 @@
 //! * `pool`: the parent's event loop and progress.
 //! * `slot`: one worker slot's thread; `worker_proc`: its process.
 //! * `outputs`: meshes, records and the manifest.
+//! * `shared`: what they all share (a job, a slot's events, the summary).
 
 mod outputs;
 mod pool;
 mod resume;
+mod shared;
 mod slot;
 mod worker_proc;
 
-use super::protocol::MeshFiles;
+pub use shared::RenderSummary;
+
 use super::source::RenderSource;
-use super::{RenderConfig, SceneGeometry, Shard};
+use super::{RenderConfig, Shard};
 use crate::dataset::lock;
 use crate::dataset::{assign_folders, Assigned, DatasetDir};
 use crate::render::error::{RenderError, Result};
-use grasp_schema::dataset::RenderCost;
-use grasp_schema::SequencePlan;
 use grasp_support::atomic::write_atomic;
 use outputs::{finish_manifest, write_meshes};
 use pool::run_pool;
 use resume::{refuse_other_sequences, unfinished_jobs};
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use shared::Shared;
 use std::path::PathBuf;
-use std::process::Child;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -50,119 +50,6 @@ pub struct RenderOptions {
     /// Take over the output lock of a holder on another machine once its
     /// heartbeat has stopped (see [`crate::dataset::lock`]).
     pub break_lock: bool,
-}
-
-#[derive(Debug, Clone, Default)]
-pub struct RenderSummary {
-    /// Sequences in this shard.
-    pub in_shard: usize,
-    /// Already finished before this run (`--resume`).
-    pub skipped: usize,
-    /// Looked finished but had missing or damaged files: rendered again.
-    pub redone: usize,
-    pub rendered: usize,
-    pub frames: usize,
-    pub retries: usize,
-    /// (sequence id, last error) of sequences that failed every attempt.
-    pub failed: Vec<(String, String)>,
-    pub seconds: f64,
-    pub interrupted: bool,
-    /// Why the run stopped early on its own (a full disk, a lost lock).
-    pub fatal: Option<String>,
-    /// Largest peak resident memory reported by any worker, KiB.
-    pub peak_worker_rss_kib: u64,
-    /// The devices this run's sequences were rendered on (`render.cost.device`).
-    pub devices: BTreeSet<String>,
-    /// Why `[render] device = "auto"` rendered on the CPU, logged once.
-    pub device_note: Option<String>,
-}
-
-impl RenderSummary {
-    pub fn frames_per_second(&self) -> f64 {
-        self.frames as f64 / self.seconds.max(1e-9)
-    }
-}
-
-struct Job {
-    assigned: Assigned,
-    attempt: u32,
-}
-
-/// What a worker slot tells the parent.
-enum Event {
-    Rendered(Box<Rendered>),
-    Retry {
-        id: String,
-        error: String,
-    },
-    Failed {
-        id: String,
-        error: String,
-    },
-    /// A worker's note for the log (the device fallback), once per start.
-    Note(String),
-    /// Nothing more can be written (a full disk), or no worker can start
-    /// as configured: stop the whole run.
-    Fatal {
-        id: String,
-        error: String,
-    },
-}
-
-/// A sequence rendered into its partial folder, to be moved into place.
-struct Rendered {
-    peak_rss_kib: u64,
-    cost: RenderCost,
-    /// Part names in label order (the `part` pass), else empty.
-    part_labels: Vec<String>,
-    job: Job,
-    plan: SequencePlan,
-    partial: PathBuf,
-    files: Vec<String>,
-}
-
-/// What every worker thread shares.
-struct Shared {
-    source: Arc<dyn RenderSource>,
-    dataset: DatasetDir,
-    geometry: SceneGeometry,
-    settings: serde_json::Value,
-    meshes: BTreeMap<String, MeshFiles>,
-    exe: PathBuf,
-    worker_env: Vec<(String, String)>,
-    recycle_every: usize,
-    max_retries: u32,
-    /// Whether the `part` pass is on (requests then carry the part boxes).
-    part_pass: bool,
-    queue: Mutex<VecDeque<Job>>,
-    stop: Arc<AtomicBool>,
-    /// The live worker process of each slot, so the main thread can kill it.
-    children: Mutex<Vec<Option<Arc<Mutex<Child>>>>>,
-    /// Prefix of the worker log names: shards sharing a folder keep apart.
-    log_prefix: String,
-}
-
-impl Shared {
-    pub(super) fn stop_and_kill(&self) {
-        self.stop.store(true, Ordering::SeqCst);
-        let children = self.children.lock().unwrap_or_else(|e| e.into_inner());
-        for child in children.iter().flatten() {
-            let mut c = child.lock().unwrap_or_else(|e| e.into_inner());
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-
-    fn stopped(&self) -> bool {
-        self.stop.load(Ordering::SeqCst)
-    }
-
-    fn worker_log(&self, slot: usize) -> PathBuf {
-        self.dataset
-            .work_dir()
-            .join("logs")
-            .join(format!("{}worker-{slot}.log", self.log_prefix))
-    }
 }
 
 /// Renders every unfinished sequence of `shard` into `opts.out`.

@@ -2,7 +2,7 @@
 //! workers, each sequence's record of settings and cost, and the manifest
 //! at the end.
 
-use super::Job;
+use super::shared::Job;
 use crate::dataset::lock::{self, OutputLock};
 use crate::dataset::DatasetDir;
 use crate::render::error::{RenderError, Result};

@@ -3,8 +3,8 @@
 //! folders and the run's summary, and the progress shown meanwhile.
 
 use super::outputs::record_settings;
+use super::shared::{Event, RenderSummary, Rendered, Shared};
 use super::slot::worker_slot;
-use super::{Event, RenderSummary, Rendered, Shared};
 use crate::dataset::error::chain;
 use crate::dataset::lock::OutputLock;
 use crate::dataset::storage;
@@ -194,7 +194,7 @@ impl Progress {
             let done = summary.rendered + summary.failed.len();
             tracing::info!(
                 "{}",
-                grasp_support::cli::progress_line(
+                grasp_support::progress::progress_line(
                     "render",
                     done as u64,
                     self.total as u64,

@@ -2,7 +2,7 @@
 //! keeps, the damaged ones it redoes, and the refusal to mix two renders
 //! (other folders, other settings, another plan) in one dataset.
 
-use super::{Job, RenderSummary};
+use super::shared::{Job, RenderSummary};
 use crate::dataset::{Assigned, DatasetDir};
 use crate::render::error::{RenderError, Result};
 use crate::render::source::RenderSource;

@@ -2,8 +2,8 @@
 //! into a render request, hands it to its worker process (started on
 //! demand, recycled every `recycle_every` sequences) and reports back.
 
+use super::shared::{Event, Job, Rendered, Shared};
 use super::worker_proc::WorkerProc;
-use super::{Event, Job, Rendered, Shared};
 use crate::dataset::error::chain;
 use crate::dataset::storage;
 use crate::dataset::writer::frame_files;

@@ -1,7 +1,7 @@
 //! One worker process seen from the parent: started with its log file,
 //! spoken to one JSON line at a time, killed or asked to quit.
 
-use super::Shared;
+use super::shared::Shared;
 use crate::render::error::{RenderError, Result};
 use crate::render::protocol::{Request, Response};
 use std::io::{BufRead, BufReader, Write};

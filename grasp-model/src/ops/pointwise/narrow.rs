@@ -101,7 +101,7 @@ pub(super) fn run(packed: &Packed, layer: &Layer, n: usize, out: &mut [f32]) {
     use rayon::prelude::*;
     let (cout, hw) = (layer.cout, layer.hw);
     let blocks = cout.div_ceil(LANES);
-    let ptr = super::SendPtr(out.as_mut_ptr());
+    let ptr = crate::ops::cpu::SendPtr(out.as_mut_ptr());
     (0..n * blocks).into_par_iter().for_each(|job| {
         let (img, b) = (job / blocks, job % blocks);
         let rows = b * LANES..((b + 1) * LANES).min(cout);

@@ -40,8 +40,8 @@ enum Cmd {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_support::cli::main(|| {
-        grasp_support::cli::init_logging();
+    grasp_main::main(|| {
+        grasp_main::init_logging();
         dispatch(Cli::parse())
     })
 }

@@ -5,7 +5,7 @@ use crate::args::RunArgs;
 use crate::setup::{config, open_source, stop_flag};
 use crate::table::votes;
 use anyhow::Result;
-use grasp_support::cli::Failure;
+use grasp_main::Failure;
 use runtime::approach::{ApproachReport, FramePrediction};
 use runtime::feed::FeedMode;
 use runtime::link::{Hand, HandLink, LinkConfig};

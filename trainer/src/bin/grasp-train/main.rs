@@ -405,8 +405,8 @@ fn stand_in(args: StandInArgs) -> Result<()> {
 }
 
 fn main() -> std::process::ExitCode {
-    grasp_support::cli::main(|| {
-        grasp_support::cli::init_logging();
+    grasp_main::main(|| {
+        grasp_main::init_logging();
         let cli = Cli::parse();
         if let Some(n) = cli.threads {
             std::env::set_var("RAYON_NUM_THREADS", n.to_string());

@@ -1,5 +1,7 @@
-//! What every program's `main` does the same way (`grasp-gen`, `grasp-train`,
-//! `hannes-run` all call [`main`]):
+//! The programs' `main`, for the binaries alone (`grasp-gen`, `grasp-train`,
+//! `hannes-run` all call [`main`]): the libraries return typed errors, and
+//! anyhow lives only here and in the binaries. What every program does the
+//! same way:
 //!
 //! - an error prints as one line, `Error: context: cause: root cause`, and
 //!   never a backtrace, whatever `RUST_BACKTRACE` says (user errors are not
@@ -62,7 +64,10 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
 /// The one line printed for an error.
 pub fn error_line(e: &anyhow::Error) -> String {
     // Each cause on one line, a backtrace it captured left out (candle's).
-    let chain: Vec<String> = e.chain().map(|c| crate::one_line(&c.to_string())).collect();
+    let chain: Vec<String> = e
+        .chain()
+        .map(|c| grasp_support::one_line(&c.to_string()))
+        .collect();
     format!("Error: {}", chain.join(": "))
 }
 
@@ -80,7 +85,7 @@ pub fn init_logging() {
 }
 
 /// Runs a program's body with the conventions above:
-/// `fn main() -> ExitCode { grasp_support::cli::main(|| { ... }) }`.
+/// `fn main() -> ExitCode { grasp_main::main(|| { ... }) }`.
 pub fn main(body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
     install_panic_hook();
     match panic::catch_unwind(AssertUnwindSafe(body)) {
@@ -186,70 +191,5 @@ mod tests {
         let line = error_line(&e);
         assert_eq!(line, "Error: cannot read config run.toml: No such file");
         assert!(!line.contains('\n'));
-    }
-}
-
-/// A long step's progress as one log line, for output that is not a
-/// terminal: "features: 120/744 (16 %), 0:45 elapsed, about 3:54 left;
-/// MESSAGE", the time left extrapolated from the rate so far.
-pub fn progress_line(
-    prefix: &str,
-    pos: u64,
-    len: u64,
-    elapsed: std::time::Duration,
-    message: &str,
-) -> String {
-    let pct = (pos * 100).checked_div(len).unwrap_or(100);
-    let left = match pos {
-        0 => "time left unknown".to_string(),
-        _ if pos >= len => "done".to_string(),
-        _ => {
-            let secs = elapsed.as_secs_f64() * (len - pos) as f64 / pos as f64;
-            format!(
-                "about {} left",
-                clock(std::time::Duration::from_secs_f64(secs))
-            )
-        }
-    };
-    let mut line = format!(
-        "{prefix}: {pos}/{len} ({pct} %), {} elapsed, {left}",
-        clock(elapsed)
-    );
-    if !message.is_empty() {
-        line += "; ";
-        line += message;
-    }
-    line
-}
-
-/// H:MM:SS, or M:SS under an hour.
-fn clock(d: std::time::Duration) -> String {
-    let s = d.as_secs();
-    match s / 3600 {
-        0 => format!("{}:{:02}", s / 60, s % 60),
-        h => format!("{h}:{:02}:{:02}", (s % 3600) / 60, s % 60),
-    }
-}
-
-#[cfg(test)]
-mod progress_tests {
-    use super::*;
-    use std::time::Duration;
-
-    #[test]
-    fn the_line_gives_counts_and_extrapolates_the_time_left() {
-        let line = progress_line("features", 120, 480, Duration::from_secs(45), "0 cached");
-        assert_eq!(
-            line,
-            "features: 120/480 (25 %), 0:45 elapsed, about 2:15 left; 0 cached"
-        );
-        let start = progress_line("epoch 1", 0, 10, Duration::ZERO, "");
-        assert_eq!(
-            start,
-            "epoch 1: 0/10 (0 %), 0:00 elapsed, time left unknown"
-        );
-        let end = progress_line("predict", 10, 10, Duration::from_secs(3725), "");
-        assert_eq!(end, "predict: 10/10 (100 %), 1:02:05 elapsed, done");
-        assert!(progress_line("x", 0, 0, Duration::ZERO, "").contains("0/0 (100 %)"));
     }
 }
