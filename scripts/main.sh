@@ -10,8 +10,8 @@
 # --config: the render config (configs/main.toml); --train-seq/--test-seq:
 # sequences per pair (24, 2); --models: recipes of configs/recipes/ (fc-tuned
 # loses on the worst world: lab/cross-world.sh trains it); --ycb DIR: train
-# on the authors' YCB meshes; --weights FILE: another frozen backbone (FC and
-# LSTM heads). Test sets: the paper's five conditions, unseen_look and three
+# on the authors' YCB meshes; --weights FILE: another frozen backbone (FC, LSTM
+# and trace heads). Test sets: the paper's five conditions, unseen_look and three
 # foreign worlds: world_reach (another reach, seen at 5 frames/s),
 # world_camera (a real wrist camera's sensor, lens, shake, blur and noise on
 # a seated reach) and the hardest, the real meshes of ../shared/ycb in the

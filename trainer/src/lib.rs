@@ -1,6 +1,6 @@
 //! Training and evaluation of the pre-shape classifier (Vasile et al., IROS
 //! 2022): the paper's training protocol for the networks of `grasp-model`
-//! (a MobileNetV2 or EfficientNet-Lite backbone with an FC or LSTM head),
+//! (a MobileNetV2 or EfficientNet-Lite backbone with an FC, LSTM or trace head),
 //! and the evaluation report.
 
 pub mod adapt;

@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use trainer::data::{BadData, OnBadData};
 
 /// Train and evaluate pre-shape classifiers (an ImageNet EfficientNet-Lite0
-/// backbone, frozen or with its last blocks fine-tuned, with an FC or LSTM
-/// head; or a MobileNetV2) on reach-to-grasp sequences in the layout
+/// backbone, frozen or with its last blocks fine-tuned, with an FC, LSTM
+/// or trace head; or a MobileNetV2) on reach-to-grasp sequences in the layout
 /// ROOT/CATEGORY/OBJECT/PRESHAPE/Wrist_d435/rgbN/: grasp-gen's renders or
 /// the authors' real data.
 #[derive(Parser)]
