@@ -134,7 +134,7 @@ pub(crate) fn parse_faults(s: &str) -> Result<FaultSpec, String> {
 
 #[derive(Args)]
 pub(crate) struct BenchArgs {
-    /// Checkpoint with an FC head (from grasp-train). Latency does not
+    /// Checkpoint with an FC or trace head (from grasp-train). Latency does not
     /// depend on weight values: `grasp-train stand-in --out DIR` builds one
     /// without a dataset.
     #[arg(long)]
