@@ -126,7 +126,10 @@ mod tests {
     #[test]
     fn an_unknown_name_lists_the_spellings() {
         let e = "gru".parse::<HeadKind>().unwrap_err();
-        assert_eq!(e.to_string(), "unknown head 'gru' (one of: fc, lstm)");
+        assert_eq!(
+            e.to_string(),
+            "unknown head 'gru' (one of: fc, lstm, trace)"
+        );
         assert!("Fc".parse::<HeadKind>().is_err(), "case matters, as before");
     }
 }
