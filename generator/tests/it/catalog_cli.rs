@@ -1,18 +1,10 @@
 //! `grasp-gen objects ...` end to end on the built-in catalog.
 
-use std::process::Command;
+use grasp_test_support::Program;
 
 fn grasp_gen(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_grasp-gen"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let done = Program::new(env!("CARGO_BIN_EXE_grasp-gen")).run(args);
+    (done.status.success(), done.stdout, done.stderr)
 }
 
 #[test]

@@ -1,9 +1,10 @@
 //! `grasp-gen plan` end to end: JSON lines, the picture, errors.
 
+use grasp_test_support::Program;
 use std::process::Command;
 
 fn grasp_gen() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_grasp-gen"))
+    Program::new(env!("CARGO_BIN_EXE_grasp-gen")).command(std::iter::empty::<&str>())
 }
 
 #[test]

@@ -3,16 +3,14 @@
 //! current directory, and in skip mode it records what it skipped.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 
 use crate::lead_in;
 
 fn grasp_train(cwd: &Path, args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_grasp-train"))
+    let out = grasp_test_support::Program::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .command(args)
         .current_dir(cwd)
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
         .output()
         .unwrap();
     let text = format!(

@@ -384,8 +384,8 @@ fn command_line_and_toml_list() {
     .unwrap();
     let q4 = format!("q4=4:{}", dir.path().join("runs/q4").display());
     let out = dir.path().join("out");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_grasp-train"))
-        .arg("summarize")
+    let status = grasp_test_support::Program::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .command(["summarize"])
         .arg("--list")
         .arg(dir.path().join("list.toml"))
         .args(["--report", &q4, "--log-x", "--out"])
@@ -410,8 +410,8 @@ fn command_line_and_toml_list() {
         "[[report]]\nlabel = \"a\"\npth = \"x\"\n",
     )
     .unwrap();
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_grasp-train"))
-        .arg("summarize")
+    let o = grasp_test_support::Program::new(env!("CARGO_BIN_EXE_grasp-train"))
+        .command(["summarize"])
         .arg("--list")
         .arg(dir.path().join("typo.toml"))
         .output()
