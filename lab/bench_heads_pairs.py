@@ -1,4 +1,5 @@
 """Side-by-side runs of the heads' epoch benchmark: `grasp-train bench-heads`
+(a lab command: built with `--features lab`)
 and its PyTorch peer (lab/bench_torch_heads.py) alternately, `--rounds`
 times, with the same workload and threads. Prints every pair and the median
 of the per-pair ratios (PyTorch seconds / candle seconds; above 1 means candle
@@ -7,6 +8,7 @@ the ratio.
 
 Usage (the PyTorch side runs in the environment lab/bench-env.sh makes):
   P=$(lab/bench-env.sh | tail -n1)
+  cargo build --release -p trainer --features lab   # bench-heads
   $P lab/bench_heads_pairs.py --head lstm --rounds 5 \
       --candle target/release/grasp-train --torch-python $P
 """

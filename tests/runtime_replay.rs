@@ -95,7 +95,7 @@ fn a_trained_model_replayed_commands_the_simulated_hand_with_the_right_preshape(
     let policy = PolicyConfig {
         fallback: None,
         min_confidence: 0.0,
-        // Not about the age limit (runtime/tests/faults.rs is): one no
+        // Not about the age limit (runtime/tests/it/faults.rs is): one no
         // loaded machine reaches.
         max_decision_age_ms: 30_000,
         ..PolicyConfig::default()

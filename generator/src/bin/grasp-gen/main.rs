@@ -1,3 +1,4 @@
+#[cfg(feature = "lab")]
 mod bench_plan;
 mod bench_queries;
 mod dataset;
@@ -34,6 +35,7 @@ enum Command {
     /// Plan sequences (camera paths, labels, scene samples) without Blender.
     Plan(plan::PlanArgs),
     /// Time the planner and print the BENCHMARKS.md tables.
+    #[cfg(feature = "lab")]
     #[command(hide = true)]
     BenchPlan(bench_plan::BenchArgs),
     /// A rendering worker process (started by `render`).
@@ -64,6 +66,7 @@ fn main() -> std::process::ExitCode {
             Command::Preview(args) => preview::run(&args),
             Command::Worker => render::run_worker(),
             Command::Plan(args) => plan::run(&args),
+            #[cfg(feature = "lab")]
             Command::BenchPlan(args) => bench_plan::run(&args),
         }
     })

@@ -121,7 +121,8 @@ fn progress_bar(len: usize, quiet: bool) -> indicatif::ProgressBar {
     bar
 }
 
-/// Plans every key in order, with a progress bar.
+/// Plans every key in order, with a progress bar (`bench-plan`'s).
+#[cfg(feature = "lab")]
 pub fn plan_all(
     planner: &Planner,
     keys: &[grasp_schema::SequenceKey],

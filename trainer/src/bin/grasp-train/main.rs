@@ -1,12 +1,12 @@
 //! grasp-train: trains and evaluates pre-shape classifiers on generated or
 //! real reach-to-grasp sequences.
+#[cfg(feature = "lab")]
 mod bench;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use grasp_cli::{ArchitectureArg, HeadKindArg, LensArgs};
+use grasp_cli::{ArchitectureArg, LensArgs};
 use grasp_model::backbone::Architecture;
-use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
 use trainer::data::{BadData, OnBadData};
 
@@ -96,10 +96,12 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Adapt(Box<AdaptArgs>),
     /// Benchmark one training epoch of a head on generated cached features.
+    #[cfg(feature = "lab")]
     BenchHeads(BenchArgs),
     /// Benchmark backbone feature extraction: images/s at a batch size and
     /// batch-1 latency (median, p99); prints one JSON line (the PyTorch
     /// peer is lab/bench_torch.py).
+    #[cfg(feature = "lab")]
     BenchBackbone(BenchBackboneArgs),
     /// Say which backbones' pretrained weights are installed, and where.
     Doctor,
@@ -125,6 +127,7 @@ struct StandInArgs {
     size: u32,
 }
 
+#[cfg(feature = "lab")]
 #[derive(Args)]
 struct BenchBackboneArgs {
     #[arg(long, value_enum, default_value_t = ArchitectureArg::EfficientNetLite0)]
@@ -149,10 +152,11 @@ struct BenchBackboneArgs {
     latency_iters: usize,
 }
 
+#[cfg(feature = "lab")]
 #[derive(Args)]
 struct BenchArgs {
-    #[arg(long, value_enum, default_value_t = HeadKindArg::Fc)]
-    head: HeadKindArg,
+    #[arg(long, value_enum, default_value_t = grasp_cli::HeadKindArg::Fc)]
+    head: grasp_cli::HeadKindArg,
     #[arg(long, default_value_t = 400)]
     sequences: usize,
     #[arg(long, default_value_t = 80)]
@@ -416,7 +420,9 @@ fn main() -> std::process::ExitCode {
             Command::Eval(a) => eval(*a),
             Command::Summarize(a) => summarize(a),
             Command::Adapt(a) => adapt(*a),
+            #[cfg(feature = "lab")]
             Command::BenchHeads(a) => bench(a),
+            #[cfg(feature = "lab")]
             Command::BenchBackbone(a) => bench_backbone(a),
             Command::Doctor => doctor(),
             Command::StandIn(a) => stand_in(a),
@@ -626,8 +632,9 @@ fn summarize(args: SummarizeArgs) -> Result<()> {
     Ok(())
 }
 
+#[cfg(feature = "lab")]
 fn bench(args: BenchArgs) -> Result<()> {
-    let head: HeadKind = args.head.into();
+    let head: grasp_model::heads::HeadKind = args.head.into();
     let w = bench::Workload {
         head,
         sequences: args.sequences,
@@ -653,6 +660,7 @@ fn bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
+#[cfg(feature = "lab")]
 fn bench_backbone(args: BenchBackboneArgs) -> Result<()> {
     let w = bench::BackboneWorkload {
         arch: args.backbone.into(),

@@ -8,7 +8,7 @@
 //! The page's script marks the document (`data-script="ok"` on `<html>`)
 //! once it has run without an exception, and `window.onerror` adds a
 //! `#script-error` element otherwise, so a headless browser's DOM says
-//! whether the page works (`trainer/tests/eval_cli.rs`).
+//! whether the page works (`trainer/tests/it/eval_cli.rs`).
 
 pub mod frames;
 pub mod index;
