@@ -3,7 +3,6 @@
 //! (a MobileNetV2 or EfficientNet-Lite backbone with an FC, LSTM or trace head),
 //! and the evaluation report.
 
-pub mod adapt;
 pub mod config;
 pub mod data;
 pub mod error;

@@ -78,23 +78,6 @@ enum Command {
     /// Flags add to the file's entries and override its settings.
     #[command(verbatim_doc_comment)]
     Summarize(SummarizeArgs),
-    /// Adapt checkpoints to a user's own camera without labels.
-    ///
-    /// Each checkpoint reads the recorded approaches under --recordings
-    /// (the generator's layout or the authors'; their labels are never
-    /// read), takes on each the decision hannes-run's policy would, and is
-    /// refitted from its own recipe and training data with every approach
-    /// the vote decided added, its frames labelled with that pre-shape (the
-    /// final frames it reads as no_grasp stay no_grasp). Writes
-    /// OUT/seed-N/ (a checkpoint, as `train` writes) and OUT/seed-N/adapt.json
-    /// (each approach's pseudo-label). Score it on other recordings than
-    /// the ones it adapted to:
-    ///
-    ///   grasp-train adapt -c runs/main/model-trace/seed-0 \
-    ///     --recordings my-camera/day1 --out runs/adapted
-    ///   grasp-train eval -c runs/adapted/seed-0 --data my-camera/day2
-    #[command(verbatim_doc_comment)]
-    Adapt(Box<AdaptArgs>),
     /// Benchmark one training epoch of a head on generated cached features.
     #[cfg(feature = "lab")]
     BenchHeads(BenchArgs),
@@ -249,41 +232,6 @@ struct SummarizeArgs {
 }
 
 #[derive(Args)]
-struct AdaptArgs {
-    /// Checkpoint directories (or best.json files) to adapt, each into
-    /// OUT/seed-N by its seed.
-    #[arg(long = "checkpoint", short, required = true)]
-    checkpoints: Vec<PathBuf>,
-    /// The user's recorded approaches (unlabeled: labels are not read).
-    #[arg(long)]
-    recordings: PathBuf,
-    /// Folder of the adapted checkpoints.
-    #[arg(long, short)]
-    out: PathBuf,
-    /// Copies of each decided approach in the training set (each with its
-    /// own views).
-    #[arg(long, default_value_t = 1)]
-    copies: usize,
-    /// Frame rate of recordings without sequence.json.
-    #[arg(long, default_value_t = 30.0)]
-    real_fps: f64,
-    #[command(flatten)]
-    lens: LensArgs,
-    /// Train over a checkpoint already in OUT/seed-N.
-    #[arg(long)]
-    overwrite: bool,
-    #[arg(long, value_enum, default_value_t = OnBadData::Skip)]
-    on_bad_data: OnBadData,
-    /// The pseudo-label of an approach is the decision of hannes-run's
-    /// policy: its defaults, or these flags.
-    #[command(
-        flatten,
-        next_help_heading = "The hand's decision (hannes-run's policy)"
-    )]
-    policy: grasp_cli::DecisionArgs,
-}
-
-#[derive(Args)]
 struct EvalArgs {
     /// Checkpoint directories (or best.json files); several are aggregated
     /// as mean ± std.
@@ -347,60 +295,6 @@ struct EvalArgs {
     policy: grasp_cli::DecisionArgs,
 }
 
-fn adapt(args: AdaptArgs) -> Result<()> {
-    use grasp_model::checkpoint::CheckpointMeta;
-    let bad = BadData::new(args.on_bad_data);
-    let mut policy = grasp_policy::PolicyConfig::default();
-    args.policy.apply(&mut policy).context("--fallback")?;
-    policy.validate()?;
-    anyhow::ensure!(args.copies >= 1, "--copies must be at least 1");
-    let lens = args.lens.lens()?;
-    for ckpt in &args.checkpoints {
-        let (meta, _) = CheckpointMeta::load(ckpt)?;
-        let out = args.out.join(format!("seed-{}", meta.seed));
-        anyhow::ensure!(
-            args.overwrite || !out.join("best.json").exists(),
-            "{} already holds a checkpoint (best.json): pass --overwrite to adapt over it, or \
-             choose another --out",
-            out.display()
-        );
-        let opts = trainer::data::ReaderOptions {
-            real_fps: args.real_fps,
-            crop: meta.input.crop,
-            denoise: meta.input.denoise,
-            lens,
-            camera: trainer::config::trained_camera_folder(&meta),
-            ..Default::default()
-        };
-        opts.validate_numbers()?;
-        let mut recordings = trainer::data::read_dataset(&args.recordings, &opts, &bad)?;
-        anyhow::ensure!(
-            !recordings.sequences.is_empty(),
-            "no recorded approaches in {} (camera folder {})",
-            args.recordings.display(),
-            opts.camera
-        );
-        recordings.trim_lead_ins();
-        let cfg = trainer::adapt::AdaptConfig {
-            checkpoint: ckpt.clone(),
-            out: out.clone(),
-            policy: policy.clone(),
-            copies: args.copies,
-        };
-        let outcome = trainer::adapt::adapt(&cfg, &recordings, &bad)
-            .with_context(|| format!("adapting {}", ckpt.display()))?;
-        println!(
-            "adapted {} -> {} ({} of {} approaches decided by the vote; epoch {})",
-            ckpt.display(),
-            out.display(),
-            outcome.record.used,
-            outcome.record.approaches,
-            outcome.train.best_epoch
-        );
-    }
-    Ok(())
-}
-
 fn stand_in(args: StandInArgs) -> Result<()> {
     let checkpoint =
         trainer::stand_in::stand_in_checkpoint(&args.out, args.size, args.backbone.into())?;
@@ -419,7 +313,6 @@ fn main() -> std::process::ExitCode {
             Command::Train(a) => train(*a),
             Command::Eval(a) => eval(*a),
             Command::Summarize(a) => summarize(a),
-            Command::Adapt(a) => adapt(*a),
             #[cfg(feature = "lab")]
             Command::BenchHeads(a) => bench(a),
             #[cfg(feature = "lab")]
