@@ -5,21 +5,27 @@
 
 use grasp_model::backbone::{Architecture, ResizeFilter};
 use runtime::classifier::FrameClassifier;
+use std::path::{Path, PathBuf};
+use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 
-#[test]
-fn a_lite0_checkpoint_loads_and_classifies_frames() {
-    let dir = tempfile::tempdir().unwrap();
-    let root = dir.path();
+/// A small generated set of `frames`-frame sequences in `root/data` and a
+/// random Lite0 file; `cfg` shapes the run, trained on them (one seed) at
+/// 40 px. Returns the checkpoint and the run's config.
+fn train_on_random_lite0(
+    root: &Path,
+    frames: usize,
+    cfg: impl FnOnce(TrainConfig) -> TrainConfig,
+) -> (PathBuf, TrainConfig) {
     let mut spec = SyntheticSpec::small(Layout::Generated);
     spec.sequences_per_part = 2;
-    spec.frames = 4;
+    spec.frames = frames;
     spec.no_grasp_frames = 1;
     write_synthetic(&root.join("data"), &spec).unwrap();
     let weights = root.join("lite0.safetensors");
     trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
         .unwrap();
-    let mut cfg = trainer::config::TrainConfig {
+    let mut cfg = cfg(TrainConfig {
         data: root.join("data"),
         out: root.join("run"),
         weights: Some(weights),
@@ -27,11 +33,18 @@ fn a_lite0_checkpoint_loads_and_classifies_frames() {
         max_epochs: 1,
         cache_dir: root.join("cache"),
         ..Default::default()
-    };
+    });
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;
     let outcome = trainer::experiment::run(&cfg, 1).unwrap();
-    let ckpt = &outcome.runs[0].checkpoint;
+    (outcome.runs[0].checkpoint.clone(), cfg)
+}
+
+#[test]
+fn a_lite0_checkpoint_loads_and_classifies_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ckpt, _) = train_on_random_lite0(dir.path(), 4, |cfg| cfg);
+    let ckpt = &ckpt;
 
     let mut clf = runtime::model::load(ckpt).unwrap();
     assert_eq!(clf.meta.backbone.arch, Architecture::EfficientNetLite0);
@@ -74,29 +87,13 @@ fn a_trace_head_runs_frame_by_frame_as_evaluation_reads_the_video() {
     use trainer::data::{BadData, OnBadData};
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 2;
-    spec.frames = 6;
-    spec.no_grasp_frames = 1;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
-        .unwrap();
-    let mut cfg = trainer::config::TrainConfig {
-        data: root.join("data"),
-        out: root.join("run"),
+    let (ckpt, cfg) = train_on_random_lite0(root, 6, |cfg| TrainConfig {
         head: grasp_model::heads::HeadKind::Trace,
         trace_s: 0.3,
-        weights: Some(weights),
-        input_size: 40,
         max_epochs: 2,
-        cache_dir: root.join("cache"),
-        ..Default::default()
-    };
-    cfg.split.val_fraction = 0.34;
-    cfg.split.test_fraction = 0.0;
-    let outcome = trainer::experiment::run(&cfg, 1).unwrap();
-    let ckpt = &outcome.runs[0].checkpoint;
+        ..cfg
+    });
+    let ckpt = &ckpt;
     let mut clf = runtime::model::load(ckpt).expect("hannes-run loads a trace head");
     assert_eq!(clf.meta.head.trace_s, Some(0.3));
 
