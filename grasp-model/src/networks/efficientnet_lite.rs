@@ -455,40 +455,6 @@ impl EfficientNetLite {
         head_then_blocks(pool(&map)?, parts)
     }
 
-    /// [`Self::styled_features`] pooled over each cell of a `grid` x `grid`
-    /// partition of the image instead of over all of it: (N, grid * grid * D),
-    /// cells row-major from the top left, each cell's row laid out as the
-    /// pooled features are (their mean over the cells is those features when
-    /// every map divides by `grid`).
-    pub fn styled_cell_features(
-        &self,
-        x: &Tensor,
-        styles: &[Vec<ChannelStyle>],
-        grid: usize,
-    ) -> Result<Tensor> {
-        check_styles(x.dim(0)?, styles, self.blocks.len())?;
-        let rows = (0..x.dim(0)?)
-            .into_par_iter()
-            .map(|i| self.cell_features(&x.narrow(0, i, 1)?, &styles[i], grid))
-            .collect::<Result<Vec<_>>>()?;
-        Tensor::cat(&rows, 0)
-    }
-
-    fn cell_features(&self, x: &Tensor, styles: &[ChannelStyle], grid: usize) -> Result<Tensor> {
-        let mut y = self.stem(x)?;
-        let mut parts = vec![];
-        for (i, b) in self.blocks.iter().enumerate() {
-            y = restyle(b.forward(&y)?, i, styles)?;
-            if self.pooled_blocks.contains(&i) {
-                parts.push(cell_pool(&y, grid)?);
-            }
-        }
-        let map = self.head.pointwise(&y, None, true)?;
-        parts.insert(0, cell_pool(&map, grid)?);
-        // (cells, D) for the one image, then one row.
-        Tensor::cat(&parts, 1)?.flatten_all()?.unsqueeze(0)
-    }
-
     fn stem(&self, x: &Tensor) -> Result<Tensor> {
         let cols = im2col(x, 3, 2, Padding::Same)?;
         pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)
@@ -597,17 +563,6 @@ pub(super) fn head_then_blocks(head: Tensor, mut blocks: Vec<Tensor>) -> Result<
     }
     blocks.insert(0, head);
     Tensor::cat(&blocks, 1)
-}
-
-/// Average pooling of one image's map (1, C, H, W) over a `grid` x `grid`
-/// partition: (grid * grid, C), cells row-major.
-fn cell_pool(x: &Tensor, grid: usize) -> Result<Tensor> {
-    let (_, c, h, w) = x.dims4()?;
-    if grid == 0 || h % grid != 0 || w % grid != 0 {
-        candle_core::bail!("a {h}x{w} map does not divide into {grid}x{grid} cells");
-    }
-    let cells = x.avg_pool2d((h / grid, w / grid))?;
-    cells.reshape((c, grid * grid))?.t()?.contiguous()
 }
 
 /// Global average pooling: (N, C, H, W) -> (N, C).
