@@ -172,6 +172,15 @@ impl Preshape {
         HandConfiguration { thumb, three_digit }
     }
 
+    /// Inverse of [`Preshape::hand_configuration`]: the pre-shape a hand
+    /// in configuration `c` is in, None for a configuration no pre-shape
+    /// has (the host reads this from every acknowledgement).
+    pub fn of_configuration(c: HandConfiguration) -> Option<Preshape> {
+        Preshape::ALL
+            .into_iter()
+            .find(|p| p.hand_configuration() == c)
+    }
+
     /// Folder name in the authors' dataset layout.
     pub fn authors_folder(self) -> &'static str {
         match self {
@@ -310,6 +319,21 @@ impl FromStr for Class {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_configuration_names_its_preshape_or_none() {
+        for p in Preshape::ALL {
+            assert_eq!(Preshape::of_configuration(p.hand_configuration()), Some(p));
+        }
+        // Three digits with the thumb central or adducted is no pre-shape.
+        for thumb in [Thumb::Central, Thumb::Adducted] {
+            let c = HandConfiguration {
+                thumb,
+                three_digit: true,
+            };
+            assert_eq!(Preshape::of_configuration(c), None);
+        }
+    }
 
     #[test]
     fn table1_preshape_mapping() {

@@ -180,7 +180,7 @@ impl HandAck {
             command: command_name(ack.cmd),
             status: format!("{:?}", ack.status).to_lowercase(),
             state: ack.state,
-            preshape: crate::simhand::preshape_of(ack.config),
+            preshape: Preshape::of_configuration(ack.config),
             configuration: ack.config,
         }
     }

@@ -2,7 +2,7 @@
 
 use crate::protocol::{HandState, Status};
 use grasp_policy::setting::InvalidSetting;
-use grasp_schema::taxonomy::HandConfiguration;
+use grasp_schema::taxonomy::{HandConfiguration, Preshape};
 
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
@@ -69,7 +69,7 @@ pub enum LinkError {
 /// Which pre-shape a configuration is (Table 1), for messages.
 fn describe(config: &Option<HandConfiguration>) -> String {
     match config {
-        Some(c) => match crate::simhand::preshape_of(*c) {
+        Some(c) => match Preshape::of_configuration(*c) {
             Some(p) => p.to_string(),
             None => format!("{c:?}"),
         },

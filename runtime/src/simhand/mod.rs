@@ -92,13 +92,6 @@ pub enum HandEvent {
     },
 }
 
-/// The pre-shape whose Table 1 configuration is `c`.
-pub fn preshape_of(c: HandConfiguration) -> Option<Preshape> {
-    Preshape::ALL
-        .into_iter()
-        .find(|p| p.hand_configuration() == c)
-}
-
 /// The hand's state machine, free of I/O so it can be tested directly.
 #[derive(Debug)]
 pub struct SimHand {
@@ -210,7 +203,7 @@ impl SimHand {
                     seq,
                     thumb: config.thumb,
                     three_digit: config.three_digit,
-                    preshape: preshape_of(config),
+                    preshape: Preshape::of_configuration(config),
                 })
             }
             Command::Close => {
@@ -349,7 +342,7 @@ mod tests {
     #[test]
     fn every_configuration_maps_back_to_its_preshape() {
         for p in Preshape::ALL {
-            assert_eq!(preshape_of(p.hand_configuration()), Some(p));
+            assert_eq!(Preshape::of_configuration(p.hand_configuration()), Some(p));
         }
     }
 }
