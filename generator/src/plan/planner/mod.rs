@@ -86,7 +86,7 @@ impl Planner {
         Planner::from_geometries(config, geometries)
     }
 
-    /// A planner over prepared geometries (any [`RayCaster`]).
+    /// A planner over prepared geometries (any [`RayCaster`](crate::plan::validity::RayCaster)).
     pub fn from_geometries(
         config: &GeneratorConfig,
         objects: Vec<ObjectGeometry>,
