@@ -6,6 +6,7 @@ use std::collections::HashSet;
 use trainer::data::split::{select, stratified_split, SplitConfig};
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{read_dataset, BadData, LabelSource, OnBadData, ReaderOptions};
+use trainer::plan::DataPlan;
 
 use crate::lead_in::{look_away_first, sequence_json};
 
@@ -488,7 +489,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
         data: dir.path().to_path_buf(),
         ..Default::default()
     };
-    trainer::train::load_splits(&cfg, &fail).unwrap();
+    trainer::train::load_splits(&DataPlan::of(&cfg), &fail).unwrap();
 
     let foreign = data.sequences[0].dir.join("sequence.json");
     set_record(&foreign, &["render", "world"], serde_json::json!("foreign"));
@@ -509,7 +510,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
     );
     let err = format!(
         "{:#}",
-        trainer::train::load_splits(&cfg, &fail).unwrap_err()
+        trainer::train::load_splits(&DataPlan::of(&cfg), &fail).unwrap_err()
     );
     assert!(err.contains("belongs to a test world"), "{err}");
     assert!(err.contains(&dir.path().display().to_string()), "{err}");
@@ -522,7 +523,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
     };
     let err = format!(
         "{:#}",
-        trainer::train::load_splits(&as_val, &fail).unwrap_err()
+        trainer::train::load_splits(&DataPlan::of(&as_val), &fail).unwrap_err()
     );
     assert!(err.contains("the validation set"), "{err}");
 }

@@ -13,6 +13,7 @@ use grasp_model::checkpoint::Classifier;
 use grasp_model::heads::HeadKind;
 use std::path::Path;
 use trainer::config::TrainConfig;
+use trainer::plan::{DataPlan, RunPlan};
 
 use crate::stand_in;
 
@@ -190,7 +191,7 @@ fn lstm_is_validated_at_its_training_rate() {
     let dir = tempfile::tempdir().unwrap();
     let mut cfg = setup(dir.path());
     let bad = BadData::new(OnBadData::Fail);
-    let mut splits = trainer::train::load_splits(&cfg, &bad).unwrap();
+    let mut splits = trainer::train::load_splits(&DataPlan::of(&cfg), &bad).unwrap();
     let frames: Vec<usize> = splits
         .val
         .sequences
@@ -199,7 +200,9 @@ fn lstm_is_validated_at_its_training_rate() {
         .collect();
     splits.val.sequences.iter_mut().for_each(twice_as_fast);
     let read = |cfg: &TrainConfig| {
-        let prep = trainer::train::prepare(cfg, &splits, &bad, &candle_core::Device::Cpu);
+        let plan = RunPlan::resolve(cfg).unwrap();
+        let dev = candle_core::Device::Cpu;
+        let prep = trainer::train::prepare(plan.features, &plan.cache, &splits, &bad, &dev);
         let prep = prep.unwrap();
         prep.val.seq_rows.iter().map(Vec::len).collect::<Vec<_>>()
     };

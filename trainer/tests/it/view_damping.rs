@@ -9,6 +9,7 @@ use std::path::Path;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{BadData, OnBadData};
+use trainer::plan::RunPlan;
 use trainer::train::{FrameSource, SplitFrames};
 
 /// A small generated dataset and random EfficientNet-Lite0 weights under
@@ -72,8 +73,10 @@ fn damping_brings_views_closer_to_their_frames() {
     let dev = candle_core::Device::Cpu;
     let change = |damping: f64| {
         let cfg = cfg(dir.path(), damping, "unused");
-        let splits = trainer::train::load_splits(&cfg, &bad).unwrap();
-        let prep = trainer::train::prepare(&cfg, &splits, &bad, &dev).unwrap();
+        let plan = RunPlan::resolve(&cfg).unwrap();
+        let splits = trainer::train::load_splits(&plan.data, &bad).unwrap();
+        let prep = trainer::train::prepare(plan.features, &plan.cache, &splits, &bad, &dev);
+        let prep = prep.unwrap();
         assert_eq!(prep.damping.is_some(), damping > 0.0);
         relative_view_change(&prep.train, splits.train.sequences.len())
     };
