@@ -315,7 +315,10 @@ fn a_sensor_probe_degrades_each_frame_before_the_crop() {
     let data = read_dataset(dir.path(), &opts, &bad).unwrap();
     let mut seq = data.sequences[0].clone();
     let plain = seq.load_frame(1, &bad).unwrap().unwrap();
-    let probe = SensorProbe::new(Some(0.05), Some(1.0)).unwrap().unwrap();
+    let probe = SensorProbe {
+        noise_sigma: 0.05,
+        blur_sigma_px: 1.0,
+    };
     seq.probe = Some(probe);
     let probed = seq.load_frame(1, &bad).unwrap().unwrap();
     assert_eq!(probed.dimensions(), plain.dimensions());
@@ -450,8 +453,11 @@ fn denoising_filters_the_crop_the_backbone_sees() {
     let denoised = read_dataset(dir.path(), &opts(true), &bad).unwrap();
     assert!(denoised.sequences.iter().all(|s| s.denoise));
     let mut seq = plain.sequences[0].clone();
-    // A noisy camera (the sensor probe), then the crop, then the filter.
-    seq.probe = trainer::data::probe::SensorProbe::new(Some(0.04), None).unwrap();
+    // A noisy camera (a sensor view's), then the crop, then the filter.
+    seq.probe = Some(trainer::data::probe::SensorProbe {
+        noise_sigma: 0.04,
+        blur_sigma_px: 0.0,
+    });
     let noisy = seq.load_frame(1, &bad).unwrap().unwrap();
     seq.denoise = true;
     let filtered = seq.load_frame(1, &bad).unwrap().unwrap();

@@ -230,34 +230,6 @@ fn eval_trims_the_lead_in_before_inference_unless_told_to_keep_it() {
 }
 
 #[test]
-fn eval_with_a_sensor_probe_records_it_and_refuses_bad_values() {
-    let dir = tempfile::tempdir().unwrap();
-    let ckpt = train_tiny(dir.path());
-    let ckpt = ckpt.to_str().unwrap();
-    let base = ["eval", "-c", ckpt, "--data", "data", "--out", "probed"];
-    let mut args = base.to_vec();
-    args.extend(["--probe-noise", "0.04", "--probe-blur", "0.9"]);
-    let (ok, text) = grasp_train(dir.path(), &args);
-    assert!(ok, "{text}");
-    let out = dir.path().join("probed");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    let probe = &json["sensor_probe"];
-    assert!((probe["noise_sigma"].as_f64().unwrap() - 0.04).abs() < 1e-6);
-    assert!((probe["blur_sigma_px"].as_f64().unwrap() - 0.9).abs() < 1e-6);
-    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("Sensor probe"), "{md}");
-
-    let mut bad = base.to_vec();
-    bad.extend(["--probe-noise=-0.1"]);
-    let (ok, text) = grasp_train(dir.path(), &bad);
-    assert!(
-        !ok && text.contains("--probe-noise must be in [0, 1]"),
-        "{text}"
-    );
-}
-
-#[test]
 fn eval_pools_repeated_data_roots_into_one_report() {
     let dir = tempfile::tempdir().unwrap();
     let ckpt = train_tiny(dir.path());
