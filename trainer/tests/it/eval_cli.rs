@@ -562,14 +562,12 @@ fn eval_writes_a_report_page_that_renders_in_a_browser() {
 fn fc_and_lstm(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     use grasp_model::backbone::Architecture;
     let fc = trainer::stand_in::stand_in_checkpoint(dir, 32, Architecture::MobileNetV2).unwrap();
+    // The stand-in's set and backbone, as it left them.
     let mut cfg = trainer::config::TrainConfig {
         data: dir.join("data"),
         out: dir.join("run-lstm"),
-        mode: grasp_model::checkpoint::TrainMode::FrozenPretrained,
         head: grasp_model::heads::HeadKind::Lstm,
-        backbone: Some(Architecture::MobileNetV2),
         weights: Some(dir.join("backbone.safetensors")),
-        width_mult: 1.0,
         input_size: 32,
         max_epochs: 1,
         lstm_hidden: 8,

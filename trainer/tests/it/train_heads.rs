@@ -15,11 +15,19 @@ use std::path::Path;
 use trainer::config::TrainConfig;
 use trainer::plan::{DataPlan, RunPlan};
 
-use crate::stand_in;
+use trainer::stand_in::SmallSet;
 
+/// The generated set, 6 sequences per part, and a random MobileNetV2
+/// (width 0.25) calibrated on 40 of its frames.
 fn setup(dir: &Path) -> TrainConfig {
-    let mut cfg = stand_in::frozen_setup(dir, 6, 40);
-    cfg.max_epochs = 40;
+    let set = SmallSet::generated(dir, |s| s.sequences_per_part = 6).unwrap();
+    let set = set.random_mobilenet(0.25, 40).unwrap();
+    let mut cfg = TrainConfig {
+        batch_size: Some(16),
+        max_epochs: 40,
+        ..set.config("run")
+    };
+    cfg.split.val_fraction = 0.2;
     cfg.split.test_fraction = 0.2;
     cfg.optimizer.lr = 5e-3;
     cfg
