@@ -150,6 +150,11 @@ impl SmallSet {
 /// paper's, width 1.0) is random, batch-norm adapted as the trainer's tests
 /// do. The head is trained for one epoch on a small synthetic set.
 pub fn stand_in_checkpoint(dir: &Path, size: u32, backbone: Architecture) -> Result<PathBuf> {
+    Ok(stand_in_run(dir, size, backbone)?.1)
+}
+
+/// [`stand_in_checkpoint`], with the set it trained on.
+pub fn stand_in_run(dir: &Path, size: u32, backbone: Architecture) -> Result<(SmallSet, PathBuf)> {
     let set = SmallSet::generated(dir, |spec| {
         spec.sequences_per_part = 3;
         spec.frames = 5;
@@ -167,5 +172,5 @@ pub fn stand_in_checkpoint(dir: &Path, size: u32, backbone: Architecture) -> Res
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;
     let outcome = crate::experiment::run(&cfg, 1)?;
-    Ok(outcome.runs[0].checkpoint.clone())
+    Ok((set, outcome.runs[0].checkpoint.clone()))
 }

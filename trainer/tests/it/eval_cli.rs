@@ -561,18 +561,12 @@ fn eval_writes_a_report_page_that_renders_in_a_browser() {
 /// LSTM head trained on the same data and backbone: (data, fc, lstm).
 fn fc_and_lstm(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     use grasp_model::backbone::Architecture;
-    let fc = trainer::stand_in::stand_in_checkpoint(dir, 32, Architecture::MobileNetV2).unwrap();
-    // The stand-in's set and backbone, as it left them.
+    let (set, fc) = trainer::stand_in::stand_in_run(dir, 32, Architecture::MobileNetV2).unwrap();
     let mut cfg = trainer::config::TrainConfig {
-        data: dir.join("data"),
-        out: dir.join("run-lstm"),
         head: grasp_model::heads::HeadKind::Lstm,
-        weights: Some(dir.join("backbone.safetensors")),
-        input_size: 32,
         max_epochs: 1,
         lstm_hidden: 8,
-        cache_dir: dir.join("cache"),
-        ..Default::default()
+        ..set.config("run-lstm")
     };
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;
