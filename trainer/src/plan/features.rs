@@ -90,10 +90,6 @@ impl FeaturePlan {
     /// only the loaded network can tell (its block count, its blocks'
     /// channels for style views, the tail's pooled blocks).
     pub fn resolve(cfg: &TrainConfig) -> Result<FeaturePlan> {
-        let views = || Views {
-            config: cfg.views.clone(),
-            seed: cfg.split.seed,
-        };
         if cfg.mode == TrainMode::FromScratch {
             let load_size = match cfg.augment.enabled {
                 true => cfg.input_size * 8 / 7,
@@ -112,39 +108,43 @@ impl FeaturePlan {
         let (info, pre) = frozen_backbone(cfg)?;
         let settled = settle(cfg, &info, &pre);
         let backbone = Backbone::load_pretrained(&info, pre, &Device::Cpu)?;
-        let extraction = match cfg.mode {
-            TrainMode::FineTuned => {
-                let acts = BlockActivations::new(&backbone, cfg.fine_tune.blocks)?;
-                tracing::info!(
-                    "fine-tuning blocks {}.. of {}; caching the activations before them ({:?})",
-                    acts.first_tuned_block(),
-                    info.arch.name(),
-                    acts.shape
-                );
-                check_style_blocks(&cfg.views, &acts)?;
-                let start = TailStart::new(&backbone, &acts)?;
-                Extraction::FineTuned {
-                    start,
-                    views: views(),
-                    backbone,
-                }
-            }
-            _ => {
-                check_style_blocks(&cfg.views, &backbone)?;
-                Extraction::Frozen {
-                    backbone,
-                    views: views(),
-                    damping: cfg.view_damping,
-                    trace_s: (cfg.head == HeadKind::Trace).then_some(cfg.trace_s),
-                }
-            }
-        };
         Ok(FeaturePlan {
             head: cfg.head,
-            extraction,
+            extraction: pretrained_extraction(cfg, backbone)?,
             settled: Some(settled),
         })
     }
+}
+
+/// Frozen or fine-tuned: what is cached of the loaded `backbone`.
+fn pretrained_extraction(cfg: &TrainConfig, backbone: Backbone) -> Result<Extraction> {
+    let views = Views {
+        config: cfg.views.clone(),
+        seed: cfg.split.seed,
+    };
+    if cfg.mode != TrainMode::FineTuned {
+        check_style_blocks(&cfg.views, &backbone)?;
+        return Ok(Extraction::Frozen {
+            backbone,
+            views,
+            damping: cfg.view_damping,
+            trace_s: (cfg.head == HeadKind::Trace).then_some(cfg.trace_s),
+        });
+    }
+    let acts = BlockActivations::new(&backbone, cfg.fine_tune.blocks)?;
+    tracing::info!(
+        "fine-tuning blocks {}.. of {}; caching the activations before them ({:?})",
+        acts.first_tuned_block(),
+        backbone.info.arch.name(),
+        acts.shape
+    );
+    check_style_blocks(&cfg.views, &acts)?;
+    let start = TailStart::new(&backbone, &acts)?;
+    Ok(Extraction::FineTuned {
+        backbone,
+        start,
+        views,
+    })
 }
 
 /// What resolution decided about the backbone, logged: with a checkpoint,
