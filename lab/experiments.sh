@@ -24,9 +24,9 @@
 #   large     scripts/main.sh --large into $OUT/main-large (32 training
 #             sequences per pair; its own training set).
 #   input     the backbone's input side: the main job's FC head retrained
-#             with the crop resized to 64-224 px, every test condition, and
-#             the sensor probes (unseen_look's noise and blur added to the
-#             default test frames).
+#             with the crop resized to 64-224 px, every test condition.
+#             (Its sensor probes, eval --probe-noise/--probe-blur, are gone
+#             with those flags; EXPERIMENTS-archive.md section 9 has them.)
 #   draws     four more draws of the test sets (seeds 5, 7, 9, 11), pooled
 #             with the main job's into one report per head and condition
 #             (310 videos); default, unseen_look and looks B, C and D
@@ -262,12 +262,11 @@ stage_size() {
   done
 }
 
-# FC heads of the main job's data at other input sides, then the probes.
+# FC heads of the main job's data at other input sides.
 stage_input() {
   local n
   for n in 64 96 128 160 224; do
     main_fc "$OUT/input-$n" --set "input_size=$n"
-    probes "$OUT/input-$n"
   done
 }
 
@@ -372,20 +371,6 @@ stage_camera() {
       --set "pooled_blocks=[7,10,14,15]" "${STYLE_DAMPED[@]}" \
       ${variants[$variant]}
     score_draws "$OUT/camera/$variant"
-  done
-}
-
-# unseen_look's middle defocus and noise added to the default test frames.
-probes() { # runs
-  local runs=$1 main="$OUT/main" p
-  checkpoints_of "$runs"
-  local -A flags=([blur]="--probe-blur 0.9" [noise]="--probe-noise 0.037"
-    [both]="--probe-blur 0.9 --probe-noise 0.037")
-  for p in blur noise both; do
-    # shellcheck disable=SC2086 # the flags are words
-    [ -f "$runs/probe-$p/report.json" ] ||
-      run "$BIN/grasp-train" eval "${CKPTS[@]}" --data "$main/data/test-default" --out "$runs/probe-$p" \
-        --cache-dir "$main/features" ${flags[$p]}
   done
 }
 

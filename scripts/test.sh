@@ -19,7 +19,8 @@ echo "== lint"
 cargo fmt --all -- --check
 cargo clippy --release --workspace --all-targets --quiet -- -D warnings
 # The lab's benchmarks (grasp-train bench-heads/bench-backbone, grasp-gen
-# bench-plan) are built only with the `lab` feature: lint them too.
+# bench-plan and objects bench-queries) are built only with the `lab`
+# feature: lint them too.
 cargo clippy --release --workspace --all-targets --features lab --quiet -- -D warnings
 "$VENV/bin/ruff" check blender_scripts tests
 "$VENV/bin/ruff" format --check blender_scripts tests

@@ -9,8 +9,6 @@
 //! trained from scratch (width 0.25, 32x32 input, a few epochs): the
 //! trainer's from-scratch mode, whose checkpoint carries the backbone too.
 
-use grasp_model::checkpoint::TrainMode;
-use grasp_model::heads::HeadKind;
 use grasp_schema::dataset::{ManifestEntry, MANIFEST_FILE};
 use grasp_schema::taxonomy::Preshape;
 use runtime::feed::FeedMode;
@@ -27,23 +25,14 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use trainer::config::TrainConfig;
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
 fn train_tiny_model(dir: &Path) -> PathBuf {
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 6;
-    write_synthetic(&dir.join("data"), &spec).unwrap();
+    let set = SmallSet::generated(dir, |spec| spec.sequences_per_part = 6).unwrap();
     let mut cfg = TrainConfig {
-        data: dir.join("data"),
-        out: dir.join("run"),
-        mode: TrainMode::FromScratch,
-        head: HeadKind::Fc,
-        weights: None,
-        width_mult: 0.25,
-        input_size: spec.size,
         batch_size: Some(16),
         max_epochs: 8,
-        cache_dir: dir.join("cache"),
-        ..Default::default()
+        ..set.config("run")
     };
     cfg.split.val_fraction = 0.2;
     cfg.split.test_fraction = 0.0;

@@ -7,7 +7,7 @@ use grasp_model::backbone::{Architecture, ResizeFilter};
 use runtime::classifier::FrameClassifier;
 use std::path::{Path, PathBuf};
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
 /// A small generated set of `frames`-frame sequences in `root/data` and a
 /// random Lite0 file; `cfg` shapes the run, trained on them (one seed) at
@@ -17,22 +17,17 @@ fn train_on_random_lite0(
     frames: usize,
     cfg: impl FnOnce(TrainConfig) -> TrainConfig,
 ) -> (PathBuf, TrainConfig) {
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 2;
-    spec.frames = frames;
-    spec.no_grasp_frames = 1;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
-        .unwrap();
+    let set = SmallSet::generated(root, |spec| {
+        spec.sequences_per_part = 2;
+        spec.frames = frames;
+        spec.no_grasp_frames = 1;
+    })
+    .unwrap();
+    let set = set.random_lite0(3).unwrap();
     let mut cfg = cfg(TrainConfig {
-        data: root.join("data"),
-        out: root.join("run"),
-        weights: Some(weights),
         input_size: 40,
         max_epochs: 1,
-        cache_dir: root.join("cache"),
-        ..Default::default()
+        ..set.config("run")
     });
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;

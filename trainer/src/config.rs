@@ -408,6 +408,16 @@ impl TrainConfig {
                  (--set backbone=efficientnet-lite0, the default)"
                     .to_string()
             }
+            (TrainMode::FineTuned, _, Some(weights))
+                if grasp_model::backbone::is_checkpoint(weights) =>
+            {
+                let reason = format!(
+                    "fine-tuned mode starts from a pretrained EfficientNet-Lite file, not from \
+                     the checkpoint {}",
+                    weights.display()
+                );
+                return refuse("weights", reason);
+            }
             _ => return Ok(()),
         };
         refuse("backbone", reason)

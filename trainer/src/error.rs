@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 pub enum ConfigError {
     /// A value out of range, or settings that do not go together. `field`
     /// is the setting at fault as a recipe names it (`views.count`,
-    /// `fine_tune.blocks`, `--probe-noise`); `reason` names it too.
+    /// `fine_tune.blocks`); `reason` names it too.
     #[error("{reason}")]
     Invalid { field: &'static str, reason: String },
     #[error("cannot read {}", path.display())]

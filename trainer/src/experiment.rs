@@ -10,9 +10,10 @@ use crate::eval::metrics::VideoOutcome;
 use crate::eval::report::RunReport;
 use crate::eval::{compute_metrics, write_report, Report};
 use crate::features::FeatureCache;
+use crate::plan::{CachePlan, RunPlan};
 use crate::train::{self, TrainOutcome};
 use candle_core::Device;
-use grasp_model::checkpoint::{CheckpointMeta, Classifier, TrainMode};
+use grasp_model::checkpoint::{CheckpointMeta, Classifier};
 use std::path::{Path, PathBuf};
 
 /// Width of the accuracy-against-time bins, in seconds.
@@ -25,7 +26,11 @@ pub struct ExperimentOutcome {
 
 /// The folder seed `k` of a run trains into.
 pub fn seed_dir(cfg: &TrainConfig, k: usize) -> PathBuf {
-    cfg.out.join(format!("seed-{}", cfg.seed + k as u64))
+    seed_folder(&cfg.out, cfg.seed, k)
+}
+
+fn seed_folder(out: &Path, first_seed: u64, k: usize) -> PathBuf {
+    out.join(format!("seed-{}", first_seed + k as u64))
 }
 
 /// Refuses a run whose seed folders already hold a checkpoint, so that a
@@ -42,23 +47,14 @@ pub fn check_no_checkpoint(cfg: &TrainConfig, seeds: usize) -> Result<(), TrainE
 
 /// Trains `seeds` models (seeds `cfg.seed`, `cfg.seed + 1`, ...) into
 /// `cfg.out/seed-N/`, then evaluates them on the test split into
-/// `cfg.out/report/` when there is one.
+/// `cfg.out/report/` when there is one. The config is resolved first
+/// ([`RunPlan`]); each step then reads its own section of the plan.
 pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
-    cfg.validate()?;
-    let cfg = &resolve_backbone(&absolute_data_paths(cfg))?;
-    let dev = Device::Cpu;
-    let bad = BadData::new(cfg.on_bad_data);
-    let splits = train::load_splits(cfg, &bad)?;
-    crate::data::coverage::check_training_classes(&splits.train, cfg.allow_missing_classes)?;
-    std::fs::create_dir_all(&cfg.out).map_err(|source| TrainError::Create {
-        path: cfg.out.clone(),
-        source,
-    })?;
-    splits.split.save(&cfg.out.join("split.json"))?;
-    grasp_support::atomic::write_atomic(
-        &cfg.out.join("config.toml"),
-        toml::to_string(cfg)?.as_bytes(),
-    )?;
+    let plan = RunPlan::resolve(cfg)?;
+    let bad = BadData::new(plan.on_bad_data);
+    let splits = train::load_splits(&plan.data, &bad)?;
+    crate::data::coverage::check_training_classes(&splits.train, plan.data.allow_missing_classes)?;
+    record_run(&plan, &splits)?;
     tracing::info!(
         "{} train / {} val / {} test sequences ({} mode, {} head)",
         splits.train.sequences.len(),
@@ -67,44 +63,65 @@ pub fn run(cfg: &TrainConfig, seeds: usize) -> Result<ExperimentOutcome> {
         cfg.mode.name(),
         cfg.head.name()
     );
-    let prep = train::prepare(cfg, &splits, &bad, &dev)?;
+    let RunPlan {
+        out,
+        first_seed,
+        cache,
+        features,
+        fit,
+        ..
+    } = plan;
+    let prep = train::prepare(features, &cache, &splits, &bad, &Device::Cpu)?;
     let mut runs = Vec::new();
-    for k in 0..seeds.max(1) as u64 {
-        let seed = cfg.seed + k;
-        let out = seed_dir(cfg, k as usize);
-        tracing::info!("training seed {seed} into {}", out.display());
-        runs.push(train::train(cfg, &prep, seed, &out)?);
+    for k in 0..seeds.max(1) {
+        let seed = first_seed + k as u64;
+        let dir = seed_folder(&out, first_seed, k);
+        tracing::info!("training seed {seed} into {}", dir.display());
+        runs.push(train::train(&fit, &prep, seed, &dir)?);
     }
-    let report = if splits.test.sequences.is_empty() {
-        None
-    } else {
-        let ckpts: Vec<PathBuf> = runs.iter().map(|r| r.checkpoint.clone()).collect();
-        let mut r = evaluate(
-            &ckpts,
-            &splits.test,
-            &cfg.cache_dir,
-            cfg.feature_batch,
-            &bad,
-            &Scoring::default(),
-        )?;
-        r.bad_data = bad_data_note(&bad, Path::new("../problems.json"));
-        write_report(&r, &cfg.out.join("report"))?;
-        Some(r)
+    drop(prep);
+    let report = match splits.test.sequences.is_empty() {
+        true => None,
+        false => Some(evaluate_run(&runs, &splits.test, &cache, &bad, &out)?),
     };
-    write_problems(&bad, &cfg.out)?;
+    write_problems(&bad, &out)?;
     Ok(ExperimentOutcome { runs, report })
 }
 
-/// The dataset paths made absolute, so that the run's `config.toml` and its
-/// checkpoints name the data that was used whatever the directory `eval` is
-/// later run from.
-fn absolute_data_paths(cfg: &TrainConfig) -> TrainConfig {
-    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let mut cfg = cfg.clone();
-    cfg.data = abs(&cfg.data);
-    cfg.val_data = cfg.val_data.as_deref().map(abs);
-    cfg.test_data = cfg.test_data.as_deref().map(abs);
-    cfg
+/// The run's folder with its split and its config as run.
+fn record_run(plan: &RunPlan, splits: &train::Splits) -> Result<()> {
+    std::fs::create_dir_all(&plan.out).map_err(|source| TrainError::Create {
+        path: plan.out.clone(),
+        source,
+    })?;
+    splits.split.save(&plan.out.join("split.json"))?;
+    grasp_support::atomic::write_atomic(
+        &plan.out.join("config.toml"),
+        toml::to_string(&plan.recorded)?.as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// The run's checkpoints scored on its test split, into `out/report/`.
+fn evaluate_run(
+    runs: &[TrainOutcome],
+    test: &Dataset,
+    cache: &CachePlan,
+    bad: &BadData,
+    out: &Path,
+) -> Result<Report> {
+    let ckpts: Vec<PathBuf> = runs.iter().map(|r| r.checkpoint.clone()).collect();
+    let mut r = evaluate(
+        &ckpts,
+        test,
+        &cache.dir,
+        cache.batch,
+        bad,
+        &Scoring::default(),
+    )?;
+    r.bad_data = bad_data_note(bad, Path::new("../problems.json"));
+    write_report(&r, &out.join("report"))?;
+    Ok(r)
 }
 
 /// A report's note of the skipped problems, if any.
@@ -241,44 +258,6 @@ fn same<T: PartialEq + std::fmt::Debug>(
             Ok(())
         }
     }
-}
-
-/// Settles the frozen backbone before anything runs, so that the saved
-/// `config.toml` says what was run: with a checkpoint as the backbone, its
-/// width multiplier and input size replace the configured ones (the
-/// backbone only works with those); with a pretrained file or the venv's
-/// default, the architecture and the file are recorded.
-fn resolve_backbone(cfg: &TrainConfig) -> Result<TrainConfig> {
-    let mut cfg = cfg.clone();
-    if cfg.mode == TrainMode::FromScratch {
-        return Ok(cfg);
-    }
-    let (info, pre) = train::frozen_backbone(&cfg)?;
-    let from_checkpoint = cfg
-        .weights
-        .as_deref()
-        .is_some_and(grasp_model::backbone::is_checkpoint);
-    if from_checkpoint {
-        tracing::info!(
-            "{}: width multiplier {}, input {} px",
-            info.describe(),
-            info.width_mult,
-            pre.size
-        );
-        cfg.width_mult = info.width_mult;
-        cfg.input_size = pre.size;
-    } else {
-        let tuned = match cfg.mode {
-            TrainMode::FineTuned => {
-                format!(", its last {} blocks fine-tuned", cfg.fine_tune.blocks)
-            }
-            _ => String::new(),
-        };
-        tracing::info!("{}{tuned}, input {} px", info.describe(), pre.size);
-        cfg.backbone = Some(info.arch);
-        cfg.weights = info.weights_path;
-    }
-    Ok(cfg)
 }
 
 /// The test split of the run a checkpoint belongs to: its training config's

@@ -12,6 +12,7 @@ pub mod features;
 pub mod init;
 pub mod loss;
 pub mod optim;
+pub mod plan;
 pub mod progress;
 pub mod recipe;
 pub mod rng;

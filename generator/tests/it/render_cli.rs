@@ -2,9 +2,9 @@
 //! all 31 pairs rendered and verified, a run killed (SIGKILL) midway and
 //! resumed, and the preview. Workbench, 32 px, 2 to 3 frames per sequence.
 
-use crate::render_common::{exe, grasp_gen, have_blender, tree};
+use crate::render_common::{grasp_gen, have_blender, tree};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::Duration;
 
 fn config(dir: &Path, objects: Option<&str>) -> std::path::PathBuf {
@@ -69,8 +69,8 @@ fn killed_then_resumed_equals_uninterrupted() {
         "--no-progress",
     ]);
 
-    let mut child = Command::new(exe())
-        .args([
+    let mut child = grasp_gen()
+        .command([
             "render",
             "--config",
             cfg,

@@ -3,7 +3,7 @@
 //! stops the run instead of failing or retrying every sequence; retries are
 //! logged even without a terminal or with `--no-progress`.
 
-use crate::render_common::{exe, have_blender};
+use crate::render_common::{exe, grasp_gen, have_blender};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -87,14 +87,13 @@ fn retries_are_logged_without_a_terminal() {
     let cfg = config(dir.path());
     let marker = dir.path().join("crash-marker");
     // stderr is a pipe here, and --no-progress on top.
-    let out = Command::new(exe())
-        .args(["render", "--config"])
+    let out = grasp_gen()
+        .command(["render", "--config"])
         .arg(&cfg)
         .arg("--out")
         .arg(dir.path().join("data"))
         .arg("--no-progress")
         .env(generator::render::worker::CRASH_ONCE_ENV, &marker)
-        .env("RUST_BACKTRACE", "0")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -2,14 +2,13 @@
 //! rendered (Workbench, 32 px, 3 frames) into `Wrist_d435` and `Head_d435`
 //! with the same labels, verified, and its pose looks at the object.
 
-use crate::render_common::{exe, grasp_gen, have_blender};
+use crate::render_common::{grasp_gen, have_blender};
 use generator::catalog::Catalog;
 use grasp_schema::dataset::{
     head_sequence_dir, ManifestEntry, SequenceRecord, MANIFEST_FILE, SEQUENCE_FILE,
 };
 use nalgebra::{UnitQuaternion, Vector3};
 use std::path::Path;
-use std::process::Command;
 
 fn config(dir: &Path, head: bool) -> std::path::PathBuf {
     let text = format!(
@@ -136,8 +135,8 @@ fn head_camera_renders_a_second_folder_with_the_same_labels() {
     // A head folder removed after the fact is reported, and --resume redoes it.
     let victim = head_sequence_dir(&entries[0].path).unwrap();
     std::fs::remove_dir_all(out.join(&victim)).unwrap();
-    let bad = Command::new(exe())
-        .args(["dataset", "verify", out_s])
+    let bad = grasp_gen()
+        .command(["dataset", "verify", out_s])
         .output()
         .unwrap();
     assert!(!bad.status.success());

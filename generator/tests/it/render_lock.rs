@@ -4,7 +4,7 @@
 //! `--break-lock`, which never overrides a live one; shards that split the
 //! work share a folder, and a run overlapping one of them is refused.
 
-use crate::render_common::{exe, have_blender, tree};
+use crate::render_common::{grasp_gen, have_blender, tree};
 use generator::dataset::lock::{self, Holder};
 use generator::render::Shard;
 use std::path::{Path, PathBuf};
@@ -25,14 +25,12 @@ fn config(dir: &Path, sequences_per_pair: u32) -> PathBuf {
 }
 
 fn render_cmd(cfg: &Path, out: &Path, extra: &[&str]) -> Command {
-    let mut c = Command::new(exe());
-    c.args(["render", "--config"])
-        .arg(cfg)
+    let mut c = grasp_gen().command(["render", "--config"]);
+    c.arg(cfg)
         .arg("--out")
         .arg(out)
         .arg("--no-progress")
-        .args(extra)
-        .env("RUST_BACKTRACE", "0");
+        .args(extra);
     c
 }
 
@@ -241,8 +239,8 @@ fn disjoint_shards_share_a_folder_and_an_overlapping_run_is_refused() {
     for (name, bytes) in &a {
         assert!(bytes == &b[name], "{name} differs");
     }
-    let v = Command::new(exe())
-        .args(["dataset", "verify"])
+    let v = grasp_gen()
+        .command(["dataset", "verify"])
         .arg(&shared)
         .arg("--config")
         .arg(&cfg)

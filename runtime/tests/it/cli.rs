@@ -8,7 +8,7 @@ use grasp_test_support::program::assert_no_colour_codes;
 use runtime::simhand::{FaultSpec, HandEvent, PtyHand};
 use std::io::Read;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 #[test]
@@ -170,8 +170,8 @@ fn logs_carry_no_colour_codes_when_stderr_is_not_a_terminal() {
     let dir = tempfile::tempdir().unwrap();
     let device = dir.path().join("no-device-yet");
     // The simulated hand logs a warning while it waits for its device.
-    let mut child = Command::new(BIN)
-        .args(["simulate-hand", "--port"])
+    let mut child = program()
+        .command(["simulate-hand", "--port"])
         .arg(&device)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())

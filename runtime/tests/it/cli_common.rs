@@ -7,7 +7,7 @@ use crate::common::eventually;
 use grasp_test_support::Program;
 use runtime::simhand::HandEvent;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Output, Stdio};
 use std::sync::OnceLock;
 use std::time::Duration;
 
@@ -88,9 +88,8 @@ pub fn quick_link_config(dir: &Path) -> PathBuf {
 }
 
 pub fn hannes_run(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
+    program()
+        .command(args)
         .stdin(Stdio::null())
         .output()
         .unwrap()
@@ -154,8 +153,8 @@ impl Approach {
 }
 
 pub fn spawn_simulated_hand(link: &Path) -> std::process::Child {
-    let child = Command::new(BIN)
-        .args(["simulate-hand", "--pty"])
+    let child = program()
+        .command(["simulate-hand", "--pty"])
         .arg(link)
         .stdin(Stdio::null())
         .stdout(Stdio::null())
@@ -183,9 +182,8 @@ pub struct Running {
 
 impl Running {
     pub fn spawn(args: &[&str]) -> Running {
-        let mut child = Command::new(BIN)
-            .args(args)
-            .env("RUST_BACKTRACE", "0")
+        let mut child = program()
+            .command(args)
             .env("RUST_LOG", "info")
             .stdin(Stdio::null())
             .stdout(Stdio::null())

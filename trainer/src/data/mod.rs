@@ -83,8 +83,8 @@ pub struct Sequence {
     /// augmentation, [`view::with_views`]); None: the frames as they are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub view: Option<view::ViewJitter>,
-    /// Extra sensor degradation of every frame, before the crop
-    /// (`eval --probe-noise/--probe-blur`); None: the frames as rendered.
+    /// Extra sensor degradation of every frame, before the crop (a sensor
+    /// view's); None: the frames as rendered.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe: Option<probe::SensorProbe>,
     /// Block outputs restyled in the frozen backbone (a style view,

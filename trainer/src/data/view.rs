@@ -3,8 +3,8 @@
 //! every epoch) does not apply. Instead each training sequence gets `count`
 //! extra copies, each seen through a fixed, seeded variation of the centre
 //! crop: its size scaled, its centre shifted, its colours jittered and,
-//! when `noise` or `blur_px` is set, a noisier or softer sensor (the
-//! evaluation probe's degradation, [`SensorProbe`]). A view is one draw per
+//! when `noise` or `blur_px` is set, a noisier or softer sensor
+//! ([`SensorProbe`]). A view is one draw per
 //! sequence, the same for all its frames, as a slightly different lens,
 //! aim, white balance and sensor would be. With `style` set, a view also
 //! restyles some of the backbone's block outputs, a new draw every frame

@@ -100,9 +100,6 @@ pub struct Report {
     /// inference; None when `eval --keep-lead-in` kept them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_in_trimmed: Option<LeadInTrim>,
-    /// Extra sensor degradation every frame was given (`eval --probe-*`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sensor_probe: Option<crate::data::probe::SensorProbe>,
     /// Further dataset roots pooled with `dataset` (`eval --data A --data
     /// B`: several test draws scored as one set).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -215,7 +212,6 @@ impl Report {
             videos_outside_window: 0,
             policy: None,
             lead_in_trimmed: None,
-            sensor_probe: None,
             pooled_with: Vec::new(),
             input: None,
             frames: None,
@@ -341,14 +337,6 @@ pub fn markdown(report: &Report) -> String {
     }
     if let Some(input) = &report.input {
         let _ = writeln!(s, "- Checkpoints' {}\n", input.describe());
-    }
-    if let Some(p) = &report.sensor_probe {
-        let _ = writeln!(
-            s,
-            "- **Sensor probe:** every frame degraded before inference ({}; `eval \
-             --probe-noise/--probe-blur`)\n",
-            p.describe()
-        );
     }
     if let Some(t) = report.lead_in_trimmed.filter(|t| t.frames > 0) {
         let _ = writeln!(

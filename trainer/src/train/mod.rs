@@ -12,7 +12,7 @@
 //! One module per concept: [`splits`] (loading and splitting the data),
 //! [`frames`] (the frame index), [`net`] (the network's forward pass and
 //! loss), [`balance`] (class balancing), [`plateau`] (the learning-rate
-//! schedule), [`prepare`] (backbone and features), [`damping`] (view
+//! schedule), [`prepare`] (the features of the run plan's backbone, or frames), [`damping`] (view
 //! damping), [`tail`] (the tuned blocks), [`probe`] (the linear probe);
 //! this file holds the loop.
 
@@ -32,13 +32,14 @@ pub use frames::{FrameSource, SplitFrames};
 pub use net::Net;
 pub use plateau::{Plateau, PlateauStep};
 use prepare::build_net;
-pub use prepare::{detect_architecture, frozen_backbone, prepare, Prepared};
+pub use prepare::{prepare, Prepared};
 pub use splits::{load_splits, Splits};
-pub use tail::lite;
+pub use tail::{lite, BlockActivations, TailStart};
 
-use crate::config::{Selection, TrainConfig};
+use crate::config::Selection;
 use crate::error::{NonFinite, Result};
 use crate::optim::Adam;
+use crate::plan::FitPlan;
 use candle_core::{Device, Tensor};
 use grasp_model::checkpoint::{self, CheckpointMeta};
 use grasp_model::heads::HeadKind;
@@ -72,17 +73,14 @@ pub struct TrainOutcome {
 }
 
 /// Trains one model with `seed` into `out` (checkpoint, history).
-pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Result<TrainOutcome> {
+pub fn train(fit: &FitPlan, prep: &Prepared, seed: u64, out: &Path) -> Result<TrainOutcome> {
     let dev = Device::Cpu;
-    let (mut net, backbone_info) = build_net(cfg, prep, seed, &dev)?;
-    let batch = cfg.batch_size_for(prep.real_data).max(1);
-    probe::probe_head(&mut net, cfg, (&prep.train, &prep.val), batch, seed)?;
-    let mut opt = Optimizers::new(&net, cfg)?;
-    let mut plateau = Plateau::new(
-        cfg.plateau_patience,
-        cfg.plateau_factor,
-        cfg.early_stop_patience,
-    );
+    let (mut net, backbone_info) = build_net(&fit.net, prep, seed, &dev)?;
+    let batch = fit.batch_size(prep.real_data);
+    probe::probe_head(&mut net, fit, (&prep.train, &prep.val), batch, seed)?;
+    let mut opt = Optimizers::new(&net, fit)?;
+    let s = fit.schedule;
+    let mut plateau = Plateau::new(s.plateau_patience, s.plateau_factor, s.early_stop_patience);
     let mut history = Vec::new();
     let mut best_val_accuracy = f64::NEG_INFINITY;
     let mut outcome = TrainOutcome {
@@ -92,12 +90,12 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         stopped_early: false,
         history: Vec::new(),
     };
-    for epoch in 1..=cfg.max_epochs {
+    for epoch in 1..=fit.max_epochs {
         let start = Instant::now();
         let mut rng = crate::rng::stream(seed, &format!("epoch/{epoch}"));
         let units = epoch_units(
-            unit_classes(cfg, &prep.train),
-            cfg.balance_classes,
+            unit_classes(fit.net.head, &prep.train),
+            fit.balance_classes,
             &mut rng,
         );
         let (train_loss, train_acc, frames) = train_epoch(
@@ -126,7 +124,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             seconds: start.elapsed().as_secs_f64(),
         });
         let decision = plateau.step(val_loss, lr);
-        let keep = match cfg.select {
+        let keep = match fit.select {
             Selection::ValLoss => decision.improved,
             Selection::ValAccuracy => val_acc >= best_val_accuracy,
             Selection::Last => true,
@@ -138,11 +136,11 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
             let meta = CheckpointMeta {
                 format_version: checkpoint::FORMAT_VERSION,
                 classes: Class::ALL.to_vec(),
-                mode: cfg.mode,
+                mode: fit.record.mode,
                 head: net.head.cfg,
                 input: grasp_model::input::InputSpec {
-                    crop: cfg.reader.crop,
-                    denoise: cfg.reader.denoise,
+                    crop: fit.record.crop,
+                    denoise: fit.record.denoise,
                     preprocess: prep.preprocess.clone(),
                 },
                 backbone: backbone_info.clone(),
@@ -151,7 +149,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
                 val_loss,
                 val_accuracy: val_acc,
                 train_sequences: Some(prep.train_sequences),
-                train_config: serde_json::to_value(cfg)?,
+                train_config: fit.record.train_config.clone(),
             };
             let tensors = match &prep.damping {
                 Some(d) => d.fold(net.tensors(), net.feature_weight_name())?,
@@ -176,7 +174,7 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
         if decision.stop {
             tracing::info!(
                 "early stop: no validation improvement for {} epochs",
-                cfg.early_stop_patience
+                s.early_stop_patience
             );
             outcome.stopped_early = true;
             break;
@@ -188,8 +186,8 @@ pub fn train(cfg: &TrainConfig, prep: &Prepared, seed: u64, out: &Path) -> Resul
 
 /// The class of each unit an epoch draws: frames for the FC and trace
 /// heads, sequences for the LSTM head.
-fn unit_classes<'a>(cfg: &TrainConfig, frames: &'a SplitFrames) -> &'a [u32] {
-    match cfg.head {
+fn unit_classes(head: HeadKind, frames: &SplitFrames) -> &[u32] {
+    match head {
         HeadKind::Fc | HeadKind::Trace => &frames.labels,
         HeadKind::Lstm => &frames.seq_class,
     }
@@ -203,17 +201,12 @@ struct Optimizers {
 }
 
 impl Optimizers {
-    fn new(net: &Net, cfg: &TrainConfig) -> Result<Self> {
-        let tail_cfg = crate::optim::AdamConfig {
-            lr: cfg.fine_tune.lr,
-            weight_decay: cfg.fine_tune.weight_decay,
-            ..cfg.optimizer
-        };
+    fn new(net: &Net, fit: &FitPlan) -> Result<Self> {
         Ok(Optimizers {
-            head: Adam::new(net.trainable(), cfg.optimizer)?,
+            head: Adam::new(net.trainable(), fit.optimizer)?,
             tail: net
                 .tail_trainable()
-                .map(|vars| Adam::new(vars, tail_cfg))
+                .map(|vars| Adam::new(vars, fit.tuning.optimizer))
                 .transpose()?,
         })
     }

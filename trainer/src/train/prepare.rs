@@ -1,24 +1,21 @@
-//! What a run needs besides its seed: the frozen backbone (checkpoint,
-//! pretrained file, or the venv's ImageNet weights), the splits' frames
-//! or cached features, and the network built for a seed.
+//! What a run needs besides its seed: the splits' cached features (of
+//! the plan's frozen backbone or blocks) or decoded frames, and the
+//! network built for a seed.
 
 use super::damping::ViewDamping;
 use super::tail::{BlockActivations, Tail, TailStart};
 use super::{Net, SplitFrames, Splits};
-use crate::config::TrainConfig;
 use crate::data::BadData;
-use crate::error::{ConfigError, Result, TrainError};
-use crate::features::FeatureCache;
+use crate::error::{ConfigError, Result};
+use crate::plan::{CachePlan, Extraction, FeaturePlan, NetPlan, Views};
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::backbone::{
     Architecture, Backbone, BackboneInfo, Preprocess, TunedTail, BACKBONE_ID,
 };
-use grasp_model::checkpoint::TrainMode;
 use grasp_model::extractor::FeatureExtractor;
 use grasp_model::heads::{Head, HeadConfig, HeadKind};
 use grasp_schema::taxonomy::Class;
-use std::path::Path;
 
 /// Everything a run needs besides its seed.
 pub struct Prepared {
@@ -40,72 +37,11 @@ pub struct Prepared {
     pub step_hz: Option<f64>,
 }
 
-/// The frozen backbone of `cfg`: a checkpoint named by `cfg.weights`, whose
-/// backbone and preprocessing are reused as they are; a pretrained weights
-/// file named by `cfg.weights`, its architecture detected from its tensor
-/// names; or, without `cfg.weights`, the venv's ImageNet file of
-/// `cfg.backbone` (EfficientNet-Lite0 by default). Pretrained files get
-/// their architecture's preprocessing at `cfg.input_size`.
-pub fn frozen_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
-    let (mut info, pre) = unpooled_backbone(cfg)?;
-    if !cfg.pooled_blocks.is_empty() {
-        info.pooled_blocks = cfg.pooled_blocks.clone();
-    }
-    Ok((info, pre))
-}
-
-/// The backbone of [`frozen_backbone`] before `cfg.pooled_blocks` apply (a
-/// checkpoint keeps its own when none are asked for).
-fn unpooled_backbone(cfg: &TrainConfig) -> Result<(BackboneInfo, Preprocess)> {
-    let Some(path) = cfg.weights.as_ref() else {
-        let arch = cfg.backbone.unwrap_or(Architecture::EfficientNetLite0);
-        let variant = arch.lite().ok_or_else(|| {
-            let reason = format!("a frozen {} needs --weights FILE", arch.name());
-            ConfigError::invalid("weights", reason)
-        })?;
-        let path = grasp_model::backbone::venv_weights(variant)?;
-        return Ok((
-            BackboneInfo::pretrained(&path, arch, cfg.width_mult)?,
-            arch.preprocess(cfg.input_size),
-        ));
-    };
-    if grasp_model::backbone::is_checkpoint(path) {
-        return BackboneInfo::from_checkpoint(path).map_err(|source| {
-            TrainError::CheckpointBackbone {
-                path: path.clone(),
-                model: Box::new(source),
-            }
-        });
-    }
-    let arch = detect_architecture(path)?;
-    if let Some(asked) = cfg.backbone.filter(|a| *a != arch) {
-        let reason = format!(
-            "backbone {} does not match the weights file {}, which is {}",
-            asked.name(),
-            path.display(),
-            arch.name()
-        );
-        return Err(ConfigError::invalid("backbone", reason).into());
-    }
-    Ok((
-        BackboneInfo::pretrained(path, arch, cfg.width_mult)?,
-        arch.preprocess(cfg.input_size),
-    ))
-}
-
-/// The architecture of a pretrained weights file, from its tensor names.
-pub fn detect_architecture(path: &Path) -> Result<Architecture> {
-    let vb = grasp_model::weights::var_builder(path, &Device::Cpu)?;
-    Architecture::detect(&vb).ok_or_else(|| TrainError::UnknownArchitecture {
-        path: path.to_path_buf(),
-    })
-}
-
 /// The frame rate a sequence head steps at: the one rate of the training
 /// sequences, which evaluation and any later reader resample to
 /// (`HeadConfig::steps`). None for a head that classifies frames.
-fn step_rate(cfg: &TrainConfig, splits: &Splits) -> Result<Option<f64>> {
-    if cfg.head.classifies_frames() {
+fn step_rate(head: HeadKind, splits: &Splits) -> Result<Option<f64>> {
+    if head.classifies_frames() {
         return Ok(None);
     }
     let mut rates: Vec<f64> = Vec::new();
@@ -122,7 +58,7 @@ fn step_rate(cfg: &TrainConfig, splits: &Splits) -> Result<Option<f64>> {
             let reason = format!(
                 "an {} head steps at one frame rate, and the training sequences have {} \
                  (frames/s): train it on sequences of one rate",
-                cfg.head.name(),
+                head.name(),
                 rates
                     .iter()
                     .map(|r| format!("{r}"))
@@ -134,17 +70,18 @@ fn step_rate(cfg: &TrainConfig, splits: &Splits) -> Result<Option<f64>> {
     }
 }
 
-/// Loads the backbone and computes (or reads cached) features in frozen
-/// mode, or decodes the frames for training from scratch.
+/// The splits' cached features (frozen backbone or blocks) or decoded
+/// frames (from scratch), as `features` says.
 pub fn prepare(
-    cfg: &TrainConfig,
+    features: FeaturePlan,
+    cache: &CachePlan,
     splits: &Splits,
     bad: &BadData,
     dev: &Device,
 ) -> Result<Prepared> {
-    let real_data = splits.train.is_real();
-    let step_hz = step_rate(cfg, splits)?;
-    let mut prep = prepare_frames(cfg, splits, bad, dev, real_data, step_hz)?;
+    let step_hz = step_rate(features.head, splits)?;
+    let mut prep = prepare_frames(features.extraction, cache, splits, bad, dev)?;
+    prep.step_hz = step_hz;
     // A sequence head is validated as it will be evaluated: each validation
     // video read at the training rate (training's own videos are at it).
     if let Some(hz) = step_hz {
@@ -153,112 +90,98 @@ pub fn prepare(
     Ok(prep)
 }
 
-/// [`prepare`] for `cfg.mode`, every frame of both splits kept.
+/// [`prepare`] by mode, every frame of both splits kept.
 fn prepare_frames(
-    cfg: &TrainConfig,
+    extraction: Extraction,
+    cache: &CachePlan,
     splits: &Splits,
     bad: &BadData,
     dev: &Device,
-    real_data: bool,
-    step_hz: Option<f64>,
 ) -> Result<Prepared> {
-    match cfg.mode {
-        TrainMode::FrozenPretrained => {
-            let (info, pre) = frozen_backbone(cfg)?;
-            let bb = Backbone::load_pretrained(&info, pre, dev)?;
-            let (mut train, mut val) = cached_frames(cfg, splits, &bb, bad, dev)?;
-            let damping = damp_views(cfg, &mut train, &mut val, splits.train.sequences.len())?;
-            if cfg.head == HeadKind::Trace {
-                train.trace(cfg.trace_s)?;
-                val.trace(cfg.trace_s)?;
+    let real_data = splits.train.is_real();
+    let train_sequences = splits.train.sequences.len();
+    match extraction {
+        Extraction::Frozen {
+            backbone: bb,
+            views,
+            damping,
+            trace_s,
+        } => {
+            let (mut train, mut val) = cached_frames(cache, &views, splits, &bb, bad, dev)?;
+            let damping = damp_views(damping, &mut train, &mut val, train_sequences)?;
+            if let Some(trace_s) = trace_s {
+                train.trace(trace_s)?;
+                val.trace(trace_s)?;
             }
             Ok(Prepared {
                 train,
                 val,
                 real_data,
-                train_sequences: splits.train.sequences.len(),
+                train_sequences,
                 feature_dim: bb.feature_dim(),
                 preprocess: bb.preprocess,
                 backbone: Some(bb.info),
                 tail: None,
                 damping,
-                step_hz,
+                step_hz: None,
             })
         }
-        TrainMode::FineTuned => {
-            let (info, pre) = frozen_backbone(cfg)?;
-            if let Some(checkpoint) = &info.source_checkpoint {
-                let reason = format!(
-                    "fine-tuned mode starts from a pretrained EfficientNet-Lite file, not from \
-                     the checkpoint {}",
-                    checkpoint.display()
-                );
-                return Err(ConfigError::invalid("weights", reason).into());
-            }
-            let bb = Backbone::load_pretrained(&info, pre, dev)?;
-            let acts = BlockActivations::new(&bb, cfg.fine_tune.blocks)?;
-            tracing::info!(
-                "fine-tuning blocks {}.. of {}; caching the activations before them ({:?})",
-                acts.first_tuned_block(),
-                info.arch.name(),
-                acts.shape
-            );
-            let start = TailStart::new(&bb, &acts)?;
-            let (train, val) = cached_frames(cfg, splits, &acts, bad, dev)?;
+        Extraction::FineTuned {
+            backbone: bb,
+            start,
+            views,
+        } => {
+            let acts = BlockActivations::before(&bb, &start);
+            let (train, val) = cached_frames(cache, &views, splits, &acts, bad, dev)?;
             let mut info = bb.info.clone();
             info.tuned = Some(TunedTail::new(start.from));
             Ok(Prepared {
                 train,
                 val,
                 real_data,
-                train_sequences: splits.train.sequences.len(),
+                train_sequences,
                 feature_dim: bb.feature_dim(),
                 preprocess: bb.preprocess.clone(),
                 backbone: Some(info),
                 tail: Some(start),
                 damping: None,
-                step_hz,
+                step_hz: None,
             })
         }
-        TrainMode::FromScratch => {
-            let load = if cfg.augment.enabled {
-                cfg.input_size * 8 / 7
-            } else {
-                cfg.input_size
-            };
-            Ok(Prepared {
-                train: SplitFrames::from_images(&splits.train, load, bad)?,
-                val: SplitFrames::from_images(&splits.val, load, bad)?,
-                real_data,
-                train_sequences: splits.train.sequences.len(),
-                backbone: None,
-                feature_dim: 0,
-                preprocess: Preprocess::imagenet(cfg.input_size),
-                tail: None,
-                damping: None,
-                step_hz,
-            })
-        }
+        Extraction::FromScratch {
+            load_size,
+            preprocess,
+        } => Ok(Prepared {
+            train: SplitFrames::from_images(&splits.train, load_size, bad)?,
+            val: SplitFrames::from_images(&splits.val, load_size, bad)?,
+            real_data,
+            train_sequences,
+            backbone: None,
+            feature_dim: 0,
+            preprocess,
+            tail: None,
+            damping: None,
+            step_hz: None,
+        }),
     }
 }
 
-/// With `cfg.view_damping`, the damping of what the training views change,
-/// applied to both splits' features.
+/// With a damping strength, the damping of what the training views
+/// change, applied to both splits' features.
 fn damp_views(
-    cfg: &TrainConfig,
+    strength: f64,
     train: &mut SplitFrames,
     val: &mut SplitFrames,
     originals: usize,
 ) -> Result<Option<ViewDamping>> {
-    if cfg.view_damping <= 0.0 {
+    if strength <= 0.0 {
         return Ok(None);
     }
-    let damping = ViewDamping::from_views(train, originals, cfg.view_damping)?;
+    let damping = ViewDamping::from_views(train, originals, strength)?;
     match &damping {
         Some(d) => {
             tracing::info!(
-                "view damping {}: the views' largest feature change holds {:.1} % of them",
-                cfg.view_damping,
+                "view damping {strength}: the views' largest feature change holds {:.1} % of them",
                 100.0 * d.leading_share
             );
             d.apply_to_frames(train)?;
@@ -269,24 +192,18 @@ fn damp_views(
     Ok(damping)
 }
 
-/// The training split (with its configured views) and the validation
-/// split as rows of `extractor`'s cached output, computing what is missing.
+/// The training split (with its views) and the validation split as rows
+/// of `extractor`'s cached output, computing what is missing.
 fn cached_frames(
-    cfg: &TrainConfig,
+    cache: &CachePlan,
+    views: &Views,
     splits: &Splits,
     extractor: &dyn FeatureExtractor,
     bad: &BadData,
     dev: &Device,
 ) -> Result<(SplitFrames, SplitFrames)> {
-    if cfg.views.style > 0.0 {
-        // refused before anything is cached, not at the first style view
-        let channels = extractor.block_channels();
-        for &block in &cfg.views.style_blocks {
-            crate::data::style::restylable(block, &channels)?;
-        }
-    }
-    let cache = FeatureCache::new(&cfg.cache_dir, cfg.feature_batch);
-    let train = crate::data::view::with_views(&splits.train, &cfg.views, cfg.split.seed);
+    let cache = cache.open();
+    let train = crate::data::view::with_views(&splits.train, &views.config, views.seed);
     let tf = cache.dataset(extractor, &train, bad)?;
     let vf = cache.dataset(extractor, &splits.val, bad)?;
     Ok((
@@ -296,7 +213,7 @@ fn cached_frames(
 }
 
 pub(super) fn build_net(
-    cfg: &TrainConfig,
+    plan: &NetPlan,
     prep: &Prepared,
     seed: u64,
     dev: &Device,
@@ -309,7 +226,7 @@ pub(super) fn build_net(
                 arch: Architecture::MobileNetV2,
                 weights_path: None,
                 weights_sha256: None,
-                width_mult: cfg.width_mult,
+                width_mult: plan.width_mult,
                 num_classes: Class::COUNT,
                 weights_prefix: None,
                 source_checkpoint: None,
@@ -325,12 +242,12 @@ pub(super) fn build_net(
         }
     };
     let head_cfg = HeadConfig {
-        kind: cfg.head,
+        kind: plan.head,
         feature_dim,
         classes: Class::COUNT,
-        lstm_hidden: cfg.lstm_hidden,
+        lstm_hidden: plan.lstm_hidden,
         step_hz: prep.step_hz,
-        trace_s: (cfg.head == HeadKind::Trace).then_some(cfg.trace_s),
+        trace_s: plan.trace_s,
     };
     let head_vars = crate::init::head_varmap(&head_cfg, seed, dev)?;
     let head = Head::new(
@@ -343,9 +260,9 @@ pub(super) fn build_net(
             head_vars,
             backbone,
             tail: prep.tail.as_ref().map(|t| Tail::new(t, dev)).transpose()?,
-            augment: cfg.augment.clone(),
-            tbptt: cfg.tbptt,
-            start_crop: cfg.lstm_start_crop,
+            augment: plan.augment.clone(),
+            tbptt: plan.tbptt,
+            start_crop: plan.start_crop,
         },
         info,
     ))

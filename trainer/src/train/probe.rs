@@ -7,21 +7,21 @@ use super::{
     epoch_units, evaluate_split, train_epoch, unit_classes, Epoch, FrameSource, Net, Optimizers,
     SplitFrames,
 };
-use crate::config::TrainConfig;
 use crate::error::{Result, TrainError};
+use crate::plan::FitPlan;
 use candle_core::Tensor;
 
-/// Trains `net`'s head for `cfg.fine_tune.probe_epochs` epochs on the
+/// Trains `net`'s head for `fit.tuning.probe_epochs` epochs on the
 /// features its (untrained) tail gives `train`'s rows; the tail is left as
 /// it was. Without a tail or with 0 epochs it does nothing.
 pub(super) fn probe_head(
     net: &mut Net,
-    cfg: &TrainConfig,
+    fit: &FitPlan,
     (train, val): (&SplitFrames, &SplitFrames),
     batch: usize,
     seed: u64,
 ) -> Result<()> {
-    let epochs = cfg.fine_tune.probe_epochs;
+    let epochs = fit.tuning.probe_epochs;
     if epochs == 0 {
         return Ok(());
     }
@@ -33,10 +33,11 @@ pub(super) fn probe_head(
     let result = (|| {
         let train = tail_features(&tail, train)?;
         let val = tail_features(&tail, val)?;
-        let mut opt = Optimizers::new(net, cfg)?;
+        let mut opt = Optimizers::new(net, fit)?;
         for epoch in 1..=epochs {
             let mut rng = crate::rng::stream(seed, &format!("probe/{epoch}"));
-            let units = epoch_units(unit_classes(cfg, &train), cfg.balance_classes, &mut rng);
+            let classes = unit_classes(fit.net.head, &train);
+            let units = epoch_units(classes, fit.balance_classes, &mut rng);
             train_epoch(
                 net,
                 &train,

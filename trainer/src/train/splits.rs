@@ -1,9 +1,9 @@
 //! Reading a run's data and splitting it into train, validation and test.
 
-use crate::config::TrainConfig;
 use crate::data::split::{self, Split};
 use crate::data::{self, BadData, Dataset};
 use crate::error::DataError;
+use crate::plan::DataPlan;
 use std::path::Path;
 
 /// The three splits of a run.
@@ -17,23 +17,23 @@ pub struct Splits {
 
 /// Reads the data and splits it: separate validation/test roots when given,
 /// otherwise a stratified split of the training root.
-pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits, DataError> {
+pub fn load_splits(plan: &DataPlan, bad: &BadData) -> Result<Splits, DataError> {
     let read = |root: &Path| -> Result<Dataset, DataError> {
-        let d = data::read_dataset(root, &cfg.reader, bad)?;
+        let d = data::read_dataset(root, &plan.reader, bad)?;
         if d.sequences.is_empty() {
             let root = root.to_path_buf();
             return Err(DataError::NoSequences { root });
         }
         Ok(d)
     };
-    let all = read(&cfg.data)?;
-    let (train, val, test) = match (&cfg.val_data, &cfg.test_data) {
+    let all = read(&plan.train)?;
+    let (train, val, test) = match (&plan.val, &plan.test) {
         (Some(v), t) => {
             let test = t.as_deref().map(read).transpose()?.unwrap_or_default();
             (all, read(v)?, test)
         }
         (None, t) => {
-            let mut sc = cfg.split.clone();
+            let mut sc = plan.split.clone();
             let test = match t {
                 Some(t) => {
                     sc.test_fraction = 0.0;
@@ -50,9 +50,9 @@ pub fn load_splits(cfg: &TrainConfig, bad: &BadData) -> Result<Splits, DataError
             )
         }
     };
-    let train = match cfg.sequences_per_pair {
+    let train = match plan.sequences_per_pair {
         Some(n) => {
-            let capped = split::cap_per_pair(&train, n, cfg.split.seed);
+            let capped = split::cap_per_pair(&train, n, plan.split.seed);
             tracing::info!(
                 "at most {n} training sequence(s) per object-part pair: {} of {} kept",
                 capped.sequences.len(),

@@ -53,6 +53,16 @@ impl<'a> BlockActivations<'a> {
         })
     }
 
+    /// The activations in front of `start`'s blocks, as [`Self::new`]
+    /// found them for it (no second probe of their shape).
+    pub fn before(backbone: &'a Backbone, start: &TailStart) -> Self {
+        BlockActivations {
+            backbone,
+            from: start.from,
+            shape: start.shape,
+        }
+    }
+
     pub fn first_tuned_block(&self) -> usize {
         self.from
     }

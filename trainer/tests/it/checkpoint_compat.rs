@@ -5,28 +5,23 @@
 use grasp_model::backbone::{Architecture, ResizeFilter};
 use grasp_model::checkpoint::{Classifier, FORMAT_VERSION, META_FILE};
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{class_image, write_synthetic, Layout, SyntheticSpec};
+use trainer::data::synthetic::class_image;
+use trainer::stand_in::SmallSet;
 
 #[test]
 fn format_1_checkpoints_load_as_mobilenet_v2() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 2;
-    spec.frames = 4;
-    spec.no_grasp_frames = 1;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("mnv2.safetensors");
-    trainer::init::write_random_backbone(&weights, 0.25, 32, &[], 1).unwrap();
+    let set = SmallSet::generated(root, |spec| {
+        spec.sequences_per_part = 2;
+        spec.frames = 4;
+        spec.no_grasp_frames = 1;
+    })
+    .unwrap();
+    let set = set.random_mobilenet(0.25, 0).unwrap();
     let mut cfg = TrainConfig {
-        data: root.join("data"),
-        out: root.join("run"),
-        weights: Some(weights),
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 1,
-        cache_dir: root.join("cache"),
-        ..Default::default()
+        ..set.config("run")
     };
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;

@@ -6,6 +6,7 @@ use std::collections::HashSet;
 use trainer::data::split::{select, stratified_split, SplitConfig};
 use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{read_dataset, BadData, LabelSource, OnBadData, ReaderOptions};
+use trainer::plan::DataPlan;
 
 use crate::lead_in::{look_away_first, sequence_json};
 
@@ -314,7 +315,10 @@ fn a_sensor_probe_degrades_each_frame_before_the_crop() {
     let data = read_dataset(dir.path(), &opts, &bad).unwrap();
     let mut seq = data.sequences[0].clone();
     let plain = seq.load_frame(1, &bad).unwrap().unwrap();
-    let probe = SensorProbe::new(Some(0.05), Some(1.0)).unwrap().unwrap();
+    let probe = SensorProbe {
+        noise_sigma: 0.05,
+        blur_sigma_px: 1.0,
+    };
     seq.probe = Some(probe);
     let probed = seq.load_frame(1, &bad).unwrap().unwrap();
     assert_eq!(probed.dimensions(), plain.dimensions());
@@ -449,8 +453,11 @@ fn denoising_filters_the_crop_the_backbone_sees() {
     let denoised = read_dataset(dir.path(), &opts(true), &bad).unwrap();
     assert!(denoised.sequences.iter().all(|s| s.denoise));
     let mut seq = plain.sequences[0].clone();
-    // A noisy camera (the sensor probe), then the crop, then the filter.
-    seq.probe = trainer::data::probe::SensorProbe::new(Some(0.04), None).unwrap();
+    // A noisy camera (a sensor view's), then the crop, then the filter.
+    seq.probe = Some(trainer::data::probe::SensorProbe {
+        noise_sigma: 0.04,
+        blur_sigma_px: 0.0,
+    });
     let noisy = seq.load_frame(1, &bad).unwrap().unwrap();
     seq.denoise = true;
     let filtered = seq.load_frame(1, &bad).unwrap().unwrap();
@@ -488,7 +495,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
         data: dir.path().to_path_buf(),
         ..Default::default()
     };
-    trainer::train::load_splits(&cfg, &fail).unwrap();
+    trainer::train::load_splits(&DataPlan::of(&cfg), &fail).unwrap();
 
     let foreign = data.sequences[0].dir.join("sequence.json");
     set_record(&foreign, &["render", "world"], serde_json::json!("foreign"));
@@ -509,7 +516,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
     );
     let err = format!(
         "{:#}",
-        trainer::train::load_splits(&cfg, &fail).unwrap_err()
+        trainer::train::load_splits(&DataPlan::of(&cfg), &fail).unwrap_err()
     );
     assert!(err.contains("belongs to a test world"), "{err}");
     assert!(err.contains(&dir.path().display().to_string()), "{err}");
@@ -522,7 +529,7 @@ fn test_worlds_are_read_but_never_trained_or_validated_on() {
     };
     let err = format!(
         "{:#}",
-        trainer::train::load_splits(&as_val, &fail).unwrap_err()
+        trainer::train::load_splits(&DataPlan::of(&as_val), &fail).unwrap_err()
     );
     assert!(err.contains("the validation set"), "{err}");
 }

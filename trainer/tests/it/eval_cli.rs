@@ -230,34 +230,6 @@ fn eval_trims_the_lead_in_before_inference_unless_told_to_keep_it() {
 }
 
 #[test]
-fn eval_with_a_sensor_probe_records_it_and_refuses_bad_values() {
-    let dir = tempfile::tempdir().unwrap();
-    let ckpt = train_tiny(dir.path());
-    let ckpt = ckpt.to_str().unwrap();
-    let base = ["eval", "-c", ckpt, "--data", "data", "--out", "probed"];
-    let mut args = base.to_vec();
-    args.extend(["--probe-noise", "0.04", "--probe-blur", "0.9"]);
-    let (ok, text) = grasp_train(dir.path(), &args);
-    assert!(ok, "{text}");
-    let out = dir.path().join("probed");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    let probe = &json["sensor_probe"];
-    assert!((probe["noise_sigma"].as_f64().unwrap() - 0.04).abs() < 1e-6);
-    assert!((probe["blur_sigma_px"].as_f64().unwrap() - 0.9).abs() < 1e-6);
-    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("Sensor probe"), "{md}");
-
-    let mut bad = base.to_vec();
-    bad.extend(["--probe-noise=-0.1"]);
-    let (ok, text) = grasp_train(dir.path(), &bad);
-    assert!(
-        !ok && text.contains("--probe-noise must be in [0, 1]"),
-        "{text}"
-    );
-}
-
-#[test]
 fn eval_pools_repeated_data_roots_into_one_report() {
     let dir = tempfile::tempdir().unwrap();
     let ckpt = train_tiny(dir.path());
@@ -589,20 +561,12 @@ fn eval_writes_a_report_page_that_renders_in_a_browser() {
 /// LSTM head trained on the same data and backbone: (data, fc, lstm).
 fn fc_and_lstm(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     use grasp_model::backbone::Architecture;
-    let fc = trainer::stand_in::stand_in_checkpoint(dir, 32, Architecture::MobileNetV2).unwrap();
+    let (set, fc) = trainer::stand_in::stand_in_run(dir, 32, Architecture::MobileNetV2).unwrap();
     let mut cfg = trainer::config::TrainConfig {
-        data: dir.join("data"),
-        out: dir.join("run-lstm"),
-        mode: grasp_model::checkpoint::TrainMode::FrozenPretrained,
         head: grasp_model::heads::HeadKind::Lstm,
-        backbone: Some(Architecture::MobileNetV2),
-        weights: Some(dir.join("backbone.safetensors")),
-        width_mult: 1.0,
-        input_size: 32,
         max_epochs: 1,
         lstm_hidden: 8,
-        cache_dir: dir.join("cache"),
-        ..Default::default()
+        ..set.config("run-lstm")
     };
     cfg.split.val_fraction = 0.34;
     cfg.split.test_fraction = 0.0;

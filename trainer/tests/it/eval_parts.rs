@@ -8,11 +8,19 @@ use trainer::config::TrainConfig;
 use trainer::data::{BadData, OnBadData};
 use trainer::eval::metrics::FrameWindow;
 
-use crate::stand_in;
+use trainer::stand_in::SmallSet;
 
+/// The generated set, 5 sequences per part, and a random MobileNetV2
+/// (width 0.25) calibrated on 20 of its frames.
 fn setup(dir: &Path) -> TrainConfig {
-    let mut cfg = stand_in::frozen_setup(dir, 5, 20);
-    cfg.max_epochs = 4;
+    let set = SmallSet::generated(dir, |s| s.sequences_per_part = 5).unwrap();
+    let set = set.random_mobilenet(0.25, 20).unwrap();
+    let mut cfg = TrainConfig {
+        batch_size: Some(16),
+        max_epochs: 4,
+        ..set.config("run")
+    };
+    cfg.split.val_fraction = 0.2;
     cfg.split.test_fraction = 0.4;
     cfg
 }

@@ -66,12 +66,12 @@ fn lite0_classifies_photographs_like_pytorch() {
         return;
     };
     assert_eq!(
-        trainer::train::detect_architecture(&weights).unwrap(),
+        trainer::plan::detect_architecture(&weights).unwrap(),
         Architecture::EfficientNetLite0
     );
     // frozen training with no weights given uses this file
     let (info, pre) =
-        trainer::train::frozen_backbone(&trainer::config::TrainConfig::default()).unwrap();
+        trainer::plan::frozen_backbone(&trainer::config::TrainConfig::default()).unwrap();
     assert_eq!(info.weights_path.as_deref(), Some(weights.as_path()));
     assert_eq!(
         (info.arch, pre),
@@ -121,7 +121,7 @@ fn larger_variants_when_installed() {
             continue;
         };
         let arch = Architecture::from_lite(variant);
-        assert_eq!(trainer::train::detect_architecture(&weights).unwrap(), arch);
+        assert_eq!(trainer::plan::detect_architecture(&weights).unwrap(), arch);
         let info = BackboneInfo::pretrained(&weights, arch, 1.0).unwrap();
         let pre = arch.preprocess(arch.native_input_size());
         let bb = Backbone::load_pretrained(&info, pre, &Device::Cpu).unwrap();

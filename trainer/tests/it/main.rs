@@ -8,7 +8,6 @@ mod eval_parts;
 mod eval_report;
 mod lead_in;
 mod lite_imagenet;
-mod stand_in;
 mod style_views;
 mod summarize;
 mod train_classes;

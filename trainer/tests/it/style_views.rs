@@ -7,36 +7,24 @@
 use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
 use grasp_model::checkpoint::{Classifier, TrainMode};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::heads::HeadKind;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use trainer::config::TrainConfig;
 use trainer::data::style::StyleDraw;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{BadData, OnBadData};
 use trainer::features::FeatureCache;
+use trainer::stand_in::SmallSet;
 
-/// A small generated dataset in `root/data` and random EfficientNet-Lite0
-/// weights (returned) beside it.
-fn data_and_weights(root: &Path) -> PathBuf {
-    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, grasp_model::networks::LiteVariant::Lite0, 3)
-        .unwrap();
-    weights
+/// The generated set and random EfficientNet-Lite0 weights beside it.
+fn data_and_weights(root: &Path) -> SmallSet {
+    let set = SmallSet::generated(root, |_| {}).unwrap();
+    set.random_lite0(3).unwrap()
 }
 
-fn cfg(root: &Path, weights: &Path, out: &str) -> TrainConfig {
+fn cfg(set: &SmallSet, out: &str) -> TrainConfig {
     TrainConfig {
-        data: root.join("data"),
-        out: root.join(out),
-        mode: TrainMode::FrozenPretrained,
-        head: HeadKind::Fc,
-        weights: Some(weights.to_path_buf()),
-        input_size: 32,
-        cache_dir: root.join("cache"),
         batch_size: Some(16),
         max_epochs: 2,
-        ..Default::default()
+        ..set.config(out)
     }
 }
 
@@ -69,7 +57,8 @@ fn lite0(weights: &Path) -> Backbone {
 fn styled_features_differ_repeat_and_vanish_at_zero_strength() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
+    let weights = set.weights().unwrap().to_path_buf();
     let net = lite0(&weights);
     assert_eq!(net.block_channels().len(), 16);
 
@@ -126,13 +115,13 @@ fn styled_features_differ_repeat_and_vanish_at_zero_strength() {
 fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
 
-    let mut views = cfg(root, &weights, "views");
+    let mut views = cfg(&set, "views");
     views.views.count = 1;
     trainer::experiment::run(&views, 1).unwrap();
     let plain_entries = cache_entries(root);
-    let mut styled = cfg(root, &weights, "styled");
+    let mut styled = cfg(&set, "styled");
     styled.views.count = 1;
     styled.views.style = 0.3;
     let train = train_sequences(&styled);
@@ -147,7 +136,7 @@ fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
     assert_eq!(cache_entries(root), plain_entries + train);
 
     // A style without views would do nothing: refused.
-    let mut idle = cfg(root, &weights, "idle");
+    let mut idle = cfg(&set, "idle");
     idle.views.style = 0.3;
     let err = format!("{:#}", trainer::experiment::run(&idle, 1).err().unwrap());
     assert!(err.contains("views.count"), "{err}");
@@ -157,8 +146,8 @@ fn style_views_are_cached_apart_from_plain_views_and_trained_on() {
 fn fine_tuned_style_views_restyle_the_frozen_blocks_only() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
-    let mut tuned = cfg(root, &weights, "tuned");
+    let set = data_and_weights(root);
+    let mut tuned = cfg(&set, "tuned");
     tuned.mode = TrainMode::FineTuned;
     tuned.fine_tune.blocks = 2;
     tuned.max_epochs = 1;
@@ -186,7 +175,8 @@ fn fine_tuned_style_views_restyle_the_frozen_blocks_only() {
 fn views_extracted_together_equal_views_extracted_alone() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
+    let weights = set.weights().unwrap().to_path_buf();
     let net = lite0(&weights);
     let options = trainer::data::ReaderOptions {
         denoise: true,

@@ -2,35 +2,30 @@
 //! it would train to "100 %" on one-class data. `no_grasp` frames, which
 //! every sequence has, do not make it a second class.
 
-use grasp_model::checkpoint::TrainMode;
 use grasp_schema::taxonomy::{Class, Preshape};
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
-fn config(root: &std::path::Path, allow: bool) -> TrainConfig {
+fn config(set: &SmallSet, allow: bool) -> TrainConfig {
     TrainConfig {
-        data: root.join("data"),
-        out: root.join(if allow { "allowed" } else { "refused" }),
-        mode: TrainMode::FromScratch,
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 1,
         allow_missing_classes: allow,
-        ..Default::default()
+        ..set.config(if allow { "allowed" } else { "refused" })
     }
 }
 
 #[test]
 fn a_split_without_some_pre_shapes_is_refused_naming_them() {
     let dir = tempfile::tempdir().unwrap();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
     // Power only (a can and a mug body), each sequence ending in no_grasp.
-    spec.objects.truncate(2);
-    spec.objects[1].2.truncate(1);
-    spec.sequences_per_part = 6;
-    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let set = SmallSet::generated(dir.path(), |spec| {
+        spec.objects.truncate(2);
+        spec.objects[1].2.truncate(1);
+        spec.sequences_per_part = 6;
+    })
+    .unwrap();
 
-    let err = trainer::experiment::run(&config(dir.path(), false), 1)
+    let err = trainer::experiment::run(&config(&set, false), 1)
         .err()
         .expect("a power-only training set was accepted");
     let text = format!("{err:#}");
@@ -43,7 +38,7 @@ fn a_split_without_some_pre_shapes_is_refused_naming_them() {
     assert!(!dir.path().join("refused/seed-0").exists());
 
     // Told otherwise, it trains (and its frames do hold two labels).
-    let out = trainer::experiment::run(&config(dir.path(), true), 1).unwrap();
+    let out = trainer::experiment::run(&config(&set, true), 1).unwrap();
     assert_eq!(out.runs.len(), 1);
     let data = trainer::data::read_dataset(
         &dir.path().join("data"),
@@ -63,10 +58,9 @@ fn a_split_without_some_pre_shapes_is_refused_naming_them() {
 #[test]
 fn every_pre_shape_present_trains() {
     let dir = tempfile::tempdir().unwrap();
-    let spec = SyntheticSpec::small(Layout::Generated);
-    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let set = SmallSet::generated(dir.path(), |_| {}).unwrap();
     let data = trainer::data::read_dataset(
-        &dir.path().join("data"),
+        &set.data(),
         &Default::default(),
         &trainer::data::BadData::new(trainer::data::OnBadData::Fail),
     )

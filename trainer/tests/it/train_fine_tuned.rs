@@ -8,37 +8,29 @@ use candle_nn::VarBuilder;
 use grasp_model::backbone::{Architecture, Backbone, BackboneInfo};
 use grasp_model::checkpoint::{Classifier, TrainMode};
 use grasp_model::extractor::FeatureExtractor;
-use grasp_model::networks::{LiteTail, LiteVariant};
+use grasp_model::networks::LiteTail;
 use std::path::Path;
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
-fn cfg(root: &Path, weights: &Path) -> TrainConfig {
+fn cfg(set: &SmallSet) -> TrainConfig {
     let mut cfg = TrainConfig {
-        data: root.join("data"),
-        out: root.join("tuned"),
         mode: TrainMode::FineTuned,
-        weights: Some(weights.to_path_buf()),
         input_size: 64,
-        cache_dir: root.join("cache"),
         batch_size: Some(16),
         max_epochs: 2,
-        ..Default::default()
+        ..set.config("tuned")
     };
     cfg.fine_tune.blocks = 2;
     cfg.fine_tune.lr = 1e-2;
     cfg
 }
 
-/// A small generated dataset in `root/data` and random EfficientNet-Lite0
-/// weights (returned) beside it.
-fn data_and_weights(root: &Path) -> std::path::PathBuf {
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 3;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
-    weights
+/// The generated set, 3 sequences per part, and random EfficientNet-Lite0
+/// weights beside it.
+fn data_and_weights(root: &Path) -> SmallSet {
+    let set = SmallSet::generated(root, |spec| spec.sequences_per_part = 3).unwrap();
+    set.random_lite0(7).unwrap()
 }
 
 fn frames() -> Vec<image::RgbImage> {
@@ -62,9 +54,10 @@ fn values(t: &Tensor) -> Vec<f32> {
 fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
+    let weights = set.weights().unwrap().to_path_buf();
 
-    let cfg = cfg(root, &weights);
+    let cfg = cfg(&set);
     let run = trainer::experiment::run(&cfg, 1).unwrap();
     let ckpt = &run.runs[0].checkpoint;
 
@@ -176,11 +169,10 @@ fn tuned_blocks_travel_in_the_checkpoint_and_run_at_inference() {
 fn fine_tuning_refuses_what_it_cannot_tune() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
-    let weights = root.join("lite0.safetensors");
-    trainer::init::write_random_lite(&weights, LiteVariant::Lite0, 7).unwrap();
+    let set = SmallSet::generated(root, |_| {}).unwrap();
+    let set = set.random_lite0(7).unwrap();
 
-    let mut too_many = cfg(root, &weights);
+    let mut too_many = cfg(&set);
     too_many.fine_tune.blocks = 17;
     let err = format!(
         "{:#}",
@@ -188,18 +180,18 @@ fn fine_tuning_refuses_what_it_cannot_tune() {
     );
     assert!(err.contains("16 blocks"), "{err}");
 
-    let mut none = cfg(root, &weights);
+    let mut none = cfg(&set);
     none.fine_tune.blocks = 0;
     let err = format!("{:#}", none.validate().err().unwrap());
     assert!(err.contains("blocks must be at least 1"), "{err}");
 
-    let mut scratch = cfg(root, &weights);
+    let mut scratch = cfg(&set);
     scratch.mode = TrainMode::FromScratch;
     scratch.pooled_blocks = vec![15];
     let err = format!("{:#}", scratch.validate().err().unwrap());
     assert!(err.contains("pooled_blocks"), "{err}");
 
-    let mut mobilenet = cfg(root, &weights);
+    let mut mobilenet = cfg(&set);
     mobilenet.backbone = Some(Architecture::MobileNetV2);
     let err = format!("{:#}", mobilenet.validate().err().unwrap());
     assert!(err.contains("EfficientNet-Lite"), "{err}");
@@ -212,9 +204,10 @@ fn fine_tuning_refuses_what_it_cannot_tune() {
 fn a_linear_probe_trains_the_head_before_the_blocks() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
+    let weights = set.weights().unwrap().to_path_buf();
     let first_epoch = |probe: usize, tune_lr: f64, out: &str| {
-        let mut cfg = cfg(root, &weights);
+        let mut cfg = cfg(&set);
         cfg.out = root.join(out);
         cfg.max_epochs = 1;
         cfg.optimizer.lr = 1e-2; // a probe of a few batches an epoch
@@ -256,14 +249,15 @@ fn a_linear_probe_trains_the_head_before_the_blocks() {
 fn pooled_blocks_travel_in_the_checkpoint_in_both_modes() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let weights = data_and_weights(root);
+    let set = data_and_weights(root);
+    let weights = set.weights().unwrap().to_path_buf();
     let dev = Device::Cpu;
     let images = frames();
     // Lite0's blocks 13 and 15 have 192 and 320 channels
     let dim = 1280 + 192 + 320;
 
     // Fine-tuned from block 14: block 13 is the cached input, 15 is tuned.
-    let mut tuned = cfg(root, &weights);
+    let mut tuned = cfg(&set);
     tuned.pooled_blocks = vec![13, 15];
     let run = trainer::experiment::run(&tuned, 1).unwrap();
     let clf = Classifier::load(&run.runs[0].checkpoint, &dev).unwrap();
@@ -296,7 +290,7 @@ fn pooled_blocks_travel_in_the_checkpoint_in_both_modes() {
 
     // Frozen: the head trains on the longer features and the classifier
     // computes them.
-    let mut frozen = cfg(root, &weights);
+    let mut frozen = cfg(&set);
     frozen.mode = TrainMode::FrozenPretrained;
     frozen.out = root.join("frozen");
     frozen.pooled_blocks = vec![13, 15];
@@ -324,7 +318,7 @@ fn pooled_blocks_travel_in_the_checkpoint_in_both_modes() {
 
     // A pooled block the activation cache does not hold is refused before
     // anything is cached.
-    let mut early = cfg(root, &weights);
+    let mut early = cfg(&set);
     early.out = root.join("early");
     early.cache_dir = root.join("early-cache");
     early.pooled_blocks = vec![12, 15];

@@ -5,25 +5,20 @@
 //! sequences. The other learning tests train heads on generated features;
 //! this one covers the image path end to end.
 
-use grasp_model::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
 #[test]
 fn from_scratch_network_learns_from_images() {
     let dir = tempfile::tempdir().unwrap();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 8;
-    spec.noise = 30.0;
-    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let set = SmallSet::generated(dir.path(), |spec| {
+        spec.sequences_per_part = 8;
+        spec.noise = 30.0;
+    })
+    .unwrap();
     let mut cfg = TrainConfig {
-        data: dir.path().join("data"),
-        out: dir.path().join("run"),
-        mode: TrainMode::FromScratch,
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 12,
-        ..Default::default()
+        ..set.config("run")
     };
     // 160 balanced frames per epoch (32 per class: the pinch classes have
     // one pair each, 4 sequences of 8 grasp frames): small batches and a higher rate give the network and

@@ -9,31 +9,25 @@ use grasp_model::extractor::FeatureExtractor;
 use grasp_model::heads::HeadKind;
 use std::path::{Path, PathBuf};
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
-fn scratch_cfg(root: &Path) -> TrainConfig {
+fn scratch_cfg(set: &SmallSet) -> TrainConfig {
     TrainConfig {
-        data: root.join("data"),
-        out: root.join("scratch"),
-        mode: TrainMode::FromScratch,
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 2,
-        ..Default::default()
+        ..set.config("scratch")
     }
 }
 
-fn frozen_cfg(root: &Path, backbone: &Path, head: HeadKind, out: &str) -> TrainConfig {
+/// A head on the frozen checkpoint `backbone` (its width and input size
+/// replace the set's).
+fn frozen_cfg(set: &SmallSet, backbone: &Path, head: HeadKind, out: &str) -> TrainConfig {
     TrainConfig {
-        data: root.join("data"),
-        out: root.join(out),
         mode: TrainMode::FrozenPretrained,
         head,
         weights: Some(backbone.to_path_buf()),
-        cache_dir: root.join("cache"),
         batch_size: Some(16),
         max_epochs: 3,
-        ..Default::default()
+        ..set.config(out)
     }
 }
 
@@ -50,19 +44,17 @@ fn cache_keys(root: &Path) -> Vec<PathBuf> {
 fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 3;
-    write_synthetic(&root.join("data"), &spec).unwrap();
-    let scratch = trainer::experiment::run(&scratch_cfg(root), 2).unwrap();
+    let set = SmallSet::generated(root, |spec| spec.sequences_per_part = 3).unwrap();
+    let scratch = trainer::experiment::run(&scratch_cfg(&set), 2).unwrap();
     let (seed0, seed1) = (&scratch.runs[0].checkpoint, &scratch.runs[1].checkpoint);
 
     // A run's directory is not a checkpoint: the error points to a seed.
-    let cfg = frozen_cfg(root, &root.join("scratch"), HeadKind::Fc, "bad");
+    let cfg = frozen_cfg(&set, &root.join("scratch"), HeadKind::Fc, "bad");
     let err = format!("{:#}", trainer::experiment::run(&cfg, 1).err().unwrap());
     assert!(err.contains("seed-0"), "{err}");
 
     // The directory and its best.json are both accepted.
-    let cfg = frozen_cfg(root, seed0, HeadKind::Fc, "fc");
+    let cfg = frozen_cfg(&set, seed0, HeadKind::Fc, "fc");
     let fc = trainer::experiment::run(&cfg, 1).unwrap();
     let clf = Classifier::load(&fc.runs[0].checkpoint, &candle_core::Device::Cpu).unwrap();
     assert_eq!(clf.meta.mode, TrainMode::FrozenPretrained);
@@ -133,10 +125,10 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
     };
     let before = entries(&cache_keys(root)[0]);
     let json = seed0.join("best.json");
-    trainer::experiment::run(&frozen_cfg(root, &json, HeadKind::Lstm, "lstm"), 1).unwrap();
+    trainer::experiment::run(&frozen_cfg(&set, &json, HeadKind::Lstm, "lstm"), 1).unwrap();
     assert_eq!(cache_keys(root).len(), 1);
     assert_eq!(entries(&cache_keys(root)[0]), before);
-    trainer::experiment::run(&frozen_cfg(root, seed1, HeadKind::Fc, "fc1"), 1).unwrap();
+    trainer::experiment::run(&frozen_cfg(&set, seed1, HeadKind::Fc, "fc1"), 1).unwrap();
     assert_eq!(cache_keys(root).len(), 2);
 
     // Aggregating heads on different backbones is refused.
@@ -166,15 +158,15 @@ fn a_from_scratch_checkpoint_serves_as_a_frozen_backbone() {
 fn feature_views_are_cached_extra_sequences_that_do_not_count_as_data() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
-    let scratch = trainer::experiment::run(&scratch_cfg(root), 1).unwrap();
+    let set = SmallSet::generated(root, |_| {}).unwrap();
+    let scratch = trainer::experiment::run(&scratch_cfg(&set), 1).unwrap();
     let backbone = &scratch.runs[0].checkpoint;
     let count_entries = || std::fs::read_dir(&cache_keys(root)[0]).unwrap().count();
 
     let plain =
-        trainer::experiment::run(&frozen_cfg(root, backbone, HeadKind::Fc, "plain"), 1).unwrap();
+        trainer::experiment::run(&frozen_cfg(&set, backbone, HeadKind::Fc, "plain"), 1).unwrap();
     let plain_entries = count_entries();
-    let mut cfg = frozen_cfg(root, backbone, HeadKind::Fc, "views");
+    let mut cfg = frozen_cfg(&set, backbone, HeadKind::Fc, "views");
     cfg.views.count = 2;
     let viewed = trainer::experiment::run(&cfg, 1).unwrap();
     let load = |r: &trainer::train::TrainOutcome| {
@@ -196,7 +188,7 @@ fn feature_views_are_cached_extra_sequences_that_do_not_count_as_data() {
     assert_eq!(count_entries(), plain_entries + 2 * train);
 
     // From scratch, augmentation is per epoch: views are refused.
-    let mut bad = scratch_cfg(root);
+    let mut bad = scratch_cfg(&set);
     bad.views.count = 1;
     let err = format!("{:#}", trainer::experiment::run(&bad, 1).err().unwrap());
     assert!(err.contains("views.count"), "{err}");

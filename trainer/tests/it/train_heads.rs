@@ -13,12 +13,21 @@ use grasp_model::checkpoint::Classifier;
 use grasp_model::heads::HeadKind;
 use std::path::Path;
 use trainer::config::TrainConfig;
+use trainer::plan::{DataPlan, RunPlan};
 
-use crate::stand_in;
+use trainer::stand_in::SmallSet;
 
+/// The generated set, 6 sequences per part, and a random MobileNetV2
+/// (width 0.25) calibrated on 40 of its frames.
 fn setup(dir: &Path) -> TrainConfig {
-    let mut cfg = stand_in::frozen_setup(dir, 6, 40);
-    cfg.max_epochs = 40;
+    let set = SmallSet::generated(dir, |s| s.sequences_per_part = 6).unwrap();
+    let set = set.random_mobilenet(0.25, 40).unwrap();
+    let mut cfg = TrainConfig {
+        batch_size: Some(16),
+        max_epochs: 40,
+        ..set.config("run")
+    };
+    cfg.split.val_fraction = 0.2;
     cfg.split.test_fraction = 0.2;
     cfg.optimizer.lr = 5e-3;
     cfg
@@ -190,7 +199,7 @@ fn lstm_is_validated_at_its_training_rate() {
     let dir = tempfile::tempdir().unwrap();
     let mut cfg = setup(dir.path());
     let bad = BadData::new(OnBadData::Fail);
-    let mut splits = trainer::train::load_splits(&cfg, &bad).unwrap();
+    let mut splits = trainer::train::load_splits(&DataPlan::of(&cfg), &bad).unwrap();
     let frames: Vec<usize> = splits
         .val
         .sequences
@@ -199,7 +208,9 @@ fn lstm_is_validated_at_its_training_rate() {
         .collect();
     splits.val.sequences.iter_mut().for_each(twice_as_fast);
     let read = |cfg: &TrainConfig| {
-        let prep = trainer::train::prepare(cfg, &splits, &bad, &candle_core::Device::Cpu);
+        let plan = RunPlan::resolve(cfg).unwrap();
+        let dev = candle_core::Device::Cpu;
+        let prep = trainer::train::prepare(plan.features, &plan.cache, &splits, &bad, &dev);
         let prep = prep.unwrap();
         prep.val.seq_rows.iter().map(Vec::len).collect::<Vec<_>>()
     };

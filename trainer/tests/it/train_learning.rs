@@ -8,6 +8,7 @@ use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use rand::Rng;
 use trainer::config::{Selection, TrainConfig};
+use trainer::plan::FitPlan;
 use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 const DIM: usize = 64;
@@ -81,7 +82,13 @@ fn config(dir: &std::path::Path, head: HeadKind) -> TrainConfig {
 fn learn(head: HeadKind) -> f64 {
     let dir = tempfile::tempdir().unwrap();
     let cfg = config(dir.path(), head);
-    let out = trainer::train::train(&cfg, &prepared(40, 1.5), 0, &dir.path().join("run")).unwrap();
+    let out = trainer::train::train(
+        &FitPlan::of(&cfg).unwrap(),
+        &prepared(40, 1.5),
+        0,
+        &dir.path().join("run"),
+    )
+    .unwrap();
     let best = &out.history[out.best_epoch - 1];
     assert!(dir.path().join("run/best.safetensors").is_file());
     assert!(out.history[0].val_loss > best.val_loss);
@@ -126,7 +133,7 @@ fn selection_keeps_the_epoch_its_rule_names() {
             ..config(dir.path(), HeadKind::Fc)
         };
         let run = dir.path().join(format!("{select:?}"));
-        let out = trainer::train::train(&cfg, &prep, 0, &run).unwrap();
+        let out = trainer::train::train(&FitPlan::of(&cfg).unwrap(), &prep, 0, &run).unwrap();
         let h = &out.history;
         let expected = match select {
             Selection::ValLoss => {
@@ -165,7 +172,7 @@ fn lstm_start_crop_trains_on_later_starts_and_repeats() {
         ..whole.clone()
     };
     let run = |cfg: &TrainConfig, name: &str| {
-        trainer::train::train(cfg, &prep, 0, &dir.path().join(name)).unwrap()
+        trainer::train::train(&FitPlan::of(cfg).unwrap(), &prep, 0, &dir.path().join(name)).unwrap()
     };
     let (a, b, w) = (run(&cropped, "a"), run(&cropped, "b"), run(&whole, "w"));
     let frames = |o: &trainer::train::TrainOutcome| -> Vec<usize> {

@@ -4,7 +4,8 @@
 
 use grasp_model::checkpoint::{Classifier, TrainMode};
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::data::synthetic::{Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
 #[test]
 fn from_scratch_trains_the_backbone_and_says_so() {
@@ -12,15 +13,10 @@ fn from_scratch_trains_the_backbone_and_says_so() {
     // The authors' layout: labels from folders (real-data batch size 32).
     let mut spec = SyntheticSpec::small(Layout::Authors);
     spec.sequences_per_part = 3;
-    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let set = SmallSet::write(dir.path(), spec).unwrap();
     let mut cfg = TrainConfig {
-        data: dir.path().join("data"),
-        out: dir.path().join("run"),
-        mode: TrainMode::FromScratch,
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 8,
-        ..Default::default()
+        ..set.config("run")
     };
     cfg.reader.real_fps = 4.0; // 0.5 s = the last 2 of 10 frames
     cfg.optimizer.lr = 5e-3;

@@ -2,27 +2,22 @@
 //! every object-part pair, validation and test are untouched, and the cap is
 //! recorded in the run's config, its checkpoints and its report.
 
-use grasp_model::checkpoint::TrainMode;
 use trainer::config::TrainConfig;
 use trainer::data::split::Split;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
+use trainer::stand_in::SmallSet;
 
 #[test]
 fn sequences_per_pair_caps_training_only_and_is_recorded() {
     let dir = tempfile::tempdir().unwrap();
-    let mut spec = SyntheticSpec::small(Layout::Generated);
-    spec.sequences_per_part = 7;
-    spec.frames = 6;
-    write_synthetic(&dir.path().join("data"), &spec).unwrap();
+    let set = SmallSet::generated(dir.path(), |spec| {
+        spec.sequences_per_part = 7;
+        spec.frames = 6;
+    })
+    .unwrap();
     let cfg = |out: &str, cap: Option<usize>| TrainConfig {
-        data: dir.path().join("data"),
-        out: dir.path().join(out),
-        mode: TrainMode::FromScratch,
-        width_mult: 0.25,
-        input_size: 32,
         max_epochs: 1,
         sequences_per_pair: cap,
-        ..Default::default()
+        ..set.config(out)
     };
     trainer::experiment::run(&cfg("full", None), 1).unwrap();
     let out = trainer::experiment::run(&cfg("capped", Some(2)), 1).unwrap();

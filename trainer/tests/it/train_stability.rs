@@ -6,6 +6,7 @@ use candle_nn::VarBuilder;
 use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::{Head, HeadConfig, HeadKind};
 use trainer::config::TrainConfig;
+use trainer::plan::FitPlan;
 use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 fn lstm(feature_dim: usize) -> (Head, candle_nn::VarMap) {
@@ -121,7 +122,7 @@ fn a_nan_feature_stops_training_naming_the_batch() {
     let mut f: Vec<f32> = (0..40 * dim).map(|i| (i % 7) as f32).collect();
     f[3] = f32::NAN;
     let err = trainer::train::train(
-        &cfg(dir.path()),
+        &FitPlan::of(&cfg(dir.path())).unwrap(),
         &prepared(f, dim),
         0,
         &dir.path().join("o"),
@@ -142,9 +143,14 @@ fn a_diverging_loss_stops_training_naming_the_batch() {
     // Adam moves every weight by about lr on the first step: the logits of
     // the next batch overflow.
     c.optimizer.lr = 1e37;
-    let err = trainer::train::train(&c, &prepared(f, dim), 0, &dir.path().join("o"))
-        .unwrap_err()
-        .to_string();
+    let err = trainer::train::train(
+        &FitPlan::of(&c).unwrap(),
+        &prepared(f, dim),
+        0,
+        &dir.path().join("o"),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("non-finite training loss"), "{err}");
     assert!(err.contains("epoch 1, batch 1"), "{err}");
 }

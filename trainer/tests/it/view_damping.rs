@@ -3,38 +3,27 @@
 //! is folded into the saved head, so the checkpoint reads plain features.
 //! Look twins (`--look-twins`) join the views and are damped with them.
 
-use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use std::path::Path;
 use trainer::config::TrainConfig;
-use trainer::data::synthetic::{write_synthetic, Layout, SyntheticSpec};
 use trainer::data::{BadData, OnBadData};
+use trainer::plan::RunPlan;
+use trainer::stand_in::SmallSet;
 use trainer::train::{FrameSource, SplitFrames};
 
-/// A small generated dataset and random EfficientNet-Lite0 weights under
-/// `root`, with two style views of every training sequence.
-fn cfg(root: &Path, damping: f64, out: &str) -> TrainConfig {
-    if !root.join("data").exists() {
-        write_synthetic(&root.join("data"), &SyntheticSpec::small(Layout::Generated)).unwrap();
-        trainer::init::write_random_lite(
-            &root.join("lite0.safetensors"),
-            grasp_model::networks::LiteVariant::Lite0,
-            3,
-        )
-        .unwrap();
-    }
+/// The generated set and random EfficientNet-Lite0 weights under `root`.
+fn set(root: &Path) -> SmallSet {
+    let set = SmallSet::generated(root, |_| {}).unwrap();
+    set.random_lite0(3).unwrap()
+}
+
+/// A run on `set` with two style views of every training sequence.
+fn cfg(set: &SmallSet, damping: f64, out: &str) -> TrainConfig {
     let mut cfg = TrainConfig {
-        data: root.join("data"),
-        out: root.join(out),
-        mode: TrainMode::FrozenPretrained,
-        head: HeadKind::Fc,
-        weights: Some(root.join("lite0.safetensors")),
-        input_size: 32,
-        cache_dir: root.join("cache"),
         batch_size: Some(16),
         max_epochs: 2,
         view_damping: damping,
-        ..Default::default()
+        ..set.config(out)
     };
     cfg.views.count = 2;
     cfg.views.style = 0.5;
@@ -70,10 +59,13 @@ fn damping_brings_views_closer_to_their_frames() {
     let dir = tempfile::tempdir().unwrap();
     let bad = BadData::new(OnBadData::Fail);
     let dev = candle_core::Device::Cpu;
+    let set = set(dir.path());
     let change = |damping: f64| {
-        let cfg = cfg(dir.path(), damping, "unused");
-        let splits = trainer::train::load_splits(&cfg, &bad).unwrap();
-        let prep = trainer::train::prepare(&cfg, &splits, &bad, &dev).unwrap();
+        let cfg = cfg(&set, damping, "unused");
+        let plan = RunPlan::resolve(&cfg).unwrap();
+        let splits = trainer::train::load_splits(&plan.data, &bad).unwrap();
+        let prep = trainer::train::prepare(plan.features, &plan.cache, &splits, &bad, &dev);
+        let prep = prep.unwrap();
         assert_eq!(prep.damping.is_some(), damping > 0.0);
         relative_view_change(&prep.train, splits.train.sequences.len())
     };
@@ -85,9 +77,9 @@ fn damping_brings_views_closer_to_their_frames() {
 #[test]
 fn a_damped_run_saves_a_plain_checkpoint_that_records_the_damping() {
     let dir = tempfile::tempdir().unwrap();
-    let root = dir.path();
+    let set = set(dir.path());
     let weights = |out: &str, damping: f64| {
-        let run = trainer::experiment::run(&cfg(root, damping, out), 1).unwrap();
+        let run = trainer::experiment::run(&cfg(&set, damping, out), 1).unwrap();
         let ckpt = &run.runs[0].checkpoint;
         let classifier =
             grasp_model::checkpoint::Classifier::load(ckpt, &candle_core::Device::Cpu).unwrap();
@@ -101,6 +93,6 @@ fn a_damped_run_saves_a_plain_checkpoint_that_records_the_damping() {
     let damped = weights("damped", 3.0);
     assert_eq!(plain.len(), damped.len(), "the same head shape");
     assert_ne!(plain, damped, "the damping changed what the head reads");
-    let saved = std::fs::read_to_string(root.join("damped/config.toml")).unwrap();
+    let saved = std::fs::read_to_string(set.root.join("damped/config.toml")).unwrap();
     assert!(saved.contains("view_damping = 3.0"), "{saved}");
 }

@@ -1,5 +1,6 @@
 #[cfg(feature = "lab")]
 mod bench_plan;
+#[cfg(feature = "lab")]
 mod bench_queries;
 mod dataset;
 mod objects;
@@ -43,13 +44,16 @@ enum Command {
     Worker,
 }
 
-/// `objects`: the library's subcommands and the binary's benchmark.
+/// `objects`: the library's subcommands and, with the `lab` feature, the
+/// developers' benchmark of the mesh queries.
 #[derive(Subcommand)]
 enum ObjectsCli {
     #[command(flatten)]
     Lib(objects::ObjectsCommand),
     /// Time the mesh queries (rays, inside tests, closest points) per
     /// object, for each ray backend, against trimesh's closest points.
+    #[cfg(feature = "lab")]
+    #[command(hide = true)]
     BenchQueries(bench_queries::BenchArgs),
 }
 
@@ -60,6 +64,7 @@ fn main() -> std::process::ExitCode {
         match cli.command {
             Command::Doctor => doctor(),
             Command::Objects(ObjectsCli::Lib(cmd)) => objects::run(&cmd),
+            #[cfg(feature = "lab")]
             Command::Objects(ObjectsCli::BenchQueries(args)) => bench_queries::run_args(&args),
             Command::Render(args) => render::run_render(&args),
             Command::Dataset(cmd) => dataset::run(&cmd),

@@ -8,6 +8,7 @@ use grasp_model::checkpoint::TrainMode;
 use grasp_model::heads::HeadKind;
 use rand::Rng;
 use trainer::config::TrainConfig;
+use trainer::plan::FitPlan;
 use trainer::train::{FrameSource, Prepared, SplitFrames};
 
 /// The workload: `sequences` sequences of `frames` frames of `dim`-d
@@ -71,7 +72,7 @@ pub fn heads_epoch_seconds(workload: &Workload) -> Result<Vec<f64>> {
         // writes after the first: compare the training work only.
         ..Default::default()
     };
-    let out = trainer::train::train(&cfg, &prep, 0, &dir)?;
+    let out = trainer::train::train(&FitPlan::of(&cfg)?, &prep, 0, &dir)?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok(out.history.iter().map(|e| e.seconds).collect())
 }

@@ -277,15 +277,6 @@ struct EvalArgs {
     /// from-ground videos.
     #[arg(long)]
     keep_lead_in: bool,
-    /// Robustness probe: add Gaussian noise of this standard deviation (a
-    /// fraction of full scale; 0.02 is about 5 grey levels) to every frame
-    /// before the crop, as a noisier sensor would. Seeded per frame.
-    #[arg(long, value_name = "SIGMA")]
-    probe_noise: Option<f32>,
-    /// Robustness probe: blur every frame (Gaussian, sigma in pixels of the
-    /// frame) before the probe's noise, as a defocused lens would.
-    #[arg(long, value_name = "PX")]
-    probe_blur: Option<f32>,
     /// The hand's decision is scored with hannes-run's policy: its defaults,
     /// or these flags (as hannes-run takes them).
     #[command(
@@ -399,10 +390,6 @@ fn eval(args: EvalArgs) -> Result<()> {
         s.crop = input.spec.crop;
     }
     anyhow::ensure!(!data.sequences.is_empty(), "no sequences to evaluate");
-    let probe = trainer::data::probe::SensorProbe::new(args.probe_noise, args.probe_blur)?;
-    for s in &mut data.sequences {
-        s.probe = probe;
-    }
     let trimmed = (!args.keep_lead_in).then(|| {
         let (videos, frames) = data.trim_lead_ins();
         trainer::eval::report::LeadInTrim { videos, frames }
@@ -418,7 +405,6 @@ fn eval(args: EvalArgs) -> Result<()> {
     .context("evaluation failed")?;
     report.lead_in_trimmed = trimmed;
     report.input = Some(input.record());
-    report.sensor_probe = probe;
     report.pooled_with = args.data.iter().skip(1).cloned().collect();
     // What was skipped is part of the result: listed next to the report.
     report.bad_data = trainer::experiment::bad_data_note(&bad, Path::new("problems.json"));

@@ -90,12 +90,6 @@ fn facts(s: &mut String, r: &Report) {
     if let Some(input) = &r.input {
         items.push(format!("Checkpoints' {}", esc(&input.describe())));
     }
-    if let Some(p) = &r.sensor_probe {
-        items.push(format!(
-            "<b>Sensor probe:</b> every frame degraded before inference ({})",
-            esc(&p.describe())
-        ));
-    }
     if let Some(t) = r.lead_in_trimmed.filter(|t| t.frames > 0) {
         items.push(format!(
             "Lead-in trimmed before inference: {} frame(s) of {} video(s)",
