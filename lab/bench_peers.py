@@ -200,7 +200,9 @@ def main() -> None:
             print(f"round {r + 1} (p50/p99 ms): " + ", ".join(line), flush=True)
     mode = f"at {args.pace:g} frames/s" if args.pace > 0 else "back to back"
     what = "the whole frame" if args.what == "frame" else "the network alone"
-    print(f"\n{what}, {args.frames} frames per round, {args.threads} threads, {mode}, {args.rounds} rounds")
+    print(
+        f"\n{what}, {args.frames} frames per round, {args.threads} threads, {mode}, {args.rounds} rounds"
+    )
     print("| runtime | p50 ms | p99 ms | peer/ours p50 | peer/ours p99 |")
     print("|---|---|---|---|---|")
     ours_rows = rows["hannes-run"]
