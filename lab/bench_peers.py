@@ -9,20 +9,30 @@ Runtime (CPU provider, sequential, every graph optimisation) and OpenVINO
 (CPU, latency hint), each for --frames frames after a warm-up, back to back
 or at a camera's pace (--pace FPS: one frame every 1/FPS s, as on the hand).
 With --ours CHECKPOINT, `hannes-run bench` times that checkpoint in the same
-rounds (a stand-in of the same network: `grasp-train stand-in`; it times
-the whole frame: crop, denoise, resize and network), alternating with the
-peers, --rounds times; printed per round, then the medians and the
-peer/ours ratios of p50 and p99 (above 1: hannes-run faster).
+rounds, alternating with the peers, --rounds times: with --what network
+(the default) its network alone on prepared inputs (`--stage network`: the
+backbone with its pooled blocks, no head; the peers' linear head is 5
+outputs), with --what frame the whole frame (crop, denoise, resize,
+network, head). The peers are then given the whole frame like for like:
+the project's own preprocessing of the same synthetic frames is timed in
+the round by `hannes-run bench --stage prepare --times FILE` (at the same
+pace), and each peer frame's time is the i-th preprocessing time plus the
+peer's i-th network time (two processes, so the sum has both sides'
+noise). Printed per round with the peer/ours ratios, then the medians and
+the ranges of the per-round ratios of p50 and p99 (above 1: hannes-run
+faster).
 
   P=$(lab/bench-env.sh | tail -n1)
   $P lab/bench_peers.py --rounds 5 --ours runs/main/model-trace/seed-0
-  $P lab/bench_peers.py --rounds 5 --pace 30 --ours runs/main/model-trace/seed-0
+  $P lab/bench_peers.py --rounds 5 --what frame --ours runs/main/model-trace/seed-0
+  $P lab/bench_peers.py --rounds 3 --frames 300 --pace 30 --what frame --ours runs/main/model-trace/seed-0
 
 Needs the benchmark environment (CI does not run this). Time on an idle
 machine only, and say so when it was not.
 """
 
 import argparse
+import math
 import re
 import statistics
 import subprocess
@@ -74,7 +84,15 @@ def export(args: argparse.Namespace, path: Path) -> None:
     torch.onnx.export(model, (x,), str(path), opset_version=17, dynamo=False)
 
 
-def timed(run, args: argparse.Namespace) -> tuple[float, float]:
+def percentiles(ms: list[float]) -> tuple[float, float]:
+    """Median and nearest-rank p99, as `hannes-run bench` reports them."""
+    ms = sorted(ms)
+    rank = lambda q: ms[min(len(ms), max(1, math.ceil(q * len(ms)))) - 1]  # noqa: E731
+    return rank(0.5), rank(0.99)
+
+
+def timed(run, args: argparse.Namespace) -> list[float]:
+    """Each frame's ms, after a warm-up, back to back or at --pace."""
     x = np.random.default_rng(0).standard_normal((1, 3, args.size, args.size), dtype=np.float32)
     for _ in range(args.warmup):
         run(x)
@@ -88,8 +106,7 @@ def timed(run, args: argparse.Namespace) -> tuple[float, float]:
         run(x)
         ms.append((time.perf_counter() - t) * 1e3)
         next_start = t + period
-    ms.sort()
-    return statistics.median(ms), ms[round((len(ms) - 1) * 0.99)]
+    return ms
 
 
 def onnx_runtime(path: Path, args: argparse.Namespace):
@@ -113,15 +130,22 @@ def openvino(path: Path, args: argparse.Namespace):
     return lambda x: request.infer([x])
 
 
-def ours(args: argparse.Namespace) -> tuple[float, float]:
-    cmd = [args.hannes_run, "bench", "--checkpoint", args.ours, "--frames", str(args.frames)]
-    cmd += ["--warmup", str(args.warmup), "--pace", str(args.pace), "--sends", "0"]
-    cmd += ["--approaches", "0", "--size", str(args.frame_size)]
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    m = re.search(r"p50 ([\d.]+) ms, p99 ([\d.]+) ms", out)
-    if not m:
-        raise SystemExit(f"unexpected hannes-run bench output: {out!r}")
-    return float(m.group(1)), float(m.group(2))
+def hannes_run(args: argparse.Namespace, stage: str) -> list[float]:
+    """Each frame's ms of `hannes-run bench --stage STAGE` on --ours."""
+    with tempfile.TemporaryDirectory() as tmp:
+        times = Path(tmp) / "times.txt"
+        cmd = [args.hannes_run, "bench", "--checkpoint", args.ours, "--frames", str(args.frames)]
+        cmd += ["--warmup", str(args.warmup), "--pace", str(args.pace), "--sends", "0"]
+        cmd += ["--approaches", "0", "--size", str(args.frame_size), "--stage", stage]
+        cmd += ["--times", str(times)]
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        if not re.search(r"p50 [\d.]+ ms, p99 [\d.]+ ms", out):
+            raise SystemExit(f"unexpected hannes-run bench output: {out!r}")
+        return [float(v) for v in times.read_text().split()]
+
+
+def fmt(p: tuple[float, float]) -> str:
+    return f"{p[0]:.2f}/{p[1]:.2f}"
 
 
 def main() -> None:
@@ -134,9 +158,18 @@ def main() -> None:
     p.add_argument("--pace", type=float, default=0.0, help="frames/s; 0: back to back")
     p.add_argument("--rounds", type=int, default=1)
     p.add_argument("--ours", help="a checkpoint for `hannes-run bench`")
+    p.add_argument(
+        "--what",
+        choices=["network", "frame"],
+        default="network",
+        help="network: the network alone on both sides; frame: the whole frame, the peers "
+        "given the project's preprocessing (needs --ours)",
+    )
     p.add_argument("--frame-size", type=int, default=224, help="hannes-run's synthetic frames")
     p.add_argument("--hannes-run", default="target/release/hannes-run")
     args = p.parse_args()
+    if args.what == "frame" and not args.ours:
+        raise SystemExit("--what frame needs --ours (the checkpoint whose preprocessing is timed)")
     torch.set_num_threads(args.threads)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "lite0.onnx"
@@ -145,17 +178,31 @@ def main() -> None:
         rows: dict[str, list[tuple[float, float]]] = {k: [] for k in [*peers, "hannes-run"]}
         for r in range(args.rounds):
             line = []
+            prep = hannes_run(args, "prepare") if args.what == "frame" else None
+            if prep:
+                line.append(f"preprocessing alone {fmt(percentiles(prep))}")
             for name, run in peers.items():
-                rows[name].append(timed(run, args))
-                line.append(f"{name} {rows[name][-1][0]:.2f}/{rows[name][-1][1]:.2f}")
+                ms = timed(run, args)
+                if prep:
+                    ms = [a + b for a, b in zip(ms, prep, strict=True)]
+                rows[name].append(percentiles(ms))
             if args.ours:
-                rows["hannes-run"].append(ours(args))
-                line.append(
-                    f"hannes-run {rows['hannes-run'][-1][0]:.2f}/{rows['hannes-run'][-1][1]:.2f}"
-                )
+                stage = "network" if args.what == "network" else "frame"
+                rows["hannes-run"].append(percentiles(hannes_run(args, stage)))
+            for name, vals in rows.items():
+                if vals:
+                    line.append(f"{name} {fmt(vals[-1])}")
+            if args.ours:
+                o = rows["hannes-run"][-1]
+                for name in peers:
+                    v = rows[name][-1]
+                    line.append(f"{name}/ours {v[0] / o[0]:.2f}/{v[1] / o[1]:.2f}")
             print(f"round {r + 1} (p50/p99 ms): " + ", ".join(line), flush=True)
     mode = f"at {args.pace:g} frames/s" if args.pace > 0 else "back to back"
-    print(f"\n{args.frames} frames per round, {args.threads} threads, {mode}, {args.rounds} rounds")
+    what = "the whole frame" if args.what == "frame" else "the network alone"
+    print(
+        f"\n{what}, {args.frames} frames per round, {args.threads} threads, {mode}, {args.rounds} rounds"
+    )
     print("| runtime | p50 ms | p99 ms | peer/ours p50 | peer/ours p99 |")
     print("|---|---|---|---|---|")
     ours_rows = rows["hannes-run"]

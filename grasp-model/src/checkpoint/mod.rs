@@ -399,6 +399,24 @@ impl Classifier {
         })
     }
 
+    /// The network's input (1, 3, size, size) of one camera frame: the
+    /// crop, the denoiser, the resize and the normalisation, as
+    /// [`Classifier::predict_at`] runs them (one stage of its frame, for
+    /// benchmarks).
+    pub fn frame_input(&self, frame: &RgbImage) -> Result<Tensor> {
+        rayon::scope(|_| {
+            let prepared = self.prepare(frame)?;
+            self.backbone.input(std::slice::from_ref(&prepared))
+        })
+    }
+
+    /// The backbone's features (1, D) of a [`Classifier::frame_input`], as
+    /// [`Classifier::predict_at`] computes them (the network alone, for
+    /// benchmarks).
+    pub fn network_features(&self, input: &Tensor) -> Result<Tensor> {
+        rayon::scope(|_| Ok(self.backbone.net.features(input, false)?))
+    }
+
     /// Starts a new approach: a trace head forgets the last one's frames.
     pub fn begin_approach(&mut self) {
         if let Some(t) = &mut self.trace {

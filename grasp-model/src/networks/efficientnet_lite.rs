@@ -231,10 +231,21 @@ impl Folded {
         }
     }
 
-    /// `act(self @ x + bias [+ residual])` for a 1x1 convolution.
-    fn pointwise(&self, x: &Tensor, residual: Option<&Tensor>, relu6: bool) -> Result<Tensor> {
+    /// `act(self @ x + bias [+ residual])` for a 1x1 convolution; `packed`:
+    /// on the weights packed once (AVX-512), otherwise through `gemm`.
+    fn pointwise(
+        &self,
+        x: &Tensor,
+        residual: Option<&Tensor>,
+        relu6: bool,
+        packed: bool,
+    ) -> Result<Tensor> {
         let (w, b) = (&self.weight, &self.bias);
-        pointwise_conv_bias_act_cached(x, w, b, &self.narrow, residual, relu6)
+        if packed {
+            pointwise_conv_bias_act_cached(x, w, b, &self.narrow, residual, relu6)
+        } else {
+            pointwise_conv_bias_act(x, w, b, residual, relu6)
+        }
     }
 }
 
@@ -284,9 +295,9 @@ impl Block {
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    fn forward(&self, x: &Tensor, packed: bool) -> Result<Tensor> {
         let y = match &self.expand {
-            Some(e) => e.pointwise(x, None, true)?,
+            Some(e) => e.pointwise(x, None, true, packed)?,
             None => x.clone(),
         };
         let y = depthwise_conv_bias_act(
@@ -298,7 +309,7 @@ impl Block {
             true,
         )?;
         let residual = self.spec.residual().then_some(x);
-        self.project.pointwise(&y, residual, false)
+        self.project.pointwise(&y, residual, false, packed)
     }
 }
 
@@ -314,6 +325,9 @@ pub struct EfficientNetLite {
     /// Blocks whose globally pooled outputs follow the head's in the
     /// feature vector (multi-level features; none by default).
     pooled_blocks: Vec<usize>,
+    /// Whether the 1x1 convolutions run on weights packed once (the
+    /// default) or through `gemm` (the reference they are tested against).
+    packed: bool,
 }
 
 impl EfficientNetLite {
@@ -354,6 +368,7 @@ impl EfficientNetLite {
             head,
             fc,
             pooled_blocks: Vec::new(),
+            packed: true,
         })
     }
 
@@ -378,6 +393,13 @@ impl EfficientNetLite {
 
     pub fn pooled_blocks(&self) -> &[usize] {
         &self.pooled_blocks
+    }
+
+    /// Runs the 1x1 convolutions on weights packed once per layer (`true`,
+    /// the default; AVX-512 CPUs) or through `gemm` on every call (the
+    /// reference path, for parity tests and kernel comparisons).
+    pub fn set_packed_kernels(&mut self, packed: bool) {
+        self.packed = packed;
     }
 
     /// Globally average-pooled features (N, D) of normalized images
@@ -445,19 +467,19 @@ impl EfficientNetLite {
         let mut y = self.stem(x)?;
         let mut parts = vec![];
         for (i, b) in self.blocks.iter().enumerate() {
-            y = b.forward(&y)?;
+            y = b.forward(&y, self.packed)?;
             y = restyle(y, i, styles)?;
             if self.pooled_blocks.contains(&i) {
                 parts.push(pool(&y)?);
             }
         }
-        let map = self.head.pointwise(&y, None, true)?;
+        let map = self.head.pointwise(&y, None, true, self.packed)?;
         head_then_blocks(pool(&map)?, parts)
     }
 
     fn stem(&self, x: &Tensor) -> Result<Tensor> {
         let cols = im2col(x, 3, 2, Padding::Same)?;
-        pointwise_conv_bias_act(&cols, &self.stem.weight, &self.stem.bias, None, true)
+        self.stem.pointwise(&cols, None, true, self.packed)
     }
 
     /// Number of MBConv blocks (16 in Lite0).
@@ -478,7 +500,7 @@ impl EfficientNetLite {
         }
         let mut y = self.stem(x)?;
         for (i, b) in self.blocks[..stop].iter().enumerate() {
-            y = restyle(b.forward(&y)?, i, styles)?;
+            y = restyle(b.forward(&y, self.packed)?, i, styles)?;
         }
         Ok(y)
     }

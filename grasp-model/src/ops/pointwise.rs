@@ -7,10 +7,12 @@
 //!   candle's rayon pool) and applies the bias, the optional residual and
 //!   the optional ReLU6 while the tile is still in cache.
 //! - [`pointwise_conv_bias_act_cached`]: the same, with the layer's
-//!   [`NarrowCache`], so that maps of at most 16 pixels run the `narrow`
-//!   kernel on weights packed once.
+//!   [`NarrowCache`], so that on AVX-512 CPUs maps of at most 16 pixels run
+//!   the `narrow` kernel and wider ones the `wide` kernel, both on weights
+//!   packed once, with no `gemm`.
 
 mod narrow;
+mod wide;
 
 pub use narrow::{NarrowCache, MAX_PIXELS as NARROW_MAX_PIXELS};
 
@@ -199,24 +201,21 @@ impl CustomOp3 for PointwiseBiasAct<'_> {
             None => None,
         };
         let hw = h * w;
-        // every element is written by run_tile or narrow::run_block
+        // every element is written by run_tile, narrow::run or wide::run
         let mut out = alloc_uninit(n * cout * hw);
-        let packed = self
-            .narrow
-            .filter(|_| hw <= narrow::MAX_PIXELS)
-            .and_then(|cache| cache.packed(wt, cout, cin));
-        if let Some(packed) = packed {
-            let layer = narrow::Layer {
-                x,
-                bias,
-                residual,
-                cin,
-                cout,
-                hw,
-                relu6: self.relu6,
-            };
-            narrow::run(packed, &layer, n, &mut out);
-            return Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))));
+        let layer = narrow::Layer {
+            x,
+            bias,
+            residual,
+            cin,
+            cout,
+            hw,
+            relu6: self.relu6,
+        };
+        if let Some(cache) = self.narrow {
+            if run_packed(cache, wt, &layer, n, &mut out) {
+                return Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))));
+            }
         }
         let plan = Tiling::new(n, cout, hw);
         let ptr = SendPtr(out.as_mut_ptr());
@@ -243,6 +242,31 @@ impl CustomOp3 for PointwiseBiasAct<'_> {
         });
         Ok((CpuStorage::F32(out), Shape::from((n, cout, h, w))))
     }
+}
+
+/// Runs the layer on weights packed once (`narrow` up to 16 pixels, `wide`
+/// above); false when this CPU has neither kernel (no AVX-512), and `gemm`
+/// must.
+fn run_packed(
+    cache: &NarrowCache,
+    wt: &[f32],
+    layer: &narrow::Layer,
+    n: usize,
+    out: &mut [f32],
+) -> bool {
+    let (cout, cin) = (layer.cout, layer.cin);
+    if layer.hw <= narrow::MAX_PIXELS {
+        let Some(packed) = cache.packed(wt, cout, cin) else {
+            return false;
+        };
+        narrow::run(packed, layer, n, out);
+    } else {
+        let Some(packed) = cache.wide.packed(wt, cout, cin) else {
+            return false;
+        };
+        wide::run(packed, layer, n, out);
+    }
+    true
 }
 
 struct TileArgs<'a> {

@@ -50,32 +50,39 @@ impl Packed {
     }
 }
 
-/// A layer's packed weights, built on first use. Owned by the layer next to
-/// its weight tensor; a new weight needs a new cache.
+/// A layer's packed weights, built on first use: for maps of at most
+/// [`MAX_PIXELS`] pixels (this kernel's) and for wider ones (`wide`'s).
+/// Owned by the layer next to its weight tensor; a new weight needs a new
+/// cache.
 #[derive(Debug, Default)]
-pub struct NarrowCache(OnceLock<Option<Packed>>);
+pub struct NarrowCache {
+    narrow: OnceLock<Option<Packed>>,
+    pub(super) wide: super::wide::WideCache,
+}
 
 impl NarrowCache {
-    /// Whether a map has packed the weights (it never does without AVX-512).
+    /// Whether a map of at most [`MAX_PIXELS`] pixels has packed the
+    /// weights (it never does without AVX-512).
     pub fn is_packed(&self) -> bool {
-        self.0.get().is_some_and(|p| p.is_some())
+        self.narrow.get().is_some_and(|p| p.is_some())
+    }
+
+    /// Whether a wider map has packed the weights for the wide kernel
+    /// (never without AVX-512).
+    pub fn is_packed_wide(&self) -> bool {
+        self.wide.is_packed()
     }
 
     /// The packed form of `weight` (cout x cin), or `None` when this CPU
-    /// has no AVX-512 (the caller then uses `gemm`). Packs on the first
-    /// call; later calls must pass the same weight.
+    /// has no AVX-512 or the cache was packed for another shape (the
+    /// caller then uses `gemm`). Packs on the first call; later calls must
+    /// pass the same weight.
     pub(super) fn packed(&self, weight: &[f32], cout: usize, cin: usize) -> Option<&Packed> {
         let packed = self
-            .0
+            .narrow
             .get_or_init(|| available().then(|| Packed::new(weight, cout, cin)))
             .as_ref()?;
-        assert!(
-            packed.cout == cout && packed.cin == cin,
-            "narrow pointwise cache packed for {}x{}, used for {cout}x{cin}",
-            packed.cout,
-            packed.cin
-        );
-        Some(packed)
+        (packed.cout == cout && packed.cin == cin).then_some(packed)
     }
 }
 

@@ -172,4 +172,21 @@ pub(crate) struct BenchArgs {
     /// Input size of the synthetic frames.
     #[arg(long, default_value_t = 224, conflicts_with = "recording")]
     pub(crate) size: u32,
+    /// What the inference line times: the whole frame (crop, denoise,
+    /// resize, network, head), its preprocessing alone (crop, denoise,
+    /// resize, normalisation), or the network alone (the backbone with its
+    /// pooled blocks, no head) on prepared inputs.
+    #[arg(long, value_enum, default_value_t = Stage::Frame)]
+    pub(crate) stage: Stage,
+    /// Also write each timed frame's time to FILE, in ms, one a line.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) times: Option<PathBuf>,
+}
+
+/// The part of a frame `bench` times.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Stage {
+    Frame,
+    Prepare,
+    Network,
 }

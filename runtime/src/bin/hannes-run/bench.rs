@@ -2,7 +2,7 @@
 //! host-to-hand link round trip, and trigger-to-command for whole approaches
 //! against a simulated hand on a pseudo-terminal.
 
-use crate::args::BenchArgs;
+use crate::args::{BenchArgs, Stage};
 use crate::setup::{open_recording, set_lens};
 use anyhow::Result;
 use grasp_cli::LensArgs;
@@ -47,23 +47,43 @@ pub(crate) fn command(args: BenchArgs) -> Result<()> {
         }
     };
     let (width, height) = frames[0].dimensions();
-    let inference = inference(
-        &mut classifier,
-        &frames,
-        args.frames.max(1),
-        args.warmup,
-        period,
-    )?;
+    let (count, warmup) = (args.frames.max(1), args.warmup);
+    let samples = match args.stage {
+        Stage::Frame => inference(&mut classifier, &frames, count, warmup, period)?,
+        Stage::Prepare => {
+            let mut prepare = |f: &RgbImage, _: usize| classifier.frame_input(f).map(drop);
+            timed(&frames, count, warmup, period, &mut prepare)?
+        }
+        Stage::Network => {
+            let inputs = frames
+                .iter()
+                .map(|f| classifier.frame_input(f))
+                .collect::<grasp_model::error::Result<Vec<_>>>()?;
+            let mut network = |_: &RgbImage, i: usize| {
+                let x = &inputs[i % inputs.len()];
+                classifier.network_features(x).map(drop)
+            };
+            timed(&frames, count, warmup, period, &mut network)?
+        }
+    };
+    if let Some(path) = &args.times {
+        write_times(path, &samples)?;
+    }
+    let inference = Summary::of(&samples);
     let paced = period.map_or("back to back".to_string(), |_| {
         format!("at {} fps", args.pace)
     });
+    let what = match args.stage {
+        Stage::Frame => format!("inference {width}x{height}{from}"),
+        Stage::Prepare => format!("prepare {width}x{height}{from}"),
+        Stage::Network => {
+            let side = classifier.input().preprocess.size;
+            format!("network {side}x{side} of {width}x{height}{from}")
+        }
+    };
     println!(
-        "inference {width}x{height}{from} ({} frames, {paced}): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
-        inference.n,
-        inference.p50_ms,
-        inference.p99_ms,
-        inference.mean_ms,
-        inference.max_ms
+        "{what} ({} frames, {paced}): p50 {:.2} ms, p99 {:.2} ms, mean {:.2} ms, max {:.2} ms",
+        inference.n, inference.p50_ms, inference.p99_ms, inference.mean_ms, inference.max_ms
     );
     if args.sends > 0 {
         let link = link_round_trip(args.sends, args.baud)?;
@@ -170,13 +190,29 @@ pub fn inference(
     count: usize,
     warmup: usize,
     period: Option<Duration>,
-) -> Result<Summary> {
+) -> Result<Vec<Duration>> {
     // A frame time for a classifier with history: the camera's period,
     // or 30 frames/s without one.
     let step_s = period.map_or(1.0 / 30.0, |p| p.as_secs_f64());
     classifier.begin_approach();
+    let mut classify = |f: &RgbImage, i: usize| classifier.classify(f, i as f64 * step_s).map(drop);
+    timed(frames, count, warmup, period, &mut classify)
+}
+
+/// The time of `run(frame, index)` for `count` frames, `frames` repeated
+/// in order, after `warmup` untimed ones, back to back or one per `period`.
+fn timed<E>(
+    frames: &[RgbImage],
+    count: usize,
+    warmup: usize,
+    period: Option<Duration>,
+    run: &mut dyn FnMut(&RgbImage, usize) -> std::result::Result<(), E>,
+) -> Result<Vec<Duration>>
+where
+    anyhow::Error: From<E>,
+{
     for (i, f) in frames.iter().cycle().take(warmup).enumerate() {
-        classifier.classify(f, i as f64 * step_s)?;
+        run(f, i)?;
     }
     let mut samples = Vec::with_capacity(count);
     let mut next = Instant::now();
@@ -185,11 +221,21 @@ pub fn inference(
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
         let t = Instant::now();
-        classifier.classify(f, (warmup + i) as f64 * step_s)?;
+        run(f, warmup + i)?;
         samples.push(t.elapsed());
         next = period.map_or(next, |p| t + p);
     }
-    Ok(Summary::of(&samples))
+    Ok(samples)
+}
+
+/// Each sample in ms, one a line (for `lab/bench_peers.py`).
+fn write_times(path: &std::path::Path, samples: &[Duration]) -> Result<()> {
+    let lines: String = samples
+        .iter()
+        .map(|d| format!("{:.4}\n", d.as_secs_f64() * 1e3))
+        .collect();
+    std::fs::write(path, lines)
+        .map_err(|e| anyhow::anyhow!("cannot write --times {}: {e}", path.display()))
 }
 
 #[derive(Debug, Clone, Serialize)]
