@@ -12,6 +12,7 @@
 //!   packed once, with no `gemm`.
 
 mod narrow;
+mod packed;
 mod wide;
 
 pub use narrow::{NarrowCache, MAX_PIXELS as NARROW_MAX_PIXELS};
@@ -19,7 +20,7 @@ pub use narrow::{NarrowCache, MAX_PIXELS as NARROW_MAX_PIXELS};
 /// Whether this CPU runs the narrow kernel (AVX-512); without it every map
 /// goes through `gemm`.
 pub fn narrow_kernel_available() -> bool {
-    narrow::available()
+    packed::available()
 }
 
 use super::cpu::{alloc_uninit, par_chunks, simd_dispatch, SendPtr};

@@ -15,40 +15,12 @@
 //! faster in the frame; the kernel is not bound by the weights' bytes, so
 //! they stay f32 (BENCHMARKS.md).
 
-use std::sync::OnceLock;
+use super::packed::{available, PackCache, Packed};
 
 /// Largest map (pixels per image) this kernel takes.
 pub const MAX_PIXELS: usize = 16;
 /// Output channels per block: one AVX-512 register of f32.
 const LANES: usize = 16;
-
-/// Weights packed for [`run`], with the shape they were packed from.
-#[derive(Debug)]
-pub struct Packed {
-    data: Vec<f32>,
-    cout: usize,
-    cin: usize,
-}
-
-impl Packed {
-    /// Packs row-major `weight` (cout x cin); the last block is padded
-    /// with zero weights.
-    fn new(weight: &[f32], cout: usize, cin: usize) -> Self {
-        let blocks = cout.div_ceil(LANES);
-        let mut data = vec![0f32; blocks * cin * LANES];
-        for (o, row) in weight.chunks_exact(cin).take(cout).enumerate() {
-            let block = &mut data[(o / LANES) * cin * LANES..];
-            for (c, &w) in row.iter().enumerate() {
-                block[c * LANES + o % LANES] = w;
-            }
-        }
-        Packed { data, cout, cin }
-    }
-
-    fn block(&self, b: usize) -> &[f32] {
-        &self.data[b * self.cin * LANES..(b + 1) * self.cin * LANES]
-    }
-}
 
 /// A layer's packed weights, built on first use: for maps of at most
 /// [`MAX_PIXELS`] pixels (this kernel's) and for wider ones (`wide`'s).
@@ -56,7 +28,7 @@ impl Packed {
 /// cache.
 #[derive(Debug, Default)]
 pub struct NarrowCache {
-    narrow: OnceLock<Option<Packed>>,
+    narrow: PackCache,
     pub(super) wide: super::wide::WideCache,
 }
 
@@ -64,7 +36,7 @@ impl NarrowCache {
     /// Whether a map of at most [`MAX_PIXELS`] pixels has packed the
     /// weights (it never does without AVX-512).
     pub fn is_packed(&self) -> bool {
-        self.narrow.get().is_some_and(|p| p.is_some())
+        self.narrow.is_packed()
     }
 
     /// Whether a wider map has packed the weights for the wide kernel
@@ -78,17 +50,8 @@ impl NarrowCache {
     /// caller then uses `gemm`). Packs on the first call; later calls must
     /// pass the same weight.
     pub(super) fn packed(&self, weight: &[f32], cout: usize, cin: usize) -> Option<&Packed> {
-        let packed = self
-            .narrow
-            .get_or_init(|| available().then(|| Packed::new(weight, cout, cin)))
-            .as_ref()?;
-        (packed.cout == cout && packed.cin == cin).then_some(packed)
+        self.narrow.packed(weight, cout, cin, LANES)
     }
-}
-
-/// Whether this CPU runs the kernel.
-pub(super) fn available() -> bool {
-    crate::ops::cpu::has_avx512()
 }
 
 /// A layer's operands: the input, bias and residual of every image.

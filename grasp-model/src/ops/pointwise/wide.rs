@@ -14,7 +14,7 @@
 //! the residual are added: `gemm`'s sums up to rounding (1e-6 on these
 //! layers). AVX-512 only; elsewhere the caller uses `gemm`.
 
-use std::sync::OnceLock;
+use super::packed::{available, PackCache, Packed};
 
 /// Output channels per block (six rows of four vectors: 24 accumulators).
 pub(super) const ROWS: usize = 6;
@@ -23,58 +23,19 @@ const TILE: usize = 64;
 /// Fewest jobs per call, so that one image still uses every thread.
 const MIN_JOBS: usize = 4;
 
-/// Weights packed for [`run`], with the shape they were packed from.
-#[derive(Debug)]
-pub struct Packed {
-    data: Vec<f32>,
-    cout: usize,
-    cin: usize,
-}
-
-impl Packed {
-    /// Packs row-major `weight` (cout x cin); the last block is padded
-    /// with zero weights.
-    fn new(weight: &[f32], cout: usize, cin: usize) -> Self {
-        let blocks = cout.div_ceil(ROWS);
-        let mut data = vec![0f32; blocks * cin * ROWS];
-        for (o, row) in weight.chunks_exact(cin).take(cout).enumerate() {
-            let block = &mut data[(o / ROWS) * cin * ROWS..];
-            for (c, &w) in row.iter().enumerate() {
-                block[c * ROWS + o % ROWS] = w;
-            }
-        }
-        Packed { data, cout, cin }
-    }
-
-    fn block(&self, b: usize) -> &[f32] {
-        &self.data[b * self.cin * ROWS..(b + 1) * self.cin * ROWS]
-    }
-}
-
-/// A layer's wide packing, built on first use (none without AVX-512).
+/// A layer's wide packing (blocks of [`ROWS`] outputs).
 #[derive(Debug, Default)]
-pub(super) struct WideCache(OnceLock<Option<Packed>>);
+pub(super) struct WideCache(PackCache);
 
 impl WideCache {
     pub(super) fn is_packed(&self) -> bool {
-        self.0.get().is_some_and(|p| p.is_some())
+        self.0.is_packed()
     }
 
-    /// The packed form of `weight` (cout x cin), or `None` without
-    /// AVX-512. Packs on the first call; later calls must pass the same
-    /// weight (checked by shape).
+    /// See [`PackCache::packed`].
     pub(super) fn packed(&self, weight: &[f32], cout: usize, cin: usize) -> Option<&Packed> {
-        let packed = self
-            .0
-            .get_or_init(|| available().then(|| Packed::new(weight, cout, cin)))
-            .as_ref()?;
-        (packed.cout == cout && packed.cin == cin).then_some(packed)
+        self.0.packed(weight, cout, cin, ROWS)
     }
-}
-
-/// Whether this CPU runs the kernel.
-pub(super) fn available() -> bool {
-    crate::ops::cpu::has_avx512()
 }
 
 /// Which pixels and output blocks one job computes: pixel tiles when a map
