@@ -221,26 +221,9 @@ fn narrow_pointwise_matches_conv2d() {
     if !narrow_kernel_available() {
         eprintln!("no AVX-512 on this CPU: the cached path is gemm's, checked the same way");
     }
-    for &(n, cin, cout, h, w) in &cases {
-        assert!(h * w <= NARROW_MAX_PIXELS);
-        let x = randn(&[n, cin, h, w]);
-        let k = randn(&[cout, cin, 1, 1]);
-        let b = randn(&[cout]);
-        let biased = x
-            .conv2d(&k, 0, 1, 1, 1)
-            .unwrap()
-            .broadcast_add(&b.reshape((1, cout, 1, 1)).unwrap())
-            .unwrap();
-        let residual = randn(&[n, cout, h, w]);
-        let cache = NarrowCache::default();
-        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, Some(&residual), false);
-        let d = max_abs_diff(&ours.unwrap(), &(&biased + &residual).unwrap());
-        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
-        assert_eq!(cache.is_packed(), narrow_kernel_available());
-        // the packed weights are reused by the next call
-        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, None, true).unwrap();
-        let d = max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap());
-        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
+    for &case in &cases {
+        assert!(case.3 * case.4 <= NARROW_MAX_PIXELS);
+        cached_matches_conv2d(case, NarrowCache::is_packed);
     }
     // a wider map packs the weights for the wide kernel instead
     let (x, k, b) = (randn(&[1, 8, 5, 5]), randn(&[16, 8, 1, 1]), randn(&[16]));
@@ -266,29 +249,43 @@ fn wide_pointwise_matches_conv2d() {
         (1, 5, 7, 17, 1),
         (3, 40, 16, 5, 13),
     ];
-    for &(n, cin, cout, h, w) in &cases {
-        assert!(h * w > NARROW_MAX_PIXELS);
-        let x = randn(&[n, cin, h, w]);
-        let k = randn(&[cout, cin, 1, 1]);
-        let b = randn(&[cout]);
-        let biased = x
-            .conv2d(&k, 0, 1, 1, 1)
-            .unwrap()
-            .broadcast_add(&b.reshape((1, cout, 1, 1)).unwrap())
-            .unwrap();
-        let residual = randn(&[n, cout, h, w]);
-        let cache = NarrowCache::default();
-        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, Some(&residual), false);
-        let d = max_abs_diff(&ours.unwrap(), &(&biased + &residual).unwrap());
-        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
-        assert_eq!(cache.is_packed_wide(), narrow_kernel_available());
-        let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, None, true).unwrap();
-        let d = max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap());
-        assert!(d < 1e-3, "{:?}: diff {d}", (n, cin, cout, h, w));
+    for &case in &cases {
+        assert!(case.3 * case.4 > NARROW_MAX_PIXELS);
+        let (ours, x, k, b) = cached_matches_conv2d(case, NarrowCache::is_packed_wide);
         let plain = pointwise_conv_bias_act(&x, &k, &b, None, true).unwrap();
         let d = max_abs_diff(&ours, &plain);
-        assert!(d < 1e-4, "{:?}: {d} from gemm's", (n, cin, cout, h, w));
+        assert!(d < 1e-4, "{case:?}: {d} from gemm's");
     }
+}
+
+/// One 1x1 layer `(n, cin, cout, h, w)` through a fresh cache against
+/// candle's `conv2d`: with a residual, then with ReLU6 on the weights the
+/// first call packed (`packed` says which kernel's packing that is: there
+/// only on AVX-512 CPUs). Returns the ReLU6 output and the inputs.
+fn cached_matches_conv2d(
+    case: (usize, usize, usize, usize, usize),
+    packed: fn(&NarrowCache) -> bool,
+) -> (Tensor, Tensor, Tensor, Tensor) {
+    let (n, cin, cout, h, w) = case;
+    let x = randn(&[n, cin, h, w]);
+    let k = randn(&[cout, cin, 1, 1]);
+    let b = randn(&[cout]);
+    let biased = x
+        .conv2d(&k, 0, 1, 1, 1)
+        .unwrap()
+        .broadcast_add(&b.reshape((1, cout, 1, 1)).unwrap())
+        .unwrap();
+    let residual = randn(&[n, cout, h, w]);
+    let cache = NarrowCache::default();
+    let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, Some(&residual), false);
+    let d = max_abs_diff(&ours.unwrap(), &(&biased + &residual).unwrap());
+    assert!(d < 1e-3, "{case:?}: diff {d}");
+    assert_eq!(packed(&cache), narrow_kernel_available());
+    // the packed weights are reused by the next call
+    let ours = pointwise_conv_bias_act_cached(&x, &k, &b, &cache, None, true).unwrap();
+    let d = max_abs_diff(&ours, &biased.clamp(0f32, 6f32).unwrap());
+    assert!(d < 1e-3, "{case:?}: diff {d}");
+    (ours, x, k, b)
 }
 
 /// `x` zero-padded as TensorFlow's SAME padding does for a `k`x`k`,
