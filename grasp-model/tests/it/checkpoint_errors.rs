@@ -1,6 +1,7 @@
 //! A checkpoint that is not there is told apart from one that is there but
 //! cannot be used, without reading the message.
 
+use crate::common::fixture;
 use candle_core::{DType, Device, Tensor};
 use grasp_model::backbone::{Architecture, BackboneInfo};
 use grasp_model::checkpoint::{
@@ -10,12 +11,6 @@ use grasp_model::heads::{HeadConfig, HeadKind};
 use grasp_model::ModelError;
 use grasp_schema::taxonomy::Class;
 use std::path::{Path, PathBuf};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-}
 
 /// A frozen-pretrained checkpoint on the width-0.1 MobileNetV2 fixture (a
 /// copy, so that tests may change it), with an FC head of zeros.

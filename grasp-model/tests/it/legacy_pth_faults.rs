@@ -9,6 +9,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+use crate::common::fixture;
 use candle_core::{Device, Tensor};
 use grasp_model::weights;
 
@@ -322,12 +323,6 @@ fn every_truncation_is_an_error() {
             assert!(msg.contains("`conv.weight`"), "cut at {len}: {msg}");
         }
     }
-}
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
 }
 
 /// Shapes of the tensors of `mnv2_w010_legacy.pth` (besides the ignored

@@ -7,19 +7,12 @@
 //! pip-installed ImageNet files. Inputs of an odd (37x37, batch 2) and an
 //! even, non-square (48x40, batch 1) size exercise SAME padding both ways.
 
-use std::path::{Path, PathBuf};
-
+use crate::common::{fixture, max_rel_diff};
 use candle_core::{Device, Tensor};
 use grasp_model::networks::{EfficientNetLite, EfficientNetLiteConfig};
 use grasp_model::weights;
 
 const TOL: f32 = 1e-4;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-}
 
 fn config() -> EfficientNetLiteConfig {
     EfficientNetLiteConfig {
@@ -29,17 +22,6 @@ fn config() -> EfficientNetLiteConfig {
         head_channels: 64,
         num_classes: Some(10),
     }
-}
-
-/// Largest |a - b| / (1 + |b|) over all elements.
-fn max_rel_diff(a: &Tensor, b: &Tensor) -> f32 {
-    assert_eq!(a.dims(), b.dims());
-    let a = a.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-    let b = b.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-    a.iter()
-        .zip(&b)
-        .map(|(x, y)| (x - y).abs() / (1.0 + y.abs()))
-        .fold(0.0, f32::max)
 }
 
 #[test]

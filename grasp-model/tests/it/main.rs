@@ -2,6 +2,7 @@
 
 mod checkpoint_crop;
 mod checkpoint_errors;
+mod common;
 mod legacy_pth_faults;
 mod lite_parity;
 mod model_kernels;

@@ -2,20 +2,13 @@
 //! by scripts/make_parity_fixture.py (width 0.1, 5 classes, random weights,
 //! batch-norm statistics from real activations, a 2x3x45x45 input).
 
-use std::path::{Path, PathBuf};
-
+use crate::common::{fixture, max_rel_diff};
 use candle_core::{Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use grasp_model::networks::{MobileNetV2, MobileNetV2Config};
 use grasp_model::weights;
 
 const TOL: f32 = 1e-4;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-}
 
 fn config() -> MobileNetV2Config {
     MobileNetV2Config {
@@ -27,17 +20,6 @@ fn config() -> MobileNetV2Config {
 
 fn expected() -> std::collections::HashMap<String, Tensor> {
     candle_core::safetensors::load(fixture("mnv2_w010_io.safetensors"), &Device::Cpu).unwrap()
-}
-
-/// Largest |a - b| / (1 + |b|) over all elements.
-fn max_rel_diff(a: &Tensor, b: &Tensor) -> f32 {
-    assert_eq!(a.dims(), b.dims());
-    let a = a.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-    let b = b.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-    a.iter()
-        .zip(&b)
-        .map(|(x, y)| (x - y).abs() / (1.0 + y.abs()))
-        .fold(0.0, f32::max)
 }
 
 fn check_eval(file: &str) {

@@ -1,17 +1,12 @@
 //! Checkpoint loading errors name the file and the tensor.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use crate::common::fixture;
 use candle_core::{Device, Tensor};
 use grasp_model::networks::{MobileNetV2, MobileNetV2Config};
 use grasp_model::weights;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-}
 
 fn config(width_mult: f64, num_classes: usize) -> MobileNetV2Config {
     MobileNetV2Config {
