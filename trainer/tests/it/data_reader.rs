@@ -259,10 +259,7 @@ fn the_lead_in_before_the_target_is_in_view_is_found_and_trimmed() {
 
 /// Sets `render.center_region` of one sequence's record.
 fn set_center_region(json: &std::path::Path, value: serde_json::Value) {
-    let mut record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
-    record["render"]["center_region"] = value;
-    std::fs::write(json, record.to_string()).unwrap();
+    set_record(json, &["render", "center_region"], value);
 }
 
 #[test]
@@ -333,11 +330,13 @@ fn a_sensor_probe_degrades_each_frame_before_the_crop() {
 /// Sets `plan.intrinsics` of one sequence's record to a square lens of
 /// focal length `focal` pixels.
 fn set_focal(json: &std::path::Path, focal: f64) {
-    let mut record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
-    record["plan"]["intrinsics"]["fx"] = serde_json::json!(focal);
-    record["plan"]["intrinsics"]["fy"] = serde_json::json!(focal);
-    std::fs::write(json, record.to_string()).unwrap();
+    for axis in ["fx", "fy"] {
+        set_record(
+            json,
+            &["plan", "intrinsics", axis],
+            serde_json::json!(focal),
+        );
+    }
 }
 
 #[test]
