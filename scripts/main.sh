@@ -5,24 +5,27 @@
 # replay a test sequence with it against the simulated hand.
 #
 #   scripts/main.sh [--config FILE] [--train-seq N] [--test-seq N] [--seeds N]
-#                   [--models "fc lstm trace"] [--ycb DIR] [--weights FILE] [OUT]
+#                   [--models "fc lstm trace"] [--ycb DIR] [--weights FILE]
+#                   [--render-set KEY=VALUE]... [OUT]
 #
 # --config: the render config (configs/main.toml); --train-seq/--test-seq:
 # sequences per pair (24, 2); --models: recipes of configs/recipes/ (fc-tuned
 # loses on the worst world: lab/cross-world.sh trains it); --ycb DIR: train
-# on the authors' YCB meshes; --weights FILE: another frozen backbone (FC, LSTM
-# and trace heads). Test sets: the paper's five conditions, unseen_look and three
-# foreign worlds: world_reach (another reach, seen at 5 frames/s),
-# world_camera (a real wrist camera's sensor, lens, shake, blur and noise on
-# a seated reach) and the hardest, the real meshes of ../shared/ycb in the
-# foreign scene reached so (without them, the built-in objects there). The lab adds looks B-D and
-# the foreign scene alone (lab/cross-world.sh). OUT: runs/main; a re-run
-# resumes; SKIP_SETUP=1, BIN.
+# on the authors' YCB meshes; --weights FILE: another frozen backbone (FC,
+# LSTM and trace heads); --render-set: a render config override laid over
+# every set (a lab variant: --render-set render.center_region=0.7).
+# Test sets: the paper's five conditions, unseen_look and three foreign
+# worlds: world_reach (another reach, seen at 5 frames/s), world_camera (a
+# real wrist camera's sensor, lens, shake, blur and noise on a seated reach)
+# and the hardest, the real meshes of ../shared/ycb in the foreign scene
+# reached so (without them, the built-in objects there). The lab adds looks
+# B-D and the foreign scene alone (lab/cross-world.sh). OUT: runs/main; a
+# re-run resumes; SKIP_SETUP=1, BIN.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 CONFIG=configs/main.toml TRAIN_SEQ=24 TEST_SEQ=2 SEEDS=3 MODELS="fc lstm trace"
-YCB='' OUT=runs/main TRAIN_SETS=()
+YCB='' OUT=runs/main TRAIN_SETS=() RENDER_SETS=()
 while [ $# -gt 0 ]; do
   case $1 in
     --config) CONFIG=${2:?} && shift ;;
@@ -31,10 +34,11 @@ while [ $# -gt 0 ]; do
     --seeds) SEEDS=${2:?} && shift ;;
     --models) MODELS=${2:?} && shift ;;
     --ycb) YCB=${2:?} && shift ;;
+    --render-set) RENDER_SETS+=(--set "${2:?}") && shift ;;
     --weights) # not tuned: no pooled blocks, no restyled views, no fine-tuning
       TRAIN_SETS=(--set "weights=${2:?}" --set "pooled_blocks=[]" --set views.count=0
         --set views.style=0 --set view_damping=0) MODELS="fc lstm trace" && shift ;;
-    -h | --help) head -20 "$0" | tail -19 && exit 0 ;;
+    -h | --help) sed -n '2,/^set -euo/p' "$0" | sed '$d;s/^# \{0,1\}//' && exit 0 ;;
     -*) echo "unknown option $1 (see --help)" >&2 && exit 2 ;;
     *) OUT=$1 ;;
   esac
@@ -75,7 +79,7 @@ $BIN/grasp-gen objects show 025_mug --png "$OUT/025_mug.png"
 echo "== render: train, validation and the test sets"
 render() { # name, then config arguments over $CONFIG
   local name=$1 && shift
-  $BIN/grasp-gen render --config "$CONFIG" "$@" --out "$OUT/data/$name" --resume
+  $BIN/grasp-gen render --config "$CONFIG" "$@" "${RENDER_SETS[@]}" --out "$OUT/data/$name" --resume
 }
 TRAIN=(--set dataset.seed=1 --set dataset.sequences_per_pair="$TRAIN_SEQ")
 render train "${TRAIN[@]}"
@@ -94,9 +98,9 @@ if [[ " ${WORLDS[*]} " == *" world_foreign_ycb_reach "* ]]; then
 else
   render test-world_foreign_reach "${STACKED[@]}"
 fi
-$BIN/grasp-gen dataset verify "$OUT/data/train" --config "$CONFIG" "${TRAIN[@]}"
+$BIN/grasp-gen dataset verify "$OUT/data/train" --config "$CONFIG" "${TRAIN[@]}" "${RENDER_SETS[@]}"
 $BIN/grasp-gen preview "$OUT/data/train" --out "$OUT/preview"
-$BIN/grasp-gen plan --config "$CONFIG" "${TRAIN[@]}" --show "$OUT/paths.png" --quiet
+$BIN/grasp-gen plan --config "$CONFIG" "${TRAIN[@]}" "${RENDER_SETS[@]}" --show "$OUT/paths.png" --quiet
 phase_done render
 
 echo "== train and evaluate: models $MODELS, $SEEDS seed(s) each"
