@@ -125,6 +125,7 @@ def _cycles(scene, s):
         c.denoiser = "OPENIMAGEDENOISE"
         c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
         c.denoising_prefilter = s.get("denoising_prefilter", "FAST")
+        c.denoising_quality = s.get("denoising_quality", "HIGH")
     b = s["bounces"]
     c.max_bounces = int(b["total"])
     c.diffuse_bounces = int(b["diffuse"])

@@ -129,6 +129,9 @@ pub struct RenderConfig {
     /// OpenImageDenoise prefilter of the albedo and normal guides: `none`,
     /// `fast` or `accurate`.
     pub denoising_prefilter: String,
+    /// OpenImageDenoise's network: `high` (Blender's default), `balanced`
+    /// or `fast`, each faster and a little blurrier than the one before.
+    pub denoising_quality: String,
     /// Cycles adaptive-sampling noise threshold; 0 disables it.
     pub adaptive_threshold: f64,
     pub bounces: Bounces,
@@ -170,6 +173,7 @@ impl Default for RenderConfig {
             samples: 4,
             denoiser: "openimagedenoise".into(),
             denoising_prefilter: "fast".into(),
+            denoising_quality: "high".into(),
             adaptive_threshold: 0.0,
             bounces: Bounces::default(),
             clamp_indirect: 3.0,
@@ -214,6 +218,15 @@ impl RenderConfig {
                 format!(
                     "unknown '{}' (expected none, fast or accurate)",
                     self.denoising_prefilter
+                ),
+            ));
+        }
+        if !["high", "balanced", "fast"].contains(&self.denoising_quality.as_str()) {
+            return Err(ConfigError::invalid(
+                "[render] denoising_quality",
+                format!(
+                    "unknown '{}' (expected high, balanced or fast)",
+                    self.denoising_quality
                 ),
             ));
         }
@@ -307,6 +320,10 @@ impl RenderConfig {
         if self.center_region < 1.0 {
             settings[CENTER_REGION_KEY] = self.center_region.into();
         }
+        // Recorded only when not Blender's default, likewise.
+        if self.denoising_quality != "high" {
+            settings["denoising_quality"] = self.denoising_quality.to_ascii_uppercase().into();
+        }
         settings
     }
 }
@@ -323,6 +340,26 @@ mod tests {
         assert_eq!(s["engine"], "cycles");
         assert_eq!(s["passes"], serde_json::json!(["rgb"]));
         assert_eq!(s["denoising_prefilter"], "FAST");
+        assert!(s.get("denoising_quality").is_none());
+    }
+
+    #[test]
+    fn denoising_quality_is_checked_and_recorded_upper_case() {
+        let fast = RenderConfig {
+            denoising_quality: "fast".into(),
+            ..RenderConfig::default()
+        };
+        fast.validate().unwrap();
+        assert_eq!(fast.blender_settings()["denoising_quality"], "FAST");
+        let bad = RenderConfig {
+            denoising_quality: "best".into(),
+            ..RenderConfig::default()
+        };
+        let err = bad.validate().unwrap_err().to_string();
+        assert!(
+            err.contains("denoising_quality") && err.contains("best"),
+            "{err}"
+        );
     }
 
     #[test]
