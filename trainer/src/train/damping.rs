@@ -63,8 +63,14 @@ impl ViewDamping {
         let cov = diff.t()?.matmul(&diff)?;
         let dim = cov.dim(0)?;
         let flat: Vec<f64> = cov.flatten_all()?.to_vec1()?;
-        let eig = nalgebra::SymmetricEigen::new(nalgebra::DMatrix::from_row_slice(dim, dim, &flat));
-        let variances: Vec<f64> = eig.eigenvalues.iter().map(|v| v.max(0.0)).collect();
+        // faer's blocked, parallel solver: 10 s less than nalgebra's at
+        // Lite0's 1984 features (BENCHMARKS.md, "View damping's
+        // eigendecomposition").
+        let cov = faer::MatRef::from_row_major_slice(&flat, dim, dim);
+        let eig = cov.self_adjoint_eigen(faer::Side::Lower).map_err(|e| {
+            candle_core::Error::Msg(format!("view damping: eigendecomposition: {e:?}"))
+        })?;
+        let variances: Vec<f64> = (0..dim).map(|i| eig.S()[i].max(0.0)).collect();
         let total: f64 = variances.iter().sum();
         if total <= 0.0 || !total.is_finite() {
             return Ok(None);
@@ -74,15 +80,13 @@ impl ViewDamping {
             .iter()
             .map(|v| (1.0 - 1.0 / (1.0 + strength * v / mean).sqrt()) as f32)
             .collect();
-        let basis: Vec<f32> = eig
-            .eigenvectors
-            .transpose()
-            .iter()
-            .map(|v| *v as f32)
+        // Row r holds coordinate r of every eigenvector (one per column).
+        let u = eig.U();
+        let basis: Vec<f32> = (0..dim)
+            .flat_map(|r| (0..dim).map(move |c| u[(r, c)] as f32))
             .collect();
         let dev = x.device();
         Ok(Some(ViewDamping {
-            // nalgebra is column-major: its transpose's storage is row-major.
             basis: Tensor::from_vec(basis, (dim, dim), dev)?,
             removed: Tensor::from_vec(removed, (1, dim), dev)?,
             leading_share: variances.iter().cloned().fold(0.0, f64::max) / total,
