@@ -145,14 +145,25 @@ impl Geom {
         Shape::from((self.n, self.c, self.oh, self.ow))
     }
 
-    /// Offset of tap (ky, kx) from the wide output index.
-    fn tap_offset(&self, ky: usize, kx: usize) -> usize {
+    /// The offset of tap (ky, kx) from the wide output index, at `ky * k +
+    /// kx` (the rest 0); once per call, not per plane, for the divisions by
+    /// the stride.
+    fn tap_offsets(&self) -> [usize; MAX_TAPS] {
         let s = self.stride;
         let (_, sw) = self.phase_dims();
-        let phase = (ky % s) * s + kx % s;
-        phase * self.phase_len() + (ky / s) * sw + kx / s
+        let mut off = [0; MAX_TAPS];
+        for ky in 0..self.k {
+            for kx in 0..self.k {
+                let phase = (ky % s) * s + kx % s;
+                off[ky * self.k + kx] = phase * self.phase_len() + (ky / s) * sw + kx / s;
+            }
+        }
+        off
     }
 }
+
+/// Taps of the largest kernel (5 x 5).
+const MAX_TAPS: usize = 25;
 
 fn contiguous<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
     super::cpu::f32_slice("depthwise", s, l, what)
@@ -278,10 +289,12 @@ fn stencil<const K: usize>(
     }
 }
 
-/// One output plane: pad, run the stencil, compact the wide rows into `dst`.
+/// One output plane: pad, run the stencil (`off`: [`Geom::tap_offsets`]),
+/// compact the wide rows into `dst`.
 #[inline(always)]
 fn conv_plane_body(
     g: &Geom,
+    off: &[usize; MAX_TAPS],
     src: &[f32],
     k: &[f32],
     bias: f32,
@@ -299,12 +312,12 @@ fn conv_plane_body(
     let wide = &mut wide[..g.wide_len()];
     match g.k {
         3 => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.tap_offset(ky, kx)));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| off[3 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[3 * ky + kx]));
             stencil::<3>(phases, &off, &w, bias, relu6, wide);
         }
         _ => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.tap_offset(ky, kx)));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| off[5 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[5 * ky + kx]));
             stencil::<5>(phases, &off, &w, bias, relu6, wide);
         }
@@ -319,6 +332,7 @@ simd_dispatch! {
 /// [`conv_plane_body`] on the widest vector unit this CPU has.
 fn conv_plane(
     g: &Geom,
+    off: &[usize; MAX_TAPS],
     src: &[f32],
     k: &[f32],
     bias: f32,
@@ -326,7 +340,7 @@ fn conv_plane(
     scratch: &mut [f32],
     dst: &mut [f32]
 ) {
-    conv_plane_body(g, src, k, bias, relu6, scratch, dst)
+    conv_plane_body(g, off, src, k, bias, relu6, scratch, dst)
 }
 }
 
@@ -343,6 +357,7 @@ fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) ->
 /// Forward over all planes, in parallel.
 fn forward_planes(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
     let taps = g.k * g.k;
+    let off = g.tap_offsets();
     // every element is written by conv_plane
     let mut out = alloc_uninit(g.n * g.c * g.out_plane());
     par_chunks(
@@ -354,7 +369,7 @@ fn forward_planes(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: b
             let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
             let b = bias.map_or(0.0, |b| b[ch]);
             let k = &w[taps * ch..taps * (ch + 1)];
-            conv_plane(g, src, k, b, relu6, scratch, dst);
+            conv_plane(g, &off, src, k, b, relu6, scratch, dst);
         },
     );
     out
