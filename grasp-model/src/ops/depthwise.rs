@@ -76,6 +76,10 @@ struct Geom {
     /// Padding above and to the left.
     pt: usize,
     pl: usize,
+    /// The offset of tap (ky, kx) from the wide output index, at `ky * k +
+    /// kx` (the rest 0): computed once per call, not per plane, for the
+    /// divisions by the stride.
+    off: [usize; MAX_TAPS],
 }
 
 /// Lanes of one block of outputs in the stencil loop (four AVX-512 vectors:
@@ -96,7 +100,7 @@ impl Geom {
         else {
             candle_core::bail!("depthwise: a {k}x{k} kernel does not fit a {h}x{w} plane");
         };
-        Ok(Self {
+        let mut g = Self {
             n,
             c,
             h,
@@ -107,7 +111,10 @@ impl Geom {
             ow,
             pt,
             pl,
-        })
+            off: [0; MAX_TAPS],
+        };
+        g.off = g.tap_offsets();
+        Ok(g)
     }
 
     fn in_plane(&self) -> usize {
@@ -145,9 +152,7 @@ impl Geom {
         Shape::from((self.n, self.c, self.oh, self.ow))
     }
 
-    /// The offset of tap (ky, kx) from the wide output index, at `ky * k +
-    /// kx` (the rest 0); once per call, not per plane, for the divisions by
-    /// the stride.
+    /// Computes [`Geom::off`].
     fn tap_offsets(&self) -> [usize; MAX_TAPS] {
         let s = self.stride;
         let (_, sw) = self.phase_dims();
@@ -295,12 +300,10 @@ fn stencil<const K: usize>(
     }
 }
 
-/// One output plane: pad, run the stencil (`off`: [`Geom::tap_offsets`]),
-/// compact the wide rows into `dst`.
+/// One output plane: pad, run the stencil, compact the wide rows into `dst`.
 #[inline(always)]
 fn conv_plane_body(
     g: &Geom,
-    off: &[usize; MAX_TAPS],
     src: &[f32],
     k: &[f32],
     bias: f32,
@@ -318,12 +321,12 @@ fn conv_plane_body(
     let wide = &mut wide[..g.wide_len()];
     match g.k {
         3 => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| off[3 * ky + kx]));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.off[3 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[3 * ky + kx]));
             stencil::<3>(phases, &off, &w, bias, relu6, wide);
         }
         _ => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| off[5 * ky + kx]));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.off[5 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[5 * ky + kx]));
             stencil::<5>(phases, &off, &w, bias, relu6, wide);
         }
@@ -338,7 +341,6 @@ simd_dispatch! {
 /// [`conv_plane_body`] on the widest vector unit this CPU has.
 fn conv_plane(
     g: &Geom,
-    off: &[usize; MAX_TAPS],
     src: &[f32],
     k: &[f32],
     bias: f32,
@@ -346,7 +348,7 @@ fn conv_plane(
     scratch: &mut [f32],
     dst: &mut [f32]
 ) {
-    conv_plane_body(g, off, src, k, bias, relu6, scratch, dst)
+    conv_plane_body(g, src, k, bias, relu6, scratch, dst)
 }
 }
 
@@ -363,9 +365,8 @@ fn forward(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) ->
 /// Forward over all planes, in parallel.
 fn forward_planes(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: bool) -> Vec<f32> {
     let taps = g.k * g.k;
-    let off = g.tap_offsets();
     // checked once here, not per plane: the stencil reads inside the phases
-    let reach = off.iter().max().map_or(0, |m| m + g.wide_len());
+    let reach = g.off.iter().max().map_or(0, |m| m + g.wide_len());
     assert!(
         reach <= g.stride * g.stride * g.phase_len() + BLOCK,
         "depthwise: scratch too small"
@@ -381,7 +382,7 @@ fn forward_planes(g: &Geom, x: &[f32], w: &[f32], bias: Option<&[f32]>, relu6: b
             let src = &x[plane * g.in_plane()..(plane + 1) * g.in_plane()];
             let b = bias.map_or(0.0, |b| b[ch]);
             let k = &w[taps * ch..taps * (ch + 1)];
-            conv_plane(g, &off, src, k, b, relu6, scratch, dst);
+            conv_plane(g, src, k, b, relu6, scratch, dst);
         },
     );
     out
