@@ -76,6 +76,10 @@ struct Geom {
     /// Padding above and to the left.
     pt: usize,
     pl: usize,
+    /// The offset of tap (ky, kx) from the wide output index, at `ky * k +
+    /// kx` (the rest 0): computed once per call, not per plane, for the
+    /// divisions by the stride.
+    off: [usize; MAX_TAPS],
 }
 
 /// Lanes of one block of outputs in the stencil loop (four AVX-512 vectors:
@@ -96,7 +100,7 @@ impl Geom {
         else {
             candle_core::bail!("depthwise: a {k}x{k} kernel does not fit a {h}x{w} plane");
         };
-        Ok(Self {
+        let mut g = Self {
             n,
             c,
             h,
@@ -107,7 +111,10 @@ impl Geom {
             ow,
             pt,
             pl,
-        })
+            off: [0; MAX_TAPS],
+        };
+        g.off = g.tap_offsets();
+        Ok(g)
     }
 
     fn in_plane(&self) -> usize {
@@ -145,14 +152,23 @@ impl Geom {
         Shape::from((self.n, self.c, self.oh, self.ow))
     }
 
-    /// Offset of tap (ky, kx) from the wide output index.
-    fn tap_offset(&self, ky: usize, kx: usize) -> usize {
+    /// Computes [`Geom::off`].
+    fn tap_offsets(&self) -> [usize; MAX_TAPS] {
         let s = self.stride;
         let (_, sw) = self.phase_dims();
-        let phase = (ky % s) * s + kx % s;
-        phase * self.phase_len() + (ky / s) * sw + kx / s
+        let mut off = [0; MAX_TAPS];
+        for ky in 0..self.k {
+            for kx in 0..self.k {
+                let phase = (ky % s) * s + kx % s;
+                off[ky * self.k + kx] = phase * self.phase_len() + (ky / s) * sw + kx / s;
+            }
+        }
+        off
     }
 }
+
+/// Taps of the largest kernel (5 x 5).
+const MAX_TAPS: usize = 25;
 
 fn contiguous<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> Result<&'a [f32]> {
     super::cpu::f32_slice("depthwise", s, l, what)
@@ -213,18 +229,29 @@ fn pad_plane<const S: usize>(g: &Geom, src: &[f32], phases: &mut [f32]) {
         let o0 = g.pl.div_ceil(2);
         let even_n = g.w.div_ceil(2).min(sw.saturating_sub(e0));
         let odd_n = (g.w / 2).min(sw.saturating_sub(o0));
-        for (d, v) in even_x[e0..e0 + even_n]
-            .iter_mut()
-            .zip(src_row.iter().step_by(2))
-        {
-            *d = *v;
-        }
-        for (d, v) in odd_x[o0..o0 + odd_n]
-            .iter_mut()
-            .zip(src_row[1..].iter().step_by(2))
-        {
-            *d = *v;
-        }
+        deinterleave(
+            src_row,
+            &mut even_x[e0..e0 + even_n],
+            &mut odd_x[o0..o0 + odd_n],
+        );
+    }
+}
+
+/// `even[t] = src[2t]` and `odd[t] = src[2t + 1]`, as far as each reaches:
+/// loops over pairs, which vectorise (`step_by(2)` did not).
+#[inline(always)]
+fn deinterleave(src: &[f32], even: &mut [f32], odd: &mut [f32]) {
+    let pairs = src.chunks_exact(2);
+    for (d, p) in even.iter_mut().zip(pairs.clone()) {
+        *d = p[0];
+    }
+    for (d, p) in odd.iter_mut().zip(pairs) {
+        *d = p[1];
+    }
+    // an odd row's last value is an even one, outside every pair
+    let half = src.len() / 2;
+    if !src.len().is_multiple_of(2) && even.len() > half {
+        even[half] = src[src.len() - 1];
     }
 }
 
@@ -241,7 +268,15 @@ fn stencil<const K: usize>(
     relu6: bool,
     wide: &mut [f32],
 ) {
-    let max_off = off.iter().flatten().copied().max().unwrap_or(0);
+    // Each read below is BLOCK floats from a tap's offset plus q, with
+    // q + BLOCK <= wide.len() (whole chunks): inside src when this holds.
+    // Checked once, not at each read (a third of the loop's instructions).
+    let mut max_off = 0;
+    for row in off {
+        for &o in row {
+            max_off = max_off.max(o);
+        }
+    }
     assert!(
         max_off + wide.len() <= src.len(),
         "depthwise: scratch too small"
@@ -253,7 +288,8 @@ fn stencil<const K: usize>(
             let mut row = [0f32; BLOCK];
             for kx in 0..K {
                 let o = off[ky][kx] + q;
-                let x: &[f32; BLOCK] = src[o..o + BLOCK].try_into().expect("BLOCK floats");
+                // SAFETY: o + BLOCK <= max_off + wide.len() <= src.len().
+                let x = unsafe { &*src.as_ptr().add(o).cast::<[f32; BLOCK]>() };
                 let wt = w[ky][kx];
                 if kx == 0 {
                     for l in 0..BLOCK {
@@ -299,12 +335,12 @@ fn conv_plane_body(
     let wide = &mut wide[..g.wide_len()];
     match g.k {
         3 => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.tap_offset(ky, kx)));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.off[3 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[3 * ky + kx]));
             stencil::<3>(phases, &off, &w, bias, relu6, wide);
         }
         _ => {
-            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.tap_offset(ky, kx)));
+            let off = std::array::from_fn(|ky| std::array::from_fn(|kx| g.off[5 * ky + kx]));
             let w = std::array::from_fn(|ky| std::array::from_fn(|kx| k[5 * ky + kx]));
             stencil::<5>(phases, &off, &w, bias, relu6, wide);
         }

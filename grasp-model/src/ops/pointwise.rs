@@ -382,6 +382,10 @@ impl candle_core::CustomOp1 for Im2Col {
             let (plane, tap) = (row / taps, row % taps);
             let (ky, kx) = (tap / k, tap % k);
             let src = &x[plane * h * w..(plane + 1) * h * w];
+            // Outputs lo..hi read input columns s * ox + kx - pl inside the
+            // image, the same in every row; the rest are padding.
+            let lo = pl.saturating_sub(kx).div_ceil(s).min(ow);
+            let hi = (w + pl).saturating_sub(kx).div_ceil(s).clamp(lo, ow);
             for oy in 0..oh {
                 let out = &mut dst[oy * ow..(oy + 1) * ow];
                 let iy = (s * oy + ky).checked_sub(pt).filter(|iy| *iy < h);
@@ -389,10 +393,13 @@ impl candle_core::CustomOp1 for Im2Col {
                     out.fill(0.0); // padding
                     continue;
                 };
-                let src_row = &src[iy * w..(iy + 1) * w];
-                for (ox, d) in out.iter_mut().enumerate() {
-                    let ix = (s * ox + kx).checked_sub(pl).filter(|ix| *ix < w);
-                    *d = ix.map_or(0.0, |ix| src_row[ix]);
+                out[..lo].fill(0.0);
+                out[hi..].fill(0.0);
+                if lo < hi {
+                    let from = &src[iy * w + lo * s + kx - pl..(iy + 1) * w];
+                    for (d, v) in out[lo..hi].iter_mut().zip(from.iter().step_by(s)) {
+                        *d = *v;
+                    }
                 }
             }
         });
