@@ -137,12 +137,7 @@ impl AppearanceConfig {
             ));
         }
         for k in &self.light_kinds {
-            if !LIGHT_KINDS.contains(&k.as_str()) {
-                return Err(ConfigError::invalid(
-                    "[appearance] light_kinds",
-                    format!("unknown kind '{k}' (expected point, spot or area)"),
-                ));
-            }
+            ConfigError::check_one_of("[appearance] light_kinds", k, &LIGHT_KINDS)?;
         }
         if self.light_kinds.is_empty() {
             return Err(ConfigError::invalid(

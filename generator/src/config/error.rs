@@ -74,6 +74,27 @@ impl ConfigError {
         }
     }
 
+    /// Refuses `value` unless it is one of `allowed`: "FIELD: unknown
+    /// 'VALUE' (expected a, b or c)". Every named-value field checks so.
+    pub(crate) fn check_one_of(
+        field: impl Into<String>,
+        value: &str,
+        allowed: &[&str],
+    ) -> Result<()> {
+        if allowed.contains(&value) {
+            return Ok(());
+        }
+        let expected = match allowed {
+            [] => "nothing".to_string(),
+            [only] => (*only).to_string(),
+            [init @ .., last] => format!("{} or {last}", init.join(", ")),
+        };
+        Err(ConfigError::invalid(
+            field,
+            format!("unknown '{value}' (expected {expected})"),
+        ))
+    }
+
     /// The field the error is about, when it is about one.
     pub fn field(&self) -> Option<&str> {
         match self {
@@ -81,5 +102,32 @@ impl ConfigError {
             ConfigError::Check { source, .. } => source.field(),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn check_one_of_names_the_field_the_value_and_the_choices() {
+        assert!(ConfigError::check_one_of(
+            "[render] denoiser",
+            "none",
+            &["openimagedenoise", "none"]
+        )
+        .is_ok());
+        let e =
+            ConfigError::check_one_of("[render] denoiser", "oidn", &["openimagedenoise", "none"])
+                .unwrap_err();
+        assert_eq!(e.field(), Some("[render] denoiser"));
+        assert_eq!(
+            e.to_string(),
+            "[render] denoiser: unknown 'oidn' (expected openimagedenoise or none)"
+        );
+        let three = ConfigError::check_one_of("f", "x", &["a", "b", "c"]).unwrap_err();
+        assert_eq!(three.to_string(), "f: unknown 'x' (expected a, b or c)");
+        let one = ConfigError::check_one_of("f", "x", &["a"]).unwrap_err();
+        assert_eq!(one.to_string(), "f: unknown 'x' (expected a)");
     }
 }

@@ -97,15 +97,7 @@ impl UnseenLookConfig {
             ));
         }
         for f in &self.families {
-            if !UNSEEN_FAMILIES.contains(&f.as_str()) {
-                return Err(ConfigError::invalid(
-                    format!("{at} families"),
-                    format!(
-                        "'{f}' is not an unseen_look family (expected some of {})",
-                        UNSEEN_FAMILIES.join(", ")
-                    ),
-                ));
-            }
+            ConfigError::check_one_of(format!("{at} families"), f, &UNSEEN_FAMILIES)?;
         }
         check_range(&format!("{at} sun_strength"), self.sun_strength, 0.0, 100.0)?;
         check_range(
@@ -145,16 +137,11 @@ impl UnseenLookConfig {
             100.0,
         )?;
         check_range(&format!("{at} fov_scale"), self.fov_scale, 0.05, 20.0)?;
-        if !VIEW_TRANSFORMS.contains(&self.view_transform.as_str()) {
-            return Err(ConfigError::invalid(
-                format!("{at} view_transform"),
-                format!(
-                    "unknown '{}' (expected one of {})",
-                    self.view_transform,
-                    VIEW_TRANSFORMS.join(", ")
-                ),
-            ));
-        }
+        ConfigError::check_one_of(
+            format!("{at} view_transform"),
+            &self.view_transform,
+            &VIEW_TRANSFORMS,
+        )?;
         if self.looks.is_empty() {
             return Err(ConfigError::invalid(
                 format!("{at} looks"),

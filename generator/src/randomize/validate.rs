@@ -92,15 +92,7 @@ impl RandomizeConfig {
             ));
         }
         for s in &d.shapes {
-            if !DISTRACTOR_SHAPES.contains(&s.as_str()) {
-                return Err(ConfigError::invalid(
-                    "[randomize.distractors] shapes",
-                    format!(
-                        "unknown shape '{s}' (expected some of {})",
-                        DISTRACTOR_SHAPES.join(", ")
-                    ),
-                ));
-            }
+            ConfigError::check_one_of("[randomize.distractors] shapes", s, &DISTRACTOR_SHAPES)?;
         }
         if !(d.clearance_m.is_finite() && d.clearance_m >= 0.0) || d.attempts == 0 {
             return Err(ConfigError::rule(

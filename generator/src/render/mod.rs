@@ -203,42 +203,26 @@ impl RenderConfig {
         if self.device.is_gpu() && self.engine != Engine::Cycles {
             return Err(ConfigError::rule("[render] device", format!("= \"{}\" chooses a Cycles device, but engine is {:?}, which draws through Blender's GPU module (use device = \"auto\")", self.device.name(), format!("{:?}", self.engine).to_lowercase())));
         }
-        if !["openimagedenoise", "none"].contains(&self.denoiser.as_str()) {
-            return Err(ConfigError::invalid(
-                "[render] denoiser",
-                format!(
-                    "unknown '{}' (expected openimagedenoise or none)",
-                    self.denoiser
-                ),
-            ));
-        }
-        if !["none", "fast", "accurate"].contains(&self.denoising_prefilter.as_str()) {
-            return Err(ConfigError::invalid(
-                "[render] denoising_prefilter",
-                format!(
-                    "unknown '{}' (expected none, fast or accurate)",
-                    self.denoising_prefilter
-                ),
-            ));
-        }
-        if !["high", "balanced", "fast"].contains(&self.denoising_quality.as_str()) {
-            return Err(ConfigError::invalid(
-                "[render] denoising_quality",
-                format!(
-                    "unknown '{}' (expected high, balanced or fast)",
-                    self.denoising_quality
-                ),
-            ));
-        }
-        if !["AgX", "Standard", "Filmic"].contains(&self.view_transform.as_str()) {
-            return Err(ConfigError::invalid(
-                "[render] view_transform",
-                format!(
-                    "unknown '{}' (expected AgX, Standard or Filmic)",
-                    self.view_transform
-                ),
-            ));
-        }
+        ConfigError::check_one_of(
+            "[render] denoiser",
+            &self.denoiser,
+            &["openimagedenoise", "none"],
+        )?;
+        ConfigError::check_one_of(
+            "[render] denoising_prefilter",
+            &self.denoising_prefilter,
+            &["none", "fast", "accurate"],
+        )?;
+        ConfigError::check_one_of(
+            "[render] denoising_quality",
+            &self.denoising_quality,
+            &["high", "balanced", "fast"],
+        )?;
+        ConfigError::check_one_of(
+            "[render] view_transform",
+            &self.view_transform,
+            &crate::look::unseen_config::VIEW_TRANSFORMS,
+        )?;
         if !self.passes.contains(&Pass::Rgb) {
             return Err(ConfigError::invalid(
                 "[render] passes",
