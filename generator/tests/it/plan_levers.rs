@@ -307,7 +307,7 @@ fn validation_refuses_configs_where_training_meets_unseen_look() {
     );
     refused(
         |c| c.appearance.unseen_look.families = vec!["noise".into()],
-        "not an unseen_look family",
+        "[appearance.unseen_look] families: unknown 'noise'",
     );
     // With the FOV lever off training keeps the preset's lens (scale 1),
     // which an unseen range including 1 would meet.
