@@ -286,6 +286,8 @@ impl BackboneInfo {
 }
 
 /// The network of a backbone.
+// One per backbone, built once: the variants' size difference costs nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Network {
     MobileNetV2(MobileNetV2),
     EfficientNetLite(EfficientNetLite),

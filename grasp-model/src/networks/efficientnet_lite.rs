@@ -33,6 +33,7 @@ use candle_nn::{Init, Linear, VarBuilder};
 use rayon::prelude::*;
 
 use super::batch_norm::BatchNorm2d;
+use super::lite_blocked::{BlockLayers, BlockedLite, Layer};
 use super::mobilenet_v2::make_divisible;
 use crate::ops::depthwise::{depthwise_conv_bias_act, Padding};
 use crate::ops::pointwise::{
@@ -328,6 +329,9 @@ pub struct EfficientNetLite {
     /// Whether the 1x1 convolutions run on weights packed once (the
     /// default) or through `gemm` (the reference they are tested against).
     packed: bool,
+    /// The layers packed for channel-blocked maps, built at the first
+    /// unstyled image when `packed` (`None`: no AVX-512 on this CPU).
+    blocked: std::sync::OnceLock<Option<Box<BlockedLite>>>,
 }
 
 impl EfficientNetLite {
@@ -369,6 +373,7 @@ impl EfficientNetLite {
             fc,
             pooled_blocks: Vec::new(),
             packed: true,
+            blocked: std::sync::OnceLock::new(),
         })
     }
 
@@ -395,11 +400,47 @@ impl EfficientNetLite {
         &self.pooled_blocks
     }
 
-    /// Runs the 1x1 convolutions on weights packed once per layer (`true`,
-    /// the default; AVX-512 CPUs) or through `gemm` on every call (the
-    /// reference path, for parity tests and kernel comparisons).
+    /// Runs the layers on weights packed once (`true`, the default; on
+    /// AVX-512 CPUs unstyled images then run on channel-blocked maps,
+    /// `ops::blocked`) or the 1x1 convolutions through `gemm` on every call
+    /// and the depthwise ones plane by plane (the reference path, for
+    /// parity tests and kernel comparisons).
     pub fn set_packed_kernels(&mut self, packed: bool) {
         self.packed = packed;
+    }
+
+    /// The blocked layers, packed at the first call; `None` without AVX-512.
+    fn blocked(&self) -> Result<Option<&BlockedLite>> {
+        if let Some(b) = self.blocked.get() {
+            return Ok(b.as_deref());
+        }
+        let built = if crate::ops::blocked::available() {
+            Some(Box::new(self.pack_blocked()?))
+        } else {
+            None
+        };
+        Ok(self.blocked.get_or_init(|| built).as_deref())
+    }
+
+    fn pack_blocked(&self) -> Result<BlockedLite> {
+        let layer = |f: &Folded| Layer::of(&f.weight, &f.bias);
+        let blocks = self
+            .blocks
+            .iter()
+            .map(|b| {
+                Ok(BlockLayers {
+                    spec: b.spec,
+                    expand: b.expand.as_ref().map(layer).transpose()?,
+                    depthwise: layer(&b.depthwise)?,
+                    project: layer(&b.project)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(BlockedLite::new(
+            layer(&self.stem)?,
+            blocks,
+            layer(&self.head)?,
+        ))
     }
 
     /// Globally average-pooled features (N, D) of normalized images
@@ -464,6 +505,11 @@ impl EfficientNetLite {
     /// The pooled head activations, then the pooled outputs of the pooled
     /// blocks, in one row per image; `styles` restyle block outputs on the way.
     fn pooled_features(&self, x: &Tensor, styles: &[ChannelStyle]) -> Result<Tensor> {
+        if self.packed && styles.is_empty() {
+            if let Some(blocked) = self.blocked()? {
+                return blocked.features(x, &self.pooled_blocks);
+            }
+        }
         let mut y = self.stem(x)?;
         let mut parts = vec![];
         for (i, b) in self.blocks.iter().enumerate() {
@@ -553,6 +599,7 @@ impl EfficientNetLite {
             b.project = folded(&format!("_blocks.{i}._project_conv"), &b.project)?;
         }
         self.head = folded("_conv_head", &self.head)?;
+        self.blocked = std::sync::OnceLock::new(); // packed from the old tail
         Ok(())
     }
 }

@@ -1,8 +1,10 @@
 //! The CPU kernels of the networks, as candle custom ops: depthwise and
 //! pointwise convolutions, the linear layer, the fused LSTM recurrence, the
-//! feature-row gather, and the plumbing they share (`cpu`: the vector unit
+//! feature-row gather, the channel-blocked inference kernels (`blocked`),
+//! and the plumbing they share (`cpu`: the vector unit
 //! chosen at run time, storage read as f32 slices, `gemm` calls).
 
+pub mod blocked;
 pub(crate) mod cpu;
 pub mod depthwise;
 pub mod gather;

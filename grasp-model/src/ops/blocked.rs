@@ -1,0 +1,235 @@
+//! Inference kernels on channel-blocked activations, for one image at a
+//! time on AVX-512 CPUs: the inference path of EfficientNet-Lite
+//! (`networks::lite_blocked`).
+//!
+//! A [`BlockedMap`] holds a (C, H, W) map as `[C / 16][H][W][16]` (NCHW16c,
+//! oneDNN's and ONNX Runtime's NCHWc): each pixel's 16 channels of a block
+//! are one AVX-512 vector. In this layout
+//! - a 1x1 convolution ([`PointwiseWeights`]) keeps a tile of 16 output
+//!   channels x a few pixels in registers and reads the input in place,
+//!   each output written once with its bias, residual and ReLU6;
+//! - a depthwise convolution ([`DepthwiseWeights`]) is one vector per
+//!   output pixel and tap, reading its neighbours in place: no padded copy
+//!   of the plane, no polyphase split, no throwaway outputs;
+//! - the stem ([`StemWeights`]) reads the NCHW image in place.
+//!
+//! Channel counts that are not multiples of 16 (EfficientNet-Lite's 24 and
+//! 40) fill their last block with zero lanes, which every kernel writes as
+//! zeros and reads past. Each output is summed in the order of the NCHW
+//! kernels (`ops::pointwise`, `ops::depthwise`), so the two paths agree to
+//! the bit up to the sign of zero (grasp-model's parity tests).
+
+use std::ops::Range;
+
+mod depthwise;
+mod pointwise;
+mod stem;
+#[cfg(test)]
+mod tests;
+
+pub use depthwise::DepthwiseWeights;
+pub use pointwise::PointwiseWeights;
+pub use stem::StemWeights;
+
+/// Channels per block: one AVX-512 vector of f32.
+pub const LANES: usize = 16;
+
+/// Whether this CPU runs the blocked kernels (AVX-512).
+pub fn available() -> bool {
+    super::cpu::has_avx512()
+}
+
+/// f32 values in whole vectors on 64-byte boundaries: every vector load
+/// and store of the kernels is one cache line (glibc's large allocations
+/// start 16 bytes past a page, where each would straddle two).
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Aligned(Vec<Vector>);
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(64))]
+struct Vector([f32; LANES]);
+
+impl Aligned {
+    /// `len` zeros (`len` a multiple of [`LANES`]).
+    fn zeros(len: usize) -> Self {
+        debug_assert!(len.is_multiple_of(LANES));
+        Aligned(vec![Vector::default(); len / LANES])
+    }
+
+    fn as_slice(&self) -> &[f32] {
+        // SAFETY: a Vector is LANES f32 with no padding (repr(C), 64 bytes).
+        unsafe { std::slice::from_raw_parts(self.0.as_ptr().cast(), self.0.len() * LANES) }
+    }
+
+    fn as_mut_slice(&mut self) -> &mut [f32] {
+        // SAFETY: as in `as_slice`.
+        unsafe { std::slice::from_raw_parts_mut(self.0.as_mut_ptr().cast(), self.0.len() * LANES) }
+    }
+}
+
+/// One image's (C, H, W) activations in blocks of [`LANES`] channels,
+/// `[block][y][x][lane]`; the lanes past C are zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockedMap {
+    data: Aligned,
+    channels: usize,
+    h: usize,
+    w: usize,
+}
+
+impl BlockedMap {
+    /// A map whose every element the caller writes before any read, in a
+    /// buffer of an earlier map of this thread when one is large enough.
+    fn uninit(channels: usize, h: usize, w: usize) -> Self {
+        let len = channels.div_ceil(LANES) * h * w * LANES;
+        BlockedMap {
+            data: Aligned(spare::take(len / LANES)),
+            channels,
+            h,
+            w,
+        }
+    }
+
+    /// The blocked form of a (C, H, W) map in NCHW order.
+    pub fn from_nchw(x: &[f32], channels: usize, h: usize, w: usize) -> Self {
+        assert_eq!(x.len(), channels * h * w, "from_nchw: {channels}x{h}x{w}");
+        let mut map = BlockedMap {
+            data: Aligned::zeros(channels.div_ceil(LANES) * h * w * LANES),
+            channels,
+            h,
+            w,
+        };
+        let hw = h * w;
+        for (c, plane) in x.chunks_exact(hw).enumerate() {
+            let block = &mut map.data.as_mut_slice()[(c / LANES) * hw * LANES..];
+            for (p, &v) in plane.iter().enumerate() {
+                block[p * LANES + c % LANES] = v;
+            }
+        }
+        map
+    }
+
+    /// The map in NCHW order (C, H, W).
+    pub fn to_nchw(&self) -> Vec<f32> {
+        let hw = self.hw();
+        let mut out = vec![0.0; self.channels * hw];
+        for (c, plane) in out.chunks_exact_mut(hw).enumerate() {
+            let block = &self.data.as_slice()[(c / LANES) * hw * LANES..];
+            for (p, v) in plane.iter_mut().enumerate() {
+                *v = block[p * LANES + c % LANES];
+            }
+        }
+        out
+    }
+
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// (height, width).
+    pub fn dims(&self) -> (usize, usize) {
+        (self.h, self.w)
+    }
+
+    fn hw(&self) -> usize {
+        self.h * self.w
+    }
+
+    fn blocks(&self) -> usize {
+        self.channels.div_ceil(LANES)
+    }
+
+    /// Each channel's mean over the pixels (global average pooling),
+    /// summed pixel by pixel in order.
+    pub fn mean_pool(&self) -> Vec<f32> {
+        let hw = self.hw();
+        let mut out = Vec::with_capacity(self.blocks() * LANES);
+        for block in self.data.as_slice().chunks_exact(hw * LANES) {
+            let mut sums = [0f32; LANES];
+            for px in block.chunks_exact(LANES) {
+                for (s, v) in sums.iter_mut().zip(px) {
+                    *s += v;
+                }
+            }
+            out.extend(sums.iter().map(|s| s / hw as f32));
+        }
+        out.truncate(self.channels);
+        out
+    }
+}
+
+impl Drop for BlockedMap {
+    fn drop(&mut self) {
+        spare::give(std::mem::take(&mut self.data.0));
+    }
+}
+
+/// The buffers of dropped maps, kept per thread for the next ones: a
+/// frame's maps are the last frame's sizes, and a fresh allocation of a
+/// megabyte comes from the kernel zeroed, page by page.
+mod spare {
+    use super::Vector;
+    use std::cell::RefCell;
+
+    /// Buffers kept per thread (a network's largest maps live at once).
+    const KEEP: usize = 8;
+
+    thread_local! {
+        static SPARE: RefCell<Vec<Vec<Vector>>> = const { RefCell::new(Vec::new()) };
+    }
+
+    /// `len` vectors, not initialised: the smallest spare buffer that
+    /// holds them, or a new one.
+    pub(super) fn take(len: usize) -> Vec<Vector> {
+        let reused = SPARE.with_borrow_mut(|spare| {
+            let best = (0..spare.len())
+                .filter(|&i| spare[i].capacity() >= len)
+                .min_by_key(|&i| spare[i].capacity())?;
+            Some(spare.swap_remove(best))
+        });
+        let mut v = reused.unwrap_or_else(|| Vec::with_capacity(len));
+        // SAFETY: f32 vectors have no invalid bit patterns, and the kernels write
+        // every element of a map before any read (`BlockedMap::uninit`).
+        #[allow(clippy::uninit_vec)]
+        unsafe {
+            v.set_len(len)
+        };
+        v
+    }
+
+    /// Keeps `v` for a later map, dropping the smallest when full.
+    pub(super) fn give(v: Vec<Vector>) {
+        if v.capacity() == 0 {
+            return;
+        }
+        SPARE.with_borrow_mut(|spare| {
+            spare.push(v);
+            if spare.len() > KEEP {
+                let smallest = (0..spare.len()).min_by_key(|&i| spare[i].capacity());
+                spare.swap_remove(smallest.unwrap_or(0));
+            }
+        });
+    }
+}
+
+/// A contiguous f32 vector's pointer that may cross threads: every job of
+/// a kernel writes its own outputs.
+#[derive(Clone, Copy)]
+struct OutPtr(*mut f32);
+unsafe impl Send for OutPtr {}
+unsafe impl Sync for OutPtr {}
+
+/// Runs `f` on `0..items` split into [`JOBS`] nearly equal ranges (fewer
+/// when there are fewer items), on candle's rayon pool. Measured against
+/// one range per thread in the same order every layer (so that a thread
+/// reads what it wrote): rayon's stealing of the smaller jobs was faster.
+fn split(items: usize, f: &(impl Fn(Range<usize>) + Sync)) {
+    use rayon::prelude::*;
+    let jobs = JOBS.min(items.max(1));
+    (0..jobs)
+        .into_par_iter()
+        .for_each(|j| f(j * items / jobs..(j + 1) * items / jobs));
+}
+
+/// Jobs per layer, so that one image keeps every thread busy.
+const JOBS: usize = 8;
