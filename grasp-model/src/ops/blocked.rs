@@ -231,5 +231,7 @@ fn split(items: usize, f: &(impl Fn(Range<usize>) + Sync)) {
         .for_each(|j| f(j * items / jobs..(j + 1) * items / jobs));
 }
 
-/// Jobs per layer, so that one image keeps every thread busy.
-const JOBS: usize = 8;
+/// Jobs per layer: enough that a thread the host slows for a moment holds
+/// up little of the layer (32 was faster than 8, 16, 64 and 128 in
+/// alternating rounds on 2 cores: BENCHMARKS.md).
+const JOBS: usize = 32;
