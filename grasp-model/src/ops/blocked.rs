@@ -67,6 +67,26 @@ impl Aligned {
     }
 }
 
+/// A layer's weights and bias packed for the kernels: `weight` holds one
+/// row of `per` values (input channels, taps) for each of the bias's
+/// outputs; they become `[output block][per][16]`, and the bias whole
+/// blocks, both zero past the outputs.
+fn pack(weight: &[f32], bias: &[f32], per: usize) -> (Aligned, Aligned) {
+    let outputs = bias.len();
+    assert_eq!(weight.len(), outputs * per, "{outputs} x {per} weights");
+    let blocks = outputs.div_ceil(LANES);
+    let mut w = Aligned::zeros(blocks * per * LANES);
+    for (o, row) in weight.chunks_exact(per).enumerate() {
+        let block = &mut w.as_mut_slice()[(o / LANES) * per * LANES..];
+        for (i, &v) in row.iter().enumerate() {
+            block[i * LANES + o % LANES] = v;
+        }
+    }
+    let mut padded = Aligned::zeros(blocks * LANES);
+    padded.as_mut_slice()[..outputs].copy_from_slice(bias);
+    (w, padded)
+}
+
 /// One image's (C, H, W) activations in blocks of [`LANES`] channels,
 /// `[block][y][x][lane]`; the lanes past C are zero.
 #[derive(Clone, Debug, PartialEq)]

@@ -9,7 +9,7 @@
 //! time, sharing each tap's weight vector; the border ones one at a time with their own tap
 //! ranges. Jobs are (channel block, band of output rows).
 
-use super::{split, Aligned, BlockedMap, OutPtr, JOBS, LANES};
+use super::{pack, split, Aligned, BlockedMap, OutPtr, JOBS, LANES};
 use crate::ops::depthwise::Padding;
 use std::ops::Range;
 
@@ -64,18 +64,8 @@ impl DepthwiseWeights {
             matches!(k, 3 | 5) && matches!(stride, 1 | 2),
             "depthwise {k}x{k} /{stride}"
         );
-        assert_eq!(weight.len(), channels * k * k, "depthwise weight");
         assert_eq!(bias.len(), channels, "depthwise bias");
-        let (blocks, taps) = (channels.div_ceil(LANES), k * k);
-        let mut w = Aligned::zeros(blocks * taps * LANES);
-        for (c, kernel) in weight.chunks_exact(taps).enumerate() {
-            let block = &mut w.as_mut_slice()[(c / LANES) * taps * LANES..];
-            for (t, &v) in kernel.iter().enumerate() {
-                block[t * LANES + c % LANES] = v;
-            }
-        }
-        let mut padded = Aligned::zeros(blocks * LANES);
-        padded.as_mut_slice()[..channels].copy_from_slice(bias);
+        let (w, padded) = pack(weight, bias, k * k);
         DepthwiseWeights {
             w,
             bias: padded,

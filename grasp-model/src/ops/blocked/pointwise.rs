@@ -10,7 +10,7 @@
 //! order from zero, then the bias and the residual are added, as the NCHW
 //! kernels sum it.
 
-use super::{split, Aligned, BlockedMap, OutPtr, LANES};
+use super::{pack, split, Aligned, BlockedMap, OutPtr, LANES};
 
 /// Output blocks per tile of a wide map.
 const PAIR: usize = 2;
@@ -48,18 +48,8 @@ struct Call<'a> {
 impl PointwiseWeights {
     /// Packs row-major `weight` (`cout` x `cin`) and `bias` (`cout`).
     pub fn new(weight: &[f32], bias: &[f32], cout: usize, cin: usize) -> Self {
-        assert_eq!(weight.len(), cout * cin, "pointwise weight {cout}x{cin}");
         assert_eq!(bias.len(), cout, "pointwise bias of {cout}");
-        let blocks = cout.div_ceil(LANES);
-        let mut w = Aligned::zeros(blocks * cin * LANES);
-        for (o, row) in weight.chunks_exact(cin).enumerate() {
-            let block = &mut w.as_mut_slice()[(o / LANES) * cin * LANES..];
-            for (c, &v) in row.iter().enumerate() {
-                block[c * LANES + o % LANES] = v;
-            }
-        }
-        let mut padded = Aligned::zeros(blocks * LANES);
-        padded.as_mut_slice()[..cout].copy_from_slice(bias);
+        let (w, padded) = pack(weight, bias, cin);
         PointwiseWeights {
             w,
             bias: padded,

@@ -6,7 +6,7 @@
 //! [`PIXELS`] pixels of a row) sums the same rows in the same order,
 //! reading each tap's input in place, a padded one as zero: the same sums.
 
-use super::{split, Aligned, BlockedMap, OutPtr, LANES};
+use super::{pack, split, Aligned, BlockedMap, OutPtr, LANES};
 use crate::ops::depthwise::Padding;
 
 /// Pixels per tile.
@@ -52,20 +52,9 @@ impl StemWeights {
         stride: usize,
         padding: Padding,
     ) -> Self {
-        let rows = cin * k * k;
-        assert_eq!(weight.len(), cout * rows, "stem weight");
         assert_eq!(bias.len(), cout, "stem bias");
         assert!(stride > 0, "stem stride");
-        let blocks = cout.div_ceil(LANES);
-        let mut w = Aligned::zeros(blocks * rows * LANES);
-        for (o, row) in weight.chunks_exact(rows).enumerate() {
-            let block = &mut w.as_mut_slice()[(o / LANES) * rows * LANES..];
-            for (r, &v) in row.iter().enumerate() {
-                block[r * LANES + o % LANES] = v;
-            }
-        }
-        let mut padded = Aligned::zeros(blocks * LANES);
-        padded.as_mut_slice()[..cout].copy_from_slice(bias);
+        let (w, padded) = pack(weight, bias, cin * k * k);
         StemWeights {
             w,
             bias: padded,
