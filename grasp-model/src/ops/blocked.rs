@@ -19,6 +19,7 @@
 //! kernels (`ops::pointwise`, `ops::depthwise`), so the two paths agree to
 //! the bit up to the sign of zero (grasp-model's parity tests).
 
+use super::depthwise::Padding;
 use std::ops::Range;
 
 mod depthwise;
@@ -64,6 +65,35 @@ impl Aligned {
     fn as_mut_slice(&mut self) -> &mut [f32] {
         // SAFETY: as in `as_slice`.
         unsafe { std::slice::from_raw_parts_mut(self.0.as_mut_ptr().cast(), self.0.len() * LANES) }
+    }
+}
+
+/// A k x k window's geometry over an h x w input at a stride, padded as a
+/// [`Padding`] says (the stem's and the depthwise layers').
+#[derive(Clone, Copy, Debug)]
+struct Geometry {
+    h: usize,
+    w: usize,
+    oh: usize,
+    ow: usize,
+    /// Padding above and to the left.
+    pt: usize,
+    pl: usize,
+}
+
+impl Geometry {
+    /// `None` when the kernel does not fit the padded input.
+    fn new(h: usize, w: usize, k: usize, stride: usize, padding: Padding) -> Option<Self> {
+        let (oh, pt) = padding.resolve(h, k, stride)?;
+        let (ow, pl) = padding.resolve(w, k, stride)?;
+        Some(Geometry {
+            h,
+            w,
+            oh,
+            ow,
+            pt,
+            pl,
+        })
     }
 }
 

@@ -9,7 +9,7 @@
 //! time, sharing each tap's weight vector; the border ones one at a time with their own tap
 //! ranges. Jobs are (channel block, band of output rows).
 
-use super::{pack, split, Aligned, BlockedMap, OutPtr, JOBS, LANES};
+use super::{pack, split, Aligned, BlockedMap, Geometry, OutPtr, JOBS, LANES};
 use crate::ops::depthwise::Padding;
 use std::ops::Range;
 
@@ -38,13 +38,7 @@ impl std::fmt::Debug for DepthwiseWeights {
 struct Call<'a> {
     k: &'a DepthwiseWeights,
     x: &'a [f32],
-    h: usize,
-    w: usize,
-    oh: usize,
-    ow: usize,
-    /// Padding above and to the left.
-    pt: usize,
-    pl: usize,
+    g: Geometry,
     relu6: bool,
     out: OutPtr,
 }
@@ -85,18 +79,13 @@ impl DepthwiseWeights {
         );
         assert_eq!(x.channels, self.channels, "depthwise channels");
         let (h, w) = x.dims();
-        let (oh, pt) = self.padding.resolve(h, self.k, self.stride)?;
-        let (ow, pl) = self.padding.resolve(w, self.k, self.stride)?;
+        let g = Geometry::new(h, w, self.k, self.stride, self.padding)?;
+        let (oh, ow) = (g.oh, g.ow);
         let mut out = BlockedMap::uninit(self.channels, oh, ow);
         let call = Call {
             k: self,
             x: x.data.as_slice(),
-            h,
-            w,
-            oh,
-            ow,
-            pt,
-            pl,
+            g,
             relu6,
             out: OutPtr(out.data.as_mut_slice().as_mut_ptr()),
         };
@@ -135,9 +124,9 @@ impl Call<'_> {
     /// Output columns whose every tap is inside the image.
     fn interior(&self) -> Range<usize> {
         let (s, k) = (self.k.stride, self.k.k);
-        let lo = self.pl.div_ceil(s).min(self.ow);
-        let hi = match (self.w + self.pl).checked_sub(k) {
-            Some(last) => (last / s + 1).min(self.ow),
+        let lo = self.g.pl.div_ceil(s).min(self.g.ow);
+        let hi = match (self.g.w + self.g.pl).checked_sub(k) {
+            Some(last) => (last / s + 1).min(self.g.ow),
             None => 0,
         };
         lo..hi.max(lo)
@@ -156,11 +145,11 @@ mod avx512 {
     /// AVX-512F; `b` and `oy` inside the output; no other thread writes it.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn row<const K: usize>(c: &Call, b: usize, oy: usize) {
-        let rows = c.taps(oy, c.pt, c.h);
+        let rows = c.taps(oy, c.g.pt, c.g.h);
         let inner = c.interior();
         let mut ox = 0;
         while ox < inner.start {
-            pixels::<K, 1>(c, b, oy, ox, rows.clone(), c.taps(ox, c.pl, c.w));
+            pixels::<K, 1>(c, b, oy, ox, rows.clone(), c.taps(ox, c.g.pl, c.g.w));
             ox += 1;
         }
         while ox + RUN <= inner.end {
@@ -171,8 +160,8 @@ mod avx512 {
             pixels::<K, { RUN / 2 }>(c, b, oy, ox, rows.clone(), 0..K);
             ox += RUN / 2;
         }
-        while ox < c.ow {
-            pixels::<K, 1>(c, b, oy, ox, rows.clone(), c.taps(ox, c.pl, c.w));
+        while ox < c.g.ow {
+            pixels::<K, 1>(c, b, oy, ox, rows.clone(), c.taps(ox, c.g.pl, c.g.w));
             ox += 1;
         }
     }
@@ -191,17 +180,17 @@ mod avx512 {
     ) {
         let s = c.k.stride;
         let w = c.k.w.as_slice().as_ptr().add(b * K * K * LANES);
-        let plane = c.x.as_ptr().add(b * c.h * c.w * LANES);
+        let plane = c.x.as_ptr().add(b * c.g.h * c.g.w * LANES);
         let bias = _mm512_loadu_ps(c.k.bias.as_slice().as_ptr().add(b * LANES));
         let mut acc = [bias; N];
         for ky in rows {
-            let iy = s * oy + ky - c.pt;
-            let line = plane.add(iy * c.w * LANES);
+            let iy = s * oy + ky - c.g.pt;
+            let line = plane.add(iy * c.g.w * LANES);
             let mut sum = [_mm512_setzero_ps(); N];
             for (i, kx) in cols.clone().enumerate() {
                 let wv = _mm512_loadu_ps(w.add((ky * K + kx) * LANES));
                 for (p, sum) in sum.iter_mut().enumerate() {
-                    let ix = s * (ox + p) + kx - c.pl;
+                    let ix = s * (ox + p) + kx - c.g.pl;
                     let prod = _mm512_mul_ps(wv, _mm512_loadu_ps(line.add(ix * LANES)));
                     *sum = if i == 0 {
                         prod
@@ -219,7 +208,7 @@ mod avx512 {
             if c.relu6 {
                 y = _mm512_min_ps(hi, _mm512_max_ps(lo, y));
             }
-            let at = ((b * c.oh + oy) * c.ow + ox + p) * LANES;
+            let at = ((b * c.g.oh + oy) * c.g.ow + ox + p) * LANES;
             _mm512_storeu_ps(c.out.0.add(at), y);
         }
     }

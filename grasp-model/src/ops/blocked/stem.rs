@@ -6,7 +6,7 @@
 //! [`PIXELS`] pixels of a row) sums the same rows in the same order,
 //! reading each tap's input in place, a padded one as zero: the same sums.
 
-use super::{pack, split, Aligned, BlockedMap, OutPtr, LANES};
+use super::{pack, split, Aligned, BlockedMap, Geometry, OutPtr, LANES};
 use crate::ops::depthwise::Padding;
 
 /// Pixels per tile.
@@ -34,12 +34,7 @@ impl std::fmt::Debug for StemWeights {
 struct Call<'a> {
     k: &'a StemWeights,
     x: &'a [f32],
-    h: usize,
-    w: usize,
-    oh: usize,
-    ow: usize,
-    pt: usize,
-    pl: usize,
+    g: Geometry,
     out: OutPtr,
 }
 
@@ -71,18 +66,13 @@ impl StemWeights {
     pub fn run(&self, x: &[f32], h: usize, w: usize) -> Option<BlockedMap> {
         assert!(super::available(), "blocked stem kernel without AVX-512");
         assert_eq!(x.len(), self.cin * h * w, "stem input");
-        let (oh, pt) = self.padding.resolve(h, self.k, self.stride)?;
-        let (ow, pl) = self.padding.resolve(w, self.k, self.stride)?;
+        let g = Geometry::new(h, w, self.k, self.stride, self.padding)?;
+        let (oh, ow) = (g.oh, g.ow);
         let mut out = BlockedMap::uninit(self.cout, oh, ow);
         let call = Call {
             k: self,
             x,
-            h,
-            w,
-            oh,
-            ow,
-            pt,
-            pl,
+            g,
             out: OutPtr(out.data.as_mut_slice().as_mut_ptr()),
         };
         let blocks = self.cout.div_ceil(LANES);
@@ -114,9 +104,9 @@ impl Call<'_> {
     /// Whether every tap of outputs (oy, ox..ox + PIXELS) is inside the image.
     fn inside(&self, oy: usize, ox: usize) -> bool {
         let (s, k) = (self.k.stride, self.k.k);
-        let row = s * oy >= self.pt && s * oy + k <= self.h + self.pt;
+        let row = s * oy >= self.g.pt && s * oy + k <= self.g.h + self.g.pt;
         let last = ox + PIXELS - 1;
-        row && s * ox >= self.pl && s * last + k <= self.w + self.pl
+        row && s * ox >= self.g.pl && s * last + k <= self.g.w + self.g.pl
     }
 
     /// The input at tap (ky, kx) of output (oy, ox) in plane `c`; zero in
@@ -125,11 +115,11 @@ impl Call<'_> {
     fn tap(&self, c: usize, oy: usize, ox: usize, ky: usize, kx: usize) -> f32 {
         let s = self.k.stride;
         let (iy, ix) = (
-            (s * oy + ky).wrapping_sub(self.pt),
-            (s * ox + kx).wrapping_sub(self.pl),
+            (s * oy + ky).wrapping_sub(self.g.pt),
+            (s * ox + kx).wrapping_sub(self.g.pl),
         );
-        if iy < self.h && ix < self.w {
-            self.x[(c * self.h + iy) * self.w + ix]
+        if iy < self.g.h && ix < self.g.w {
+            self.x[(c * self.g.h + iy) * self.g.w + ix]
         } else {
             0.0
         }
@@ -171,8 +161,8 @@ mod avx512 {
                     let x = if CHECKED {
                         c.x.as_ptr()
                     } else {
-                        let (iy, ix) = (s * oy + ky - c.pt, s * ox + kx - c.pl);
-                        c.x.as_ptr().add((ch * c.h + iy) * c.w + ix)
+                        let (iy, ix) = (s * oy + ky - c.g.pt, s * ox + kx - c.g.pl);
+                        c.x.as_ptr().add((ch * c.g.h + iy) * c.g.w + ix)
                     };
                     for p in 0..PIXELS {
                         let v = if CHECKED {
@@ -194,7 +184,7 @@ mod avx512 {
             let bias = _mm512_loadu_ps(c.k.bias.as_slice().as_ptr().add((b + j) * LANES));
             for (p, &a) in acc.iter().take(n).enumerate() {
                 let y = _mm512_min_ps(hi, _mm512_max_ps(lo, _mm512_add_ps(a, bias)));
-                let at = (((b + j) * c.oh + oy) * c.ow + ox + p) * LANES;
+                let at = (((b + j) * c.g.oh + oy) * c.g.ow + ox + p) * LANES;
                 _mm512_storeu_ps(c.out.0.add(at), y);
             }
         }
