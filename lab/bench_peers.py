@@ -6,7 +6,8 @@ pooled outputs of blocks 7, 10, 14 and 15 (--pooled none: the head's alone),
 then a linear layer to the five classes. It is exported once to ONNX
 (PyTorch's exporter) and run at batch 1, fp32, --threads threads, by ONNX
 Runtime (CPU provider, sequential, every graph optimisation) and OpenVINO
-(CPU, latency hint), each for --frames frames after a warm-up, back to back
+(CPU, latency hint, f32 inference precision pinned: its default is bf16
+on CPUs with AVX512_BF16 or AMX; --openvino-precision bf16 times that), each for --frames frames after a warm-up, back to back
 or at a camera's pace (--pace FPS: one frame every 1/FPS s, as on the hand).
 With --ours CHECKPOINT, `hannes-run bench` times that checkpoint in the same
 rounds, alternating with the peers, --rounds times: with --what network
@@ -125,7 +126,13 @@ def onnx_runtime(path: Path, args: argparse.Namespace):
 def openvino(path: Path, args: argparse.Namespace):
     import openvino as ov
 
-    config = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_NUM_THREADS": args.threads}
+    # Pinned: on CPUs with AVX512_BF16 or AMX, OpenVINO's default inference
+    # precision is bf16, which would time a reduced precision against f32.
+    config = {
+        "PERFORMANCE_HINT": "LATENCY",
+        "INFERENCE_NUM_THREADS": args.threads,
+        "INFERENCE_PRECISION_HINT": args.openvino_precision,
+    }
     request = ov.Core().compile_model(str(path), "CPU", config).create_infer_request()
     return lambda x: request.infer([x])
 
@@ -164,6 +171,12 @@ def main() -> None:
         default="network",
         help="network: the network alone on both sides; frame: the whole frame, the peers "
         "given the project's preprocessing (needs --ours)",
+    )
+    p.add_argument(
+        "--openvino-precision",
+        choices=["f32", "bf16"],
+        default="f32",
+        help="OpenVINO's inference precision (its own default is bf16 where the CPU has it)",
     )
     p.add_argument("--frame-size", type=int, default=224, help="hannes-run's synthetic frames")
     p.add_argument("--hannes-run", default="target/release/hannes-run")
