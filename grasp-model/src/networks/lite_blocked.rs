@@ -58,7 +58,24 @@ impl BlockedLite {
         let blocks = blocks.into_iter().map(Block::new).collect::<Vec<_>>();
         let last = blocks.last().map_or(stem_c, |b| b.project.cout());
         let head = PointwiseWeights::new(&head.weight, &head.bias, head.bias.len(), last);
-        BlockedLite { stem, blocks, head }
+        let mut net = BlockedLite { stem, blocks, head };
+        net.gather();
+        net
+    }
+
+    /// All the packed layers in one region, in the order a frame reads them.
+    fn gather(&mut self) {
+        let mut parts = Vec::new();
+        parts.extend(self.stem.packed_mut());
+        for b in &mut self.blocks {
+            if let Some(e) = &mut b.expand {
+                parts.extend(e.packed_mut());
+            }
+            parts.extend(b.depthwise.packed_mut());
+            parts.extend(b.project.packed_mut());
+        }
+        parts.extend(self.head.packed_mut());
+        crate::ops::blocked::gather(parts);
     }
 
     /// The pooled head activations, then the pooled outputs of `pooled`

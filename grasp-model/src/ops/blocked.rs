@@ -20,10 +20,13 @@
 //! the bit up to the sign of zero (grasp-model's parity tests).
 
 use super::depthwise::Padding;
+use region::Region;
 use std::ops::Range;
+use std::sync::Arc;
 
 mod depthwise;
 mod pointwise;
+mod region;
 mod stem;
 #[cfg(test)]
 mod tests;
@@ -40,33 +43,10 @@ pub fn available() -> bool {
     super::cpu::has_avx512()
 }
 
-/// f32 values in whole vectors on 64-byte boundaries: every vector load
-/// and store of the kernels is one cache line (glibc's large allocations
-/// start 16 bytes past a page, where each would straddle two).
-#[derive(Clone, Debug, Default, PartialEq)]
-struct Aligned(Vec<Vector>);
-
+/// One vector of f32: a pixel's channels of one block.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C, align(64))]
 struct Vector([f32; LANES]);
-
-impl Aligned {
-    /// `len` zeros (`len` a multiple of [`LANES`]).
-    fn zeros(len: usize) -> Self {
-        debug_assert!(len.is_multiple_of(LANES));
-        Aligned(vec![Vector::default(); len / LANES])
-    }
-
-    fn as_slice(&self) -> &[f32] {
-        // SAFETY: a Vector is LANES f32 with no padding (repr(C), 64 bytes).
-        unsafe { std::slice::from_raw_parts(self.0.as_ptr().cast(), self.0.len() * LANES) }
-    }
-
-    fn as_mut_slice(&mut self) -> &mut [f32] {
-        // SAFETY: as in `as_slice`.
-        unsafe { std::slice::from_raw_parts_mut(self.0.as_mut_ptr().cast(), self.0.len() * LANES) }
-    }
-}
 
 /// A k x k window's geometry over an h x w input at a stride, padded as a
 /// [`Padding`] says (the stem's and the depthwise layers').
@@ -97,31 +77,80 @@ impl Geometry {
     }
 }
 
+/// A layer's packed weights or bias: a range of vectors in a region that
+/// [`gather`] shares among a network's layers.
+#[derive(Clone, Debug)]
+pub struct Packed {
+    region: Arc<Region>,
+    start: usize,
+    len: usize,
+}
+
+impl Packed {
+    fn own(region: Region) -> Self {
+        let len = region.as_slice().len() / LANES;
+        Packed {
+            region: Arc::new(region),
+            start: 0,
+            len,
+        }
+    }
+
+    fn as_slice(&self) -> &[f32] {
+        &self.region.as_slice()[self.start * LANES..(self.start + self.len) * LANES]
+    }
+}
+
+/// Moves `parts` (a network's packed layers) into one region, on huge
+/// pages where the kernel has them ([`region`]): a frame then walks a few
+/// pages for its weights instead of thousands.
+pub fn gather<'a>(parts: impl IntoIterator<Item = &'a mut Packed>) {
+    let mut parts: Vec<&mut Packed> = parts.into_iter().collect();
+    let total = parts.iter().map(|p| p.len).sum();
+    let mut region = Region::uninit(total);
+    let mut at = 0;
+    for p in &parts {
+        let n = p.len * LANES;
+        region.as_mut_slice()[at..at + n].copy_from_slice(p.as_slice());
+        at += n;
+    }
+    let region = Arc::new(region);
+    let mut start = 0;
+    for p in &mut parts {
+        **p = Packed {
+            region: Arc::clone(&region),
+            start,
+            len: p.len,
+        };
+        start += p.len;
+    }
+}
+
 /// A layer's weights and bias packed for the kernels: `weight` holds one
 /// row of `per` values (input channels, taps) for each of the bias's
 /// outputs; they become `[output block][per][16]`, and the bias whole
 /// blocks, both zero past the outputs.
-fn pack(weight: &[f32], bias: &[f32], per: usize) -> (Aligned, Aligned) {
+fn pack(weight: &[f32], bias: &[f32], per: usize) -> (Packed, Packed) {
     let outputs = bias.len();
     assert_eq!(weight.len(), outputs * per, "{outputs} x {per} weights");
     let blocks = outputs.div_ceil(LANES);
-    let mut w = Aligned::zeros(blocks * per * LANES);
+    let mut w = Region::zeros(blocks * per);
     for (o, row) in weight.chunks_exact(per).enumerate() {
         let block = &mut w.as_mut_slice()[(o / LANES) * per * LANES..];
         for (i, &v) in row.iter().enumerate() {
             block[i * LANES + o % LANES] = v;
         }
     }
-    let mut padded = Aligned::zeros(blocks * LANES);
+    let mut padded = Region::zeros(blocks);
     padded.as_mut_slice()[..outputs].copy_from_slice(bias);
-    (w, padded)
+    (Packed::own(w), Packed::own(padded))
 }
 
 /// One image's (C, H, W) activations in blocks of [`LANES`] channels,
 /// `[block][y][x][lane]`; the lanes past C are zero.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockedMap {
-    data: Aligned,
+    data: Region,
     channels: usize,
     h: usize,
     w: usize,
@@ -133,7 +162,7 @@ impl BlockedMap {
     fn uninit(channels: usize, h: usize, w: usize) -> Self {
         let len = channels.div_ceil(LANES) * h * w * LANES;
         BlockedMap {
-            data: Aligned(spare::take(len / LANES)),
+            data: spare::take(len / LANES),
             channels,
             h,
             w,
@@ -144,7 +173,7 @@ impl BlockedMap {
     pub fn from_nchw(x: &[f32], channels: usize, h: usize, w: usize) -> Self {
         assert_eq!(x.len(), channels * h * w, "from_nchw: {channels}x{h}x{w}");
         let mut map = BlockedMap {
-            data: Aligned::zeros(channels.div_ceil(LANES) * h * w * LANES),
+            data: Region::zeros(channels.div_ceil(LANES) * h * w),
             channels,
             h,
             w,
@@ -210,7 +239,7 @@ impl BlockedMap {
 
 impl Drop for BlockedMap {
     fn drop(&mut self) {
-        spare::give(std::mem::take(&mut self.data.0));
+        spare::give(std::mem::take(&mut self.data));
     }
 }
 
@@ -218,42 +247,37 @@ impl Drop for BlockedMap {
 /// frame's maps are the last frame's sizes, and a fresh allocation of a
 /// megabyte comes from the kernel zeroed, page by page.
 mod spare {
-    use super::Vector;
+    use super::Region;
     use std::cell::RefCell;
 
     /// Buffers kept per thread (a network's largest maps live at once).
     const KEEP: usize = 8;
 
     thread_local! {
-        static SPARE: RefCell<Vec<Vec<Vector>>> = const { RefCell::new(Vec::new()) };
+        static SPARE: RefCell<Vec<Region>> = const { RefCell::new(Vec::new()) };
     }
 
     /// `len` vectors, not initialised: the smallest spare buffer that
     /// holds them, or a new one.
-    pub(super) fn take(len: usize) -> Vec<Vector> {
+    pub(super) fn take(len: usize) -> Region {
         let reused = SPARE.with_borrow_mut(|spare| {
             let best = (0..spare.len())
                 .filter(|&i| spare[i].capacity() >= len)
                 .min_by_key(|&i| spare[i].capacity())?;
             Some(spare.swap_remove(best))
         });
-        let mut v = reused.unwrap_or_else(|| Vec::with_capacity(len));
-        // SAFETY: f32 vectors have no invalid bit patterns, and the kernels write
-        // every element of a map before any read (`BlockedMap::uninit`).
-        #[allow(clippy::uninit_vec)]
-        unsafe {
-            v.set_len(len)
-        };
-        v
+        let mut r = reused.unwrap_or_else(|| Region::uninit(len));
+        r.set_len(len);
+        r
     }
 
-    /// Keeps `v` for a later map, dropping the smallest when full.
-    pub(super) fn give(v: Vec<Vector>) {
-        if v.capacity() == 0 {
+    /// Keeps `r` for a later map, dropping the smallest when full.
+    pub(super) fn give(r: Region) {
+        if r.capacity() == 0 {
             return;
         }
         SPARE.with_borrow_mut(|spare| {
-            spare.push(v);
+            spare.push(r);
             if spare.len() > KEEP {
                 let smallest = (0..spare.len()).min_by_key(|&i| spare[i].capacity());
                 spare.swap_remove(smallest.unwrap_or(0));

@@ -9,7 +9,7 @@
 //! time, sharing each tap's weight vector; the border ones one at a time with their own tap
 //! ranges. Jobs are (channel block, band of output rows).
 
-use super::{pack, split, Aligned, BlockedMap, Geometry, OutPtr, JOBS, LANES};
+use super::{pack, split, BlockedMap, Geometry, OutPtr, Packed, JOBS, LANES};
 use crate::ops::depthwise::Padding;
 use std::ops::Range;
 
@@ -19,8 +19,8 @@ const RUN: usize = 8;
 /// A depthwise convolution's weights (batch norm folded), packed.
 pub struct DepthwiseWeights {
     /// `[channel block][k * k][16]`, zero past `channels`.
-    w: Aligned,
-    bias: Aligned,
+    w: Packed,
+    bias: Packed,
     channels: usize,
     k: usize,
     stride: usize,
@@ -44,6 +44,11 @@ struct Call<'a> {
 }
 
 impl DepthwiseWeights {
+    /// The packed weights and bias, for [`super::gather`].
+    pub fn packed_mut(&mut self) -> [&mut Packed; 2] {
+        [&mut self.w, &mut self.bias]
+    }
+
     /// Packs `weight` (`channels` x `k` x `k`) and `bias` (`channels`); `k`
     /// 3 or 5, `stride` 1 or 2.
     pub fn new(

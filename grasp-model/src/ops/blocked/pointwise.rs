@@ -10,7 +10,7 @@
 //! order from zero, then the bias and the residual are added, as the NCHW
 //! kernels sum it.
 
-use super::{pack, split, Aligned, BlockedMap, OutPtr, LANES};
+use super::{pack, split, BlockedMap, OutPtr, Packed, LANES};
 
 /// Output blocks per tile of a wide map.
 const PAIR: usize = 2;
@@ -22,9 +22,9 @@ const NARROW: usize = 16;
 /// A 1x1 convolution's weights (batch norm folded), packed.
 pub struct PointwiseWeights {
     /// `[cout blocks][cin][16]`, zero past `cout`.
-    w: Aligned,
+    w: Packed,
     /// `cout` rounded up to whole blocks, zero past `cout`.
-    bias: Aligned,
+    bias: Packed,
     cin: usize,
     cout: usize,
 }
@@ -46,6 +46,11 @@ struct Call<'a> {
 }
 
 impl PointwiseWeights {
+    /// The packed weights and bias, for [`super::gather`].
+    pub fn packed_mut(&mut self) -> [&mut Packed; 2] {
+        [&mut self.w, &mut self.bias]
+    }
+
     /// Packs row-major `weight` (`cout` x `cin`) and `bias` (`cout`).
     pub fn new(weight: &[f32], bias: &[f32], cout: usize, cin: usize) -> Self {
         assert_eq!(bias.len(), cout, "pointwise bias of {cout}");

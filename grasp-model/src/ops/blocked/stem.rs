@@ -6,7 +6,7 @@
 //! [`PIXELS`] pixels of a row) sums the same rows in the same order,
 //! reading each tap's input in place, a padded one as zero: the same sums.
 
-use super::{pack, split, Aligned, BlockedMap, Geometry, OutPtr, LANES};
+use super::{pack, split, BlockedMap, Geometry, OutPtr, Packed, LANES};
 use crate::ops::depthwise::Padding;
 
 /// Pixels per tile.
@@ -15,8 +15,8 @@ const PIXELS: usize = 12;
 /// A dense convolution's weights (batch norm folded), packed.
 pub struct StemWeights {
     /// `[cout block][cin * k * k][16]`, zero past `cout`.
-    w: Aligned,
-    bias: Aligned,
+    w: Packed,
+    bias: Packed,
     cin: usize,
     cout: usize,
     k: usize,
@@ -39,6 +39,11 @@ struct Call<'a> {
 }
 
 impl StemWeights {
+    /// The packed weights and bias, for [`super::gather`].
+    pub fn packed_mut(&mut self) -> [&mut Packed; 2] {
+        [&mut self.w, &mut self.bias]
+    }
+
     /// Packs `weight` (`cout` x `cin` x `k` x `k`, row-major) and `bias`.
     pub fn new(
         weight: &[f32],

@@ -228,3 +228,25 @@ fn stem_matches_im2col_and_the_1x1_kernels() {
         assert_close(&got.to_nchw(), &flat(&gemm), 1e-5, &what);
     }
 }
+
+#[test]
+fn gathered_layers_keep_their_values_in_one_region() {
+    let (w1, b1) = (values(40 * 24, 1), values(40, 2));
+    let (w2, b2) = (values(24 * 40 * 9, 3), values(24, 4));
+    let mut a = PointwiseWeights::new(&w1, &b1, 40, 24);
+    let mut s = StemWeights::new(&w2, &b2, (24, 40, 3), 1, Padding::Same);
+    let before: Vec<Vec<f32>> = a
+        .packed_mut()
+        .into_iter()
+        .chain(s.packed_mut())
+        .map(|p| p.as_slice().to_vec())
+        .collect();
+    gather(a.packed_mut().into_iter().chain(s.packed_mut()));
+    let parts: Vec<&mut Packed> = a.packed_mut().into_iter().chain(s.packed_mut()).collect();
+    for (p, v) in parts.iter().zip(&before) {
+        assert_eq!(p.as_slice(), v.as_slice());
+        assert!(Arc::ptr_eq(&p.region, &parts[0].region), "one region");
+    }
+    let total: usize = before.iter().map(Vec::len).sum();
+    assert_eq!(parts[0].region.as_slice().len(), total);
+}
