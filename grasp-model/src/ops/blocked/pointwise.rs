@@ -118,11 +118,11 @@ impl Call<'_> {
                 // p0..p0 + width are inside the map and this job's alone.
                 unsafe {
                     match width {
-                        16 => avx512::tile::<1, 16>(self, b, 1, p0),
-                        8 => avx512::tile::<1, 8>(self, b, 1, p0),
-                        4 => avx512::tile::<1, 4>(self, b, 1, p0),
-                        2 => avx512::tile::<1, 2>(self, b, 1, p0),
-                        _ => avx512::tile::<1, 1>(self, b, 1, p0),
+                        16 => avx512::tile::<1, 16, true>(self, b, 1, p0),
+                        8 => avx512::tile::<1, 8, true>(self, b, 1, p0),
+                        4 => avx512::tile::<1, 4, true>(self, b, 1, p0),
+                        2 => avx512::tile::<1, 2, true>(self, b, 1, p0),
+                        _ => avx512::tile::<1, 1, true>(self, b, 1, p0),
                     }
                 }
                 p0 += width;
@@ -140,8 +140,8 @@ impl Call<'_> {
         // SAFETY: as in `narrow_block`, for blocks b..b + nb, pixels p0..p0 + np.
         unsafe {
             match (nb, np) {
-                (2, 12) => avx512::tile::<2, 12>(self, b, nb, p0),
-                (1, 12) => avx512::tile::<1, 12>(self, b, nb, p0),
+                (2, 12) => avx512::tile::<2, 12, false>(self, b, nb, p0),
+                (1, 12) => avx512::tile::<1, 12, false>(self, b, nb, p0),
                 _ => self.ragged(b, nb, p0, np),
             }
         }
@@ -154,10 +154,10 @@ impl Call<'_> {
             while end - p0 >= width {
                 for b in b..b + nb {
                     match width {
-                        8 => avx512::tile::<1, 8>(self, b, 1, p0),
-                        4 => avx512::tile::<1, 4>(self, b, 1, p0),
-                        2 => avx512::tile::<1, 2>(self, b, 1, p0),
-                        _ => avx512::tile::<1, 1>(self, b, 1, p0),
+                        8 => avx512::tile::<1, 8, false>(self, b, 1, p0),
+                        4 => avx512::tile::<1, 4, false>(self, b, 1, p0),
+                        2 => avx512::tile::<1, 2, false>(self, b, 1, p0),
+                        _ => avx512::tile::<1, 1, false>(self, b, 1, p0),
                     }
                 }
                 p0 += width;
@@ -171,7 +171,15 @@ mod avx512 {
     use super::{Call, LANES};
     use std::arch::x86_64::*;
 
+    /// Input channels (weight vectors) a streaming tile prefetches ahead
+    /// into L2: 12 KiB, past the hardware prefetcher's reach (measured
+    /// against 24: BENCHMARKS.md).
+    const AHEAD: usize = 192;
+
     /// Output blocks `b..b + NB` at pixels `p0..p0 + NP`; `nb` must be NB.
+    /// A `STREAM` tile reads its weights once per image (a narrow layer's)
+    /// and prefetches them [`AHEAD`]: at the camera's pace they come from
+    /// memory, where the cold stream is latency-bound.
     ///
     /// # Safety
     /// AVX-512F; the blocks and pixels inside the layer; no other thread
@@ -179,7 +187,7 @@ mod avx512 {
     // `acc[j][p]`: indexed by output block and pixel together
     #[allow(clippy::needless_range_loop)]
     #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn tile<const NB: usize, const NP: usize>(
+    pub(super) unsafe fn tile<const NB: usize, const NP: usize, const STREAM: bool>(
         c: &Call,
         b: usize,
         nb: usize,
@@ -194,6 +202,13 @@ mod avx512 {
             let xb = x.add((cb * hw + p0) * LANES);
             for l in 0..LANES.min(cin - cb * LANES) {
                 let ch = cb * LANES + l;
+                if STREAM {
+                    // past the block's end this is the next block's, past
+                    // the layer's the next layer's (gathered in order); a
+                    // prefetch past the region is dropped, never faults
+                    let ahead = w.wrapping_add((ch + AHEAD) * LANES);
+                    _mm_prefetch::<_MM_HINT_T1>(ahead.cast());
+                }
                 let wv: [__m512; NB] =
                     std::array::from_fn(|j| _mm512_loadu_ps(w.add((j * cin + ch) * LANES)));
                 for p in 0..NP {

@@ -6,7 +6,7 @@
 //!
 //! Why huge pages: at the camera's pace the network sleeps ~30 ms between
 //! frames, and the host evicts its translations and cache lines meanwhile;
-//! each 4 KiB page of the ~18 MB of weights and the megabyte maps then
+//! each 4 KiB page of the 14 MB of weights and the megabyte maps then
 //! costs a page walk from memory, and the first read of a megabyte took
 //! 10x as long as back to back (BENCHMARKS.md, issue 59). On 2 MiB pages
 //! that is a few walks per frame.
