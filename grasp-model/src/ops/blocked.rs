@@ -28,6 +28,7 @@ mod depthwise;
 mod pointwise;
 mod region;
 mod stem;
+mod team;
 #[cfg(test)]
 mod tests;
 
@@ -294,15 +295,12 @@ unsafe impl Send for OutPtr {}
 unsafe impl Sync for OutPtr {}
 
 /// Runs `f` on `0..items` split into [`JOBS`] nearly equal ranges (fewer
-/// when there are fewer items), on candle's rayon pool. Measured against
-/// one range per thread in the same order every layer (so that a thread
-/// reads what it wrote): rayon's stealing of the smaller jobs was faster.
+/// when there are fewer items), on the kernels' [`team::Team`]. Measured
+/// against one range per thread in the same order every layer (so that a
+/// thread reads what it wrote): dynamic claims of smaller jobs were faster.
 fn split(items: usize, f: &(impl Fn(Range<usize>) + Sync)) {
-    use rayon::prelude::*;
     let jobs = JOBS.min(items.max(1));
-    (0..jobs)
-        .into_par_iter()
-        .for_each(|j| f(j * items / jobs..(j + 1) * items / jobs));
+    team::Team::global().run(jobs, &|j| f(j * items / jobs..(j + 1) * items / jobs));
 }
 
 /// Jobs per layer: enough that a thread the host slows for a moment holds
