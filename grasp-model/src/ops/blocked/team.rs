@@ -22,6 +22,12 @@ use std::time::{Duration, Instant};
 /// period.
 const SPIN: Duration = Duration::from_micros(200);
 
+/// Polls between yields of a spinning helper (~50 us): every 64 cost the
+/// network 5-10 % back to back, never yielding tripled its p99 (three
+/// runnable threads on two vCPUs), 1024 and 4096 were level with rayon
+/// back to back (BENCHMARKS.md).
+const SPINS_PER_YIELD: usize = 1024;
+
 /// `(generation, jobs, next)` packed in one word, so that a claim names
 /// the call it belongs to.
 const NEXT_BITS: u32 = 24;
@@ -201,7 +207,7 @@ fn wait_for_call(s: &Shared, seen: u64) -> u64 {
     let current = || unpack(s.claims.0.load(Ordering::SeqCst)).0;
     let start = Instant::now();
     loop {
-        for _ in 0..64 {
+        for _ in 0..SPINS_PER_YIELD {
             let g = current();
             if g != seen {
                 return g;
