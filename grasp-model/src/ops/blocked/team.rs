@@ -8,7 +8,7 @@
 //! at 30 frames/s faster than two). The team's helpers wait for the next
 //! layer spinning for [`SPIN`] (yielding to any other runnable thread),
 //! so an image wakes them once: the network at 30 frames/s took about 40 %
-//! less at p50 and 35 % less at p99, back to back the same within noise
+//! less at p50 and 35 % less at p99, back to back level with rayon
 //! (BENCHMARKS.md). Jobs are claimed in shrinking chunks from one counter
 //! (guided scheduling: few claims, balanced ends); the caller runs
 //! whatever is unclaimed.
@@ -23,9 +23,9 @@ use std::time::{Duration, Instant};
 const SPIN: Duration = Duration::from_micros(200);
 
 /// Polls between yields of a spinning helper (~50 us): every 64 cost the
-/// network 5-10 % back to back, never yielding tripled its p99 (three
-/// runnable threads on two vCPUs), 1024 and 4096 were level with rayon
-/// back to back (BENCHMARKS.md).
+/// network 5-10 % back to back, never yielding raised its p99 by a third
+/// or more, 1024 and 4096 were level with rayon back to back
+/// (BENCHMARKS.md).
 const SPINS_PER_YIELD: usize = 1024;
 
 /// `(generation, jobs, next)` packed in one word, so that a claim names
