@@ -13,6 +13,7 @@
 //! (guided scheduling: few claims, balanced ends); the caller runs
 //! whatever is unclaimed.
 
+use crossbeam_utils::CachePadded;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex, OnceLock};
 use std::time::{Duration, Instant};
@@ -46,12 +47,6 @@ fn pack(generation: u64, jobs: usize, next: usize) -> u64 {
     (generation << (NEXT_BITS + JOBS_BITS)) | ((jobs as u64) << NEXT_BITS) | next as u64
 }
 
-/// A value alone on its cache lines: the claims word that every thread
-/// polls must not share one with the counters the caller polls.
-#[repr(align(128))]
-#[derive(Default)]
-struct Padded<T>(T);
-
 /// A call's job, its lifetime erased: valid while its caller waits.
 #[derive(Clone, Copy)]
 struct Task(*const (dyn Fn(usize) + Sync));
@@ -61,9 +56,11 @@ unsafe impl Send for Task {}
 
 #[derive(Default)]
 struct Shared {
-    claims: Padded<AtomicU64>,
+    /// Alone on its cache line: every thread polls it, and it must not
+    /// share one with the counter the caller polls.
+    claims: CachePadded<AtomicU64>,
     /// Jobs of the current call finished.
-    done: Padded<AtomicUsize>,
+    done: CachePadded<AtomicUsize>,
     task: Mutex<Option<Task>>,
     panicked: AtomicBool,
     sleepers: AtomicUsize,
@@ -91,7 +88,7 @@ impl Team {
         for i in 0..helpers {
             std::thread::Builder::new()
                 .name(format!("blocked-helper-{i}"))
-                .spawn(move || helper(shared))
+                .spawn(move || helper(shared, helpers + 1))
                 .expect("cannot start a kernel helper thread");
         }
         Team {
@@ -117,13 +114,11 @@ impl Team {
         let task: *const (dyn Fn(usize) + Sync) = f;
         let task: *const (dyn Fn(usize) + Sync + 'static) = unsafe { std::mem::transmute(task) };
         *lock(&s.task) = Some(Task(task));
-        s.done.0.store(0, Ordering::Relaxed);
-        let generation = (unpack(s.claims.0.load(Ordering::Relaxed)).0 + 1) & GENERATION_MASK;
+        s.done.store(0, Ordering::Relaxed);
+        let generation = (unpack(s.claims.load(Ordering::Relaxed)).0 + 1) & GENERATION_MASK;
         // SeqCst with the sleepers check: a helper going to sleep either
         // sees this call or is counted and woken
-        s.claims
-            .0
-            .store(pack(generation, jobs, 0), Ordering::SeqCst);
+        s.claims.store(pack(generation, jobs, 0), Ordering::SeqCst);
         if s.sleepers.load(Ordering::SeqCst) > 0 {
             let _asleep = lock(&s.asleep);
             s.wake.notify_all();
@@ -131,7 +126,7 @@ impl Team {
         // a panicking job is caught and counted done like any, so that no
         // helper still runs a job of this call when it unwinds
         claim(s, generation, self.threads, &|j| guarded(s, f, j));
-        while s.done.0.load(Ordering::Acquire) < jobs {
+        while s.done.load(Ordering::Acquire) < jobs {
             std::hint::spin_loop();
         }
         *lock(&s.task) = None;
@@ -155,9 +150,8 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// A helper thread: runs chunks of each call, spins [`SPIN`] for the next
 /// one, then sleeps until a call wakes it.
-fn helper(s: &Shared) {
-    let threads = rayon::current_num_threads().max(2);
-    let mut seen = unpack(s.claims.0.load(Ordering::Acquire)).0;
+fn helper(s: &Shared, threads: usize) {
+    let mut seen = unpack(s.claims.load(Ordering::Acquire)).0;
     loop {
         seen = wait_for_call(s, seen);
         // the task of the call whose claims this helper reads: a claim is
@@ -177,7 +171,7 @@ fn helper(s: &Shared) {
 /// later call began), running each; a chunk is the unclaimed jobs over
 /// twice the threads.
 fn claim(s: &Shared, generation: u64, threads: usize, f: &dyn Fn(usize)) {
-    let mut word = s.claims.0.load(Ordering::Acquire);
+    let mut word = s.claims.load(Ordering::Acquire);
     loop {
         let (g, jobs, next) = unpack(word);
         if g != generation || next >= jobs {
@@ -187,14 +181,13 @@ fn claim(s: &Shared, generation: u64, threads: usize, f: &dyn Fn(usize)) {
         let claimed = pack(g, jobs, next + chunk);
         match s
             .claims
-            .0
             .compare_exchange_weak(word, claimed, Ordering::Acquire, Ordering::Acquire)
         {
             Ok(_) => {
                 for j in next..next + chunk {
                     f(j);
                 }
-                s.done.0.fetch_add(chunk, Ordering::Release);
+                s.done.fetch_add(chunk, Ordering::Release);
                 word = claimed;
             }
             Err(now) => word = now,
@@ -204,7 +197,7 @@ fn claim(s: &Shared, generation: u64, threads: usize, f: &dyn Fn(usize)) {
 
 /// The generation of the first call after `seen`: spinning, then asleep.
 fn wait_for_call(s: &Shared, seen: u64) -> u64 {
-    let current = || unpack(s.claims.0.load(Ordering::SeqCst)).0;
+    let current = || unpack(s.claims.load(Ordering::SeqCst)).0;
     let start = Instant::now();
     loop {
         for _ in 0..SPINS_PER_YIELD {
