@@ -85,16 +85,23 @@ impl Team {
 
     fn new(helpers: usize) -> Team {
         let shared: &'static Shared = Box::leak(Box::default());
-        for i in 0..helpers {
-            std::thread::Builder::new()
-                .name(format!("blocked-helper-{i}"))
-                .spawn(move || helper(shared, helpers + 1))
-                .expect("cannot start a kernel helper thread");
-        }
+        // a helper the OS refuses only leaves its chunks to the others
+        // (the helpers size theirs for the threads asked for)
+        let started = (0..helpers)
+            .take_while(|i| {
+                let spawned = std::thread::Builder::new()
+                    .name(format!("blocked-helper-{i}"))
+                    .spawn(move || helper(shared, helpers + 1));
+                if let Err(e) = &spawned {
+                    tracing::warn!("kernel helper thread {i} not started ({e}): fewer threads");
+                }
+                spawned.is_ok()
+            })
+            .count();
         Team {
             shared,
             caller: Mutex::new(()),
-            threads: helpers + 1,
+            threads: started + 1,
         }
     }
 
